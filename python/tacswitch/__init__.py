@@ -1,0 +1,35 @@
+"""tacswitch: mode-switchable optical tactile sensing (GelSight, GelSight Mini, DIGIT-style sensors).
+
+One sensor, both modes, in software:
+
+- marker -> markerless: remove painted markers from an image (:func:`remove_markers`);
+- markerless -> marker: predict marker motion from a markerless image (:func:`predict_motion`);
+- the fast paths around both: :func:`extract_markers`, :func:`match_markers`,
+  :class:`MarkerTracker`, :class:`SlipDetector`.
+
+Conventions: images are numpy ``H x W x 3`` uint8 in **BGR** order (OpenCV's), grey ``H x W``
+accepted; points are ``N x 2`` float32 ``(x, y)`` in pixels with pixel centres at integer
+coordinates; motions are ``N x 2`` ``(dx, dy)`` aligned with the reference points, NaN where a
+marker is lost, with a separate boolean ``valid`` array.
+
+``import tacswitch`` is light: it loads the native extension and numpy only. OpenCV, onnxruntime and
+torch are imported by the functions that need them.
+"""
+
+from __future__ import annotations
+
+from tacswitch._native import __version__
+from tacswitch.markers import Markers, extract_markers
+from tacswitch.slip import SlipDetector, SlipState
+from tacswitch.tracking import MarkerTracker, estimate_pitch, match_markers
+
+__all__ = [
+    "MarkerTracker",
+    "Markers",
+    "SlipDetector",
+    "SlipState",
+    "__version__",
+    "estimate_pitch",
+    "extract_markers",
+    "match_markers",
+]

@@ -1,0 +1,88 @@
+"""Argument validation shared by the public functions: every error names the argument."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+VALID_CHANNELS = (1, 3, 4)
+
+
+def as_image_u8(img: Any, name: str = "img") -> NDArray[np.uint8]:
+    """Returns ``img`` as a C-contiguous uint8 ``H x W`` or ``H x W x C`` array (C in 1, 3, 4).
+
+    Copies only when the layout is not C-contiguous. Raises ``TypeError`` for a non-array or a
+    dtype other than uint8, ``ValueError`` for a bad shape.
+    """
+    if not isinstance(img, np.ndarray):
+        raise TypeError(f"{name}: expected a numpy array, got {type(img).__name__}")
+    if img.dtype != np.uint8:
+        raise TypeError(
+            f"{name}: expected dtype uint8, got {img.dtype}; convert explicitly, e.g. "
+            f"np.clip(x, 0, 255).astype(np.uint8) for 0..255 floats"
+        )
+    if img.ndim == 3 and img.shape[2] == 1:
+        img = img[:, :, 0]
+    if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] not in VALID_CHANNELS):
+        raise ValueError(
+            f"{name}: expected a grey H x W or BGR H x W x 3 (or BGRA x 4) image; "
+            f"got shape {img.shape}"
+        )
+    if img.shape[0] < 1 or img.shape[1] < 1:
+        raise ValueError(f"{name}: image must be at least 1 x 1 pixels; got shape {img.shape}")
+    return np.ascontiguousarray(img)
+
+
+def as_points(pts: Any, name: str) -> NDArray[np.float32]:
+    """Returns ``pts`` as a C-contiguous ``N x 2`` float32 array of finite ``(x, y)``."""
+    if isinstance(pts, np.ndarray) and pts.dtype == np.bool_:
+        raise TypeError(f"{name}: expected numeric (x, y) points, got a boolean array")
+    try:
+        arr = np.asarray(pts, dtype=np.float32)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name}: expected an N x 2 array of (x, y) points ({exc})") from None
+    if arr.size == 0:
+        return np.zeros((0, 2), dtype=np.float32)
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise ValueError(f"{name}: expected an N x 2 array of (x, y) points; got shape {arr.shape}")
+    if not np.isfinite(arr).all():
+        bad = int(np.flatnonzero(~np.isfinite(arr).all(axis=1))[0])
+        raise ValueError(f"{name}: point {bad} is not finite ({arr[bad, 0]}, {arr[bad, 1]})")
+    return np.ascontiguousarray(arr)
+
+
+def as_valid(valid: Any, n: int, name: str = "valid") -> NDArray[np.bool_]:
+    """Returns ``valid`` as a length-``n`` bool array."""
+    arr = np.asarray(valid)
+    if arr.dtype != np.bool_:
+        raise TypeError(f"{name}: expected a boolean array, got dtype {arr.dtype}")
+    if arr.shape != (n,):
+        raise ValueError(f"{name}: expected shape ({n},) to match the motion rows; got {arr.shape}")
+    return np.ascontiguousarray(arr)
+
+
+def as_motion(motion: Any, name: str = "motion") -> NDArray[np.float32]:
+    """Returns ``motion`` as ``N x 2`` float32; NaN rows are allowed (lost markers), Inf is not."""
+    try:
+        arr = np.asarray(motion, dtype=np.float32)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name}: expected an N x 2 array of (dx, dy) ({exc})") from None
+    if arr.size == 0:
+        return np.zeros((0, 2), dtype=np.float32)
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise ValueError(f"{name}: expected an N x 2 array of (dx, dy); got shape {arr.shape}")
+    if np.isinf(arr).any():
+        raise ValueError(f"{name}: contains infinite values")
+    return np.ascontiguousarray(arr)
+
+
+def positive_or_none(value: float | None, name: str) -> float | None:
+    """Checks an optional positive finite number."""
+    if value is None:
+        return None
+    v = float(value)
+    if not np.isfinite(v) or v <= 0:
+        raise ValueError(f"{name}: must be a positive, finite number; got {value!r}")
+    return v

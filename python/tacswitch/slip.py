@@ -1,0 +1,181 @@
+"""Slip detection from marker motion (Rust core): the paper's rule plus a rigid-motion criterion."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tacswitch import _native
+from tacswitch._checks import as_motion, as_points, as_valid, positive_or_none
+from tacswitch.tracking import MarkerTracker
+
+#: The paper's threshold (pixels) on 640-pixel-wide frames.
+PAPER_THRESHOLD_PX = 3.25
+PAPER_IMAGE_WIDTH = 640
+
+
+def scaled_threshold(image_width: int) -> float:
+    """The paper's 3.25 px threshold scaled to an image width in pixels (1.625 px at 320)."""
+    return PAPER_THRESHOLD_PX * image_width / PAPER_IMAGE_WIDTH
+
+
+@dataclass(frozen=True)
+class SlipState:
+    """What one :meth:`SlipDetector.update` concluded.
+
+    Attributes:
+        slip: slip in this frame by any enabled criterion.
+        by_displacement: the paper's rule fired (largest displacement since the first frame of the
+            grasp above ``threshold_px``).
+        by_rigid: the rigid criterion fired (contact markers deviate from one rigid motion).
+        max_displacement: largest displacement since the first frame, pixels.
+        marker: index (into the reference markers) of that marker, -1 if none.
+        rigid_residual: largest deviation from the best-fit rigid motion, pixels; NaN if not
+            evaluated (criterion off, or fewer than 3 markers in the contact set).
+        rigid_marker: index of that marker, -1 if none.
+        n_compared: markers valid both now and in the first frame.
+        frame: frame index within the grasp (0 = first).
+    """
+
+    slip: bool
+    by_displacement: bool
+    by_rigid: bool
+    max_displacement: float
+    marker: int
+    rigid_residual: float
+    rigid_marker: int
+    n_compared: int
+    frame: int
+
+    @property
+    def criterion(self) -> str | None:
+        """``"displacement"``, ``"rigid"``, ``"both"`` or None: which criterion fired."""
+        if self.by_displacement and self.by_rigid:
+            return "both"
+        if self.by_displacement:
+            return "displacement"
+        if self.by_rigid:
+            return "rigid"
+        return None
+
+
+class SlipDetector:
+    """Streaming slip detector for one grasp at a time.
+
+    Feed it, frame by frame, either images (markers are tracked internally, the first image is the
+    no-contact reference) or motion fields from a tracker or from :func:`predict_motion` (so the
+    same rule runs on a markerless sensor). The first frame after construction or :meth:`reset` is
+    the start of the grasp; displacements are measured from it.
+
+    Args:
+        threshold_px: displacement threshold, pixels. Default: the paper's 3.25 px at 640-pixel
+            width, scaled to ``image_width`` (or to the width of the first image fed).
+        rigid_threshold_px: enables the rigid criterion with this threshold (pixels).
+        active_fraction: markers with at least this fraction of the largest displacement form the
+            contact set fitted by the rigid criterion.
+        points: reference marker centres ``N x 2`` (needed for the rigid criterion on motion input;
+            taken from the tracker on image input).
+        image_width: width in pixels used to scale the default threshold for motion input.
+        use_displacement: set False to run the rigid criterion alone.
+        **tracker_opts: options of :class:`MarkerTracker` for image input.
+    """
+
+    def __init__(
+        self,
+        threshold_px: float | None = None,
+        *,
+        rigid_threshold_px: float | None = None,
+        active_fraction: float = 0.5,
+        points: Any = None,
+        image_width: int | None = None,
+        use_displacement: bool = True,
+        **tracker_opts: Any,
+    ):
+        self._threshold = positive_or_none(threshold_px, "threshold_px")
+        self._rigid = positive_or_none(rigid_threshold_px, "rigid_threshold_px")
+        if not (0.0 < float(active_fraction) <= 1.0):
+            raise ValueError(f"active_fraction: must be in (0, 1]; got {active_fraction!r}")
+        self._active_fraction = float(active_fraction)
+        self._points = None if points is None else as_points(points, "points")
+        if image_width is not None and int(image_width) < 1:
+            raise ValueError(f"image_width: must be a positive integer; got {image_width!r}")
+        self._image_width = image_width
+        self._use_displacement = bool(use_displacement)
+        if not self._use_displacement and self._rigid is None:
+            raise ValueError("use_displacement: False needs rigid_threshold_px, or nothing is "
+                             "checked")
+        self._tracker_opts = tracker_opts
+        self.tracker: MarkerTracker | None = None
+        self._native: Any = None
+
+    @property
+    def threshold_px(self) -> float | None:
+        """Displacement threshold in force (pixels), once known."""
+        if not self._use_displacement:
+            return None
+        if self._threshold is not None:
+            return self._threshold
+        if self._image_width is not None:
+            return scaled_threshold(self._image_width)
+        return None
+
+    @property
+    def first_slip(self) -> int | None:
+        """Frame index of the first slip in this grasp, or None."""
+        return None if self._native is None else self._native.first_slip
+
+    def reset(self) -> None:
+        """Starts a new grasp: the next frame becomes the baseline. A tracker keeps its reference."""
+        if self._native is not None:
+            self._native.reset()
+
+    def _ensure_native(self, points: Any) -> None:
+        if self._native is not None:
+            return
+        threshold = self.threshold_px
+        if self._use_displacement and threshold is None:
+            threshold = PAPER_THRESHOLD_PX
+            self._threshold = threshold
+        self._native = _native.SlipDetector(
+            threshold, self._rigid, self._active_fraction,
+            points if self._rigid is not None else None,
+        )
+
+    def update(self, motion_or_img: Any, valid: Any = None) -> SlipState:
+        """Feeds one frame and returns its :class:`SlipState`.
+
+        Args:
+            motion_or_img: a uint8 image (BGR or grey), or an ``N x 2`` motion field ``(dx, dy)``
+                aligned with fixed reference markers (NaN rows = lost).
+            valid: ``N`` bool flags for a motion field; default: rows without NaN.
+        """
+        if isinstance(motion_or_img, np.ndarray) and motion_or_img.dtype == np.uint8:
+            if self.tracker is None:
+                self.tracker = MarkerTracker(motion_or_img, **self._tracker_opts)
+                if self._image_width is None:
+                    self._image_width = int(motion_or_img.shape[1])
+            motion, valid_arr = self.tracker.update(motion_or_img)
+            points = self.tracker.reference
+        else:
+            motion = as_motion(motion_or_img, "motion_or_img")
+            if valid is None:
+                valid_arr = ~np.isnan(motion).any(axis=1)
+            else:
+                valid_arr = as_valid(valid, motion.shape[0])
+            points = self._points
+            if self._rigid is not None and points is None:
+                raise ValueError("points: the rigid criterion on motion input needs the reference "
+                                 "marker centres (SlipDetector(points=...))")
+        self._ensure_native(points)
+        st = self._native.update(motion, valid_arr)
+        return SlipState(**st)
+
+
+def max_displacement(motion: NDArray[np.float32], valid: NDArray[np.bool_]) -> float:
+    """Largest displacement magnitude among valid markers (pixels), 0 when none is valid."""
+    if not valid.any():
+        return 0.0
+    return float(np.hypot(motion[valid, 0], motion[valid, 1]).max())

@@ -1,0 +1,150 @@
+"""Marker matching and tracking (Rust core)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tacswitch import _native
+from tacswitch._checks import as_image_u8, as_points, positive_or_none
+from tacswitch.markers import extract_markers
+
+Motion = NDArray[np.float32]
+Valid = NDArray[np.bool_]
+
+
+def estimate_pitch(points: Any) -> float | None:
+    """Marker pitch of a point set: the median nearest-neighbour distance, pixels.
+
+    Duplicated points are ignored. Returns None with fewer than two distinct points.
+    """
+    return _native.estimate_pitch(as_points(points, "points"))
+
+
+def match_markers(
+    ref_pts: Any,
+    cur_pts: Any,
+    max_dist: float | None = None,
+    *,
+    return_index: bool = False,
+) -> tuple[Motion, Valid] | tuple[Motion, Valid, NDArray[np.int64]]:
+    """Matches current marker centres to reference centres by mutual nearest neighbour.
+
+    Reference ``i`` and current ``j`` match when each is the other's nearest neighbour and they lie
+    at most ``max_dist`` apart. A reference marker whose nearest detection belongs to another marker
+    stays unmatched (NaN, ``valid=False``): a lost marker never borrows a neighbour's detection.
+    Equivalent to ``scipy.spatial.cKDTree`` queries both ways with a mutual check and a gate.
+    For displacements beyond half the pitch use :class:`MarkerTracker`.
+
+    Args:
+        ref_pts: ``N x 2`` reference centres ``(x, y)``, pixels.
+        cur_pts: ``M x 2`` current centres ``(x, y)``, pixels.
+        max_dist: gate in pixels; default half the pitch estimated from ``ref_pts`` (no gate when
+            the pitch cannot be estimated, i.e. fewer than two distinct reference points).
+        return_index: also return, per reference marker, the index of its match in ``cur_pts``
+            (``-1`` when unmatched).
+
+    Returns:
+        ``(motion, valid)``: ``N x 2`` float32 ``(dx, dy)`` = current - reference (NaN where
+        unmatched) and ``N`` bool; plus ``index`` when ``return_index``.
+
+    Raises:
+        ValueError: bad shapes, NaN/Inf coordinates or a non-positive ``max_dist``.
+    """
+    ref = as_points(ref_pts, "ref_pts")
+    cur = as_points(cur_pts, "cur_pts")
+    gate = positive_or_none(max_dist, "max_dist")
+    motion, valid, index, _ = _native.match_markers(ref, cur, gate)
+    if return_index:
+        return motion, valid, index
+    return motion, valid
+
+
+def _is_image(x: Any) -> bool:
+    return isinstance(x, np.ndarray) and x.dtype == np.uint8
+
+
+class MarkerTracker:
+    """Follows markers frame to frame against a fixed reference.
+
+    Each frame's detections are matched to where every marker is predicted to be: its last tracked
+    position, or, for a marker lost earlier, its reference position moved by the median motion of
+    its tracked neighbours (so lost markers are re-acquired). The per-frame gate is half the marker
+    pitch, so displacements of a whole pitch or more (real presses reach 30-42 px) are followed as
+    long as one frame moves less than half a pitch.
+
+    Args:
+        ref_img_or_pts: the no-contact reference: a uint8 image (markers are extracted from it) or
+            ``N x 2`` float ``(x, y)`` centres.
+        max_dist: per-frame gate, pixels; default half the reference pitch.
+        **extract_opts: options of :func:`extract_markers` used on every image (``polarity``,
+            ``block_size``, ``threshold``, ``min_area``, ``max_area``, ``min_fill``, ``max_aspect``).
+
+    Example:
+        >>> tracker = MarkerTracker(ref_frame)              # doctest: +SKIP
+        >>> motion, valid = tracker.update(frame)           # doctest: +SKIP
+    """
+
+    def __init__(self, ref_img_or_pts: Any, max_dist: float | None = None, **extract_opts: Any):
+        allowed = {"polarity", "block_size", "threshold", "min_area", "max_area", "min_fill",
+                   "max_aspect", "exclude_border"}
+        unknown = set(extract_opts) - allowed
+        if unknown:
+            raise TypeError(f"MarkerTracker: unknown option(s) {sorted(unknown)}; "
+                            f"allowed: {sorted(allowed)}")
+        if _is_image(ref_img_or_pts):
+            ref = extract_markers(as_image_u8(ref_img_or_pts, "ref_img_or_pts"),
+                                  **extract_opts).centres
+            self.reference_shape: tuple[int, int] | None = (
+                int(ref_img_or_pts.shape[0]), int(ref_img_or_pts.shape[1]))
+        else:
+            ref = as_points(ref_img_or_pts, "ref_img_or_pts")
+            self.reference_shape = None
+        self._native = _native.Tracker(ref, positive_or_none(max_dist, "max_dist"), **extract_opts)
+
+    @property
+    def reference(self) -> NDArray[np.float32]:
+        """Reference centres, ``N x 2`` float32 ``(x, y)``."""
+        return self._native.reference
+
+    @property
+    def positions(self) -> NDArray[np.float32]:
+        """Last tracked centres (for a lost marker, where it was last seen)."""
+        return self._native.positions
+
+    @property
+    def max_dist(self) -> float:
+        """Per-frame matching gate, pixels."""
+        return self._native.max_dist
+
+    @property
+    def frame(self) -> int:
+        """Frames processed since construction or :meth:`reset`."""
+        return self._native.frame
+
+    def __len__(self) -> int:
+        return int(self.reference.shape[0])
+
+    def update(self, img_or_pts: Any) -> tuple[Motion, Valid]:
+        """Tracks one frame: a uint8 image (markers are extracted) or ``M x 2`` detected centres.
+
+        Returns ``(motion, valid)`` aligned with :attr:`reference`: ``N x 2`` float32
+        ``(dx, dy)`` from the reference (NaN where lost) and ``N`` bool.
+        """
+        if _is_image(img_or_pts):
+            arr = as_image_u8(img_or_pts, "img_or_pts")
+            if self.reference_shape is not None and arr.shape[:2] != self.reference_shape:
+                raise ValueError(
+                    f"img_or_pts: image is {arr.shape[0]}x{arr.shape[1]} but the reference was "
+                    f"{self.reference_shape[0]}x{self.reference_shape[1]}"
+                )
+            motion, valid, _ = self._native.update_image(arr)
+        else:
+            motion, valid, _ = self._native.update_points(as_points(img_or_pts, "img_or_pts"))
+        return motion, valid
+
+    def reset(self) -> None:
+        """Forgets the motion history; markers are expected back at the reference."""
+        self._native.reset()

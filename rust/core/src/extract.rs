@@ -1,0 +1,1125 @@
+//! Marker extraction: darkness relative to a local background, an image-chosen threshold,
+//! 8-connected components, area/shape filters and sub-pixel centres.
+//!
+//! Pipeline (one image, single thread):
+//! 1. luma in fixed point (`29 B + 150 G + 77 R`, i.e. grey x 256; grey input is scaled by 256),
+//!    inverted for bright markers so that markers are always darker than the gel;
+//! 2. local background = box mean over `block_size x block_size` (reflect-101 border, the rule of
+//!    `cv2.BORDER_REFLECT_101`), computed with running sums in `u32` — no uint8 wraparound anywhere;
+//! 3. darkness `d = background - luma`; its histogram gives the background level (median), the
+//!    noise (MAD) and an Otsu threshold on the darker half; the threshold is never below
+//!    `median + max(NOISE_SIGMAS * sigma, MIN_CONTRAST)` so that a markerless frame yields nothing;
+//! 4. run-length 8-connected labelling with union-find (same components as
+//!    `cv2.connectedComponents(connectivity=8)`);
+//! 5. filters on area, fill ratio (area / bounding-box area) and bounding-box aspect ratio;
+//! 6. per kept marker, a local background level from a ring around its box, and a centre weighted
+//!    by darkness above that level over the marker and a one-pixel margin, so soft edges count.
+
+use crate::error::{CoreError, Result};
+use crate::image::ImageView;
+use crate::simd::multiversion;
+
+/// Fixed-point luma weights (sum 256), BT.601, in B, G, R order.
+const LUMA_B: u32 = 29;
+const LUMA_G: u32 = 150;
+const LUMA_R: u32 = 77;
+/// Fixed-point scale of luma: one grey level is this many units.
+const LUMA_SCALE: i32 = 256;
+/// Darkness is stored as i16 in units of 1/64 grey level (luma units >> 2).
+const DARK_SHIFT: i32 = 2;
+const DARK_PER_LEVEL: i32 = LUMA_SCALE >> DARK_SHIFT;
+/// Histogram covers darkness from -255 to +255 grey levels, one bin per level.
+const HIST_OFFSET: i32 = 256;
+const HIST_BINS: usize = 512;
+/// The automatic threshold stays this many noise sigmas above the background level...
+const NOISE_SIGMAS: f32 = 6.0;
+/// ...and at least this many grey levels above it (markers are tens of levels dark).
+const MIN_CONTRAST_LEVELS: f32 = 10.0;
+/// MAD to sigma for a normal distribution.
+const MAD_TO_SIGMA: f32 = 1.4826;
+/// Weights in the sub-pixel centroid start this many noise sigmas below the local background.
+const CENTROID_NOISE_SIGMAS: f32 = 2.0;
+/// A marker on the image border is kept while at least this fraction of a typical interior
+/// marker's area is visible. A disc cut through its centre keeps one half; thresholded blobs
+/// shrink further at a cut edge, and 0.3 of a disc corresponds to a centre at most ~0.25 radius
+/// outside the frame.
+const BORDER_MIN_AREA_FRACTION: f32 = 0.3;
+/// Interior markers needed to use the area rule above.
+const MIN_INTERIOR_FOR_AREA_RULE: usize = 3;
+/// Without enough interior markers, a border blob is kept while its extent across the border is
+/// at least this fraction of its extent along it (a disc cut through its centre has one half).
+const BORDER_KEEP_RATIO: f32 = 0.5;
+/// Largest background box (pixels): keeps the binned window sums within u32.
+pub const MAX_BLOCK: usize = 255;
+/// Pixels tested at once when scanning for marker runs.
+const SCAN_CHUNK: usize = 16;
+/// Width of the ring around a marker's box used for its local background (pixels).
+const RING_GAP: usize = 2;
+
+/// Which way markers differ from the gel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Polarity {
+    /// Markers darker than the gel (painted dots on GelSight, GelSight Mini, GelSlim).
+    Dark,
+    /// Markers brighter than the gel (TacTip pins, white dots on a dark membrane).
+    Bright,
+}
+
+/// Options of [`extract_markers`]. `None` fields are chosen from the image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExtractParams {
+    /// Marker polarity.
+    pub polarity: Polarity,
+    /// Side of the background box filter in pixels (odd). Default: `min(H, W) / 8`, at least 15.
+    pub block_size: Option<usize>,
+    /// Darkness threshold in grey levels above the local background. Default: Otsu with a noise floor.
+    pub threshold: Option<f32>,
+    /// Smallest marker area in pixels. Default: `5e-5 * H * W`, at least 4.
+    pub min_area: Option<usize>,
+    /// Largest marker area in pixels. Default: `0.02 * H * W`.
+    pub max_area: Option<usize>,
+    /// Smallest area / bounding-box area (a disc has 0.785).
+    pub min_fill: f32,
+    /// Largest bounding-box aspect ratio (long side / short side).
+    pub max_aspect: f32,
+    /// Dilations of the output mask by a 3x3 cross (OpenCV's 3x3 `MORPH_ELLIPSE`).
+    pub dilate: usize,
+    /// Drop blobs cut by the image border (a marker cut by the frame edge has a biased centre).
+    pub exclude_border: bool,
+}
+
+impl Default for ExtractParams {
+    fn default() -> Self {
+        Self {
+            polarity: Polarity::Dark,
+            block_size: None,
+            threshold: None,
+            min_area: None,
+            max_area: None,
+            min_fill: 0.35,
+            max_aspect: 3.0,
+            dilate: 0,
+            exclude_border: true,
+        }
+    }
+}
+
+/// One extracted marker.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Marker {
+    /// Sub-pixel centre `(x, y)`, pixels.
+    pub centre: [f32; 2],
+    /// Pixels above threshold.
+    pub area: u32,
+    /// Bounding box `(x, y, width, height)` of the thresholded pixels, as `cv2.connectedComponentsWithStats`.
+    pub bbox: [u32; 4],
+    /// Peak darkness relative to the local background, `1 - min / background`, in `[0, 1]`.
+    pub contrast: f32,
+}
+
+/// Result of [`extract_markers`].
+#[derive(Debug, Clone)]
+pub struct Extraction {
+    /// Markers sorted by row then column of their centre (raster order of the centres).
+    pub markers: Vec<Marker>,
+    /// `H x W` mask, true = marker pixel (after dilation).
+    pub mask: Vec<bool>,
+    /// Threshold used, grey levels of darkness above the local background.
+    pub threshold: f32,
+    /// Background level (median darkness), grey levels.
+    pub background_level: f32,
+    /// Estimated noise sigma of the darkness image, grey levels.
+    pub noise_sigma: f32,
+    /// Box-filter size used, pixels.
+    pub block_size: usize,
+    /// Connected components before the area/shape filters.
+    pub n_components: usize,
+}
+
+/// Reusable buffers so that a streaming caller allocates nothing per frame.
+#[derive(Debug, Default, Clone)]
+pub struct ExtractWorkspace {
+    luma: Vec<u16>,
+    dark: Vec<i16>,
+    boxes: BoxBuffers,
+    labels: Vec<u32>,
+    runs: Vec<Run>,
+    parent: Vec<u32>,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Run {
+    y: u32,
+    x0: u32,
+    /// Exclusive end.
+    x1: u32,
+    label: u32,
+}
+
+/// Default box size for an image (pixels): large next to a marker, small next to lighting
+/// gradients.
+pub fn default_block_size(height: usize, width: usize) -> usize {
+    let b = (height.min(width) / 8).max(15);
+    (b | 1).min(MAX_BLOCK)
+}
+
+/// Extracts markers from a BGR (`channels == 3`), BGRA (4) or grey (1) uint8 image.
+pub fn extract_markers(image: &ImageView<'_, u8>, params: &ExtractParams) -> Result<Extraction> {
+    let mut ws = ExtractWorkspace::default();
+    extract_markers_with(image, params, &mut ws)
+}
+
+/// [`extract_markers`] with caller-owned buffers.
+pub fn extract_markers_with(
+    image: &ImageView<'_, u8>,
+    params: &ExtractParams,
+    ws: &mut ExtractWorkspace,
+) -> Result<Extraction> {
+    validate(image, params)?;
+    let (h, w) = (image.height(), image.width());
+    let n = h * w;
+    let block = params
+        .block_size
+        .unwrap_or_else(|| default_block_size(h, w));
+
+    compute_luma(image, params.polarity, &mut ws.luma);
+    let hist = box_darkness(&ws.luma, h, w, block, &mut ws.boxes, &mut ws.dark);
+    let stats = HistStats::from_hist(&hist);
+    let threshold = match params.threshold {
+        Some(t) => t,
+        None => auto_threshold(&hist, &stats),
+    };
+    // Strictly greater than the threshold, in the i16 darkness units.
+    let t_units = (threshold * DARK_PER_LEVEL as f32)
+        .floor()
+        .clamp(i16::MIN as f32, i16::MAX as f32) as i16;
+
+    let n_components = label_runs(&ws.dark, h, w, t_units, &mut ws.runs, &mut ws.parent);
+    let comps = component_stats(&ws.runs, n_components);
+
+    let min_area = params
+        .min_area
+        .unwrap_or_else(|| ((5e-5 * n as f64).round() as usize).max(4));
+    let max_area = params
+        .max_area
+        .unwrap_or_else(|| ((0.02 * n as f64).round() as usize).max(min_area));
+    let mut keep: Vec<bool> = comps
+        .iter()
+        .map(|c| c.passes(min_area, max_area, params.min_fill, params.max_aspect))
+        .collect();
+    if params.exclude_border {
+        drop_border_cut(&comps, &mut keep, h, w);
+    }
+
+    // Label image (0 = background) so that centroids can tell their own pixels from a neighbour's.
+    // The buffer is all zeros between calls: only the runs written here are cleared afterwards.
+    if ws.labels.len() != n {
+        ws.labels.clear();
+        ws.labels.resize(n, 0);
+    }
+    for r in &ws.runs {
+        let row = r.y as usize * w;
+        ws.labels[row + r.x0 as usize..row + r.x1 as usize].fill(r.label + 1);
+    }
+
+    let sigma_units = stats.sigma * LUMA_SCALE as f32;
+    let mut markers = Vec::new();
+    let t_luma = threshold * LUMA_SCALE as f32;
+    for (label, c) in comps.iter().enumerate() {
+        if !keep[label] {
+            continue;
+        }
+        let (marker, local_dark) =
+            refine_marker(c, label as u32 + 1, &ws.luma, &ws.labels, h, w, sigma_units);
+        // The box mean is pulled up next to bright features, so their dark-looking surroundings
+        // can pass the threshold; a real marker is also darker than its own immediate ring.
+        if local_dark > t_luma {
+            markers.push(marker);
+        } else {
+            keep[label] = false;
+        }
+    }
+    for r in &ws.runs {
+        let row = r.y as usize * w;
+        ws.labels[row + r.x0 as usize..row + r.x1 as usize].fill(0);
+    }
+    markers.sort_by(|a, b| {
+        a.centre[1]
+            .total_cmp(&b.centre[1])
+            .then(a.centre[0].total_cmp(&b.centre[0]))
+    });
+
+    let mut mask = vec![false; n];
+    for r in &ws.runs {
+        if keep[r.label as usize] {
+            let row = r.y as usize * w;
+            mask[row + r.x0 as usize..row + r.x1 as usize].fill(true);
+        }
+    }
+    for _ in 0..params.dilate {
+        mask = dilate_cross(&mask, h, w);
+    }
+
+    Ok(Extraction {
+        markers,
+        mask,
+        threshold,
+        background_level: stats.median,
+        noise_sigma: stats.sigma,
+        block_size: block,
+        n_components,
+    })
+}
+
+fn validate(image: &ImageView<'_, u8>, params: &ExtractParams) -> Result<()> {
+    if !matches!(image.channels(), 1 | 3 | 4) {
+        return Err(CoreError::invalid(
+            "img",
+            format!(
+                "expected a grey (H x W), BGR (H x W x 3) or BGRA image; got {} channels",
+                image.channels()
+            ),
+        ));
+    }
+    if let Some(b) = params.block_size {
+        if !(3..=MAX_BLOCK).contains(&b) || b % 2 == 0 {
+            return Err(CoreError::invalid(
+                "block_size",
+                format!("must be an odd integer in [3, {MAX_BLOCK}]; got {b}"),
+            ));
+        }
+    }
+    if let Some(t) = params.threshold {
+        if !t.is_finite() || !(0.0..=255.0).contains(&t) {
+            return Err(CoreError::invalid(
+                "threshold",
+                format!("must be a finite number of grey levels in [0, 255]; got {t}"),
+            ));
+        }
+    }
+    if let (Some(lo), Some(hi)) = (params.min_area, params.max_area) {
+        if lo > hi {
+            return Err(CoreError::invalid(
+                "max_area",
+                format!("must be >= min_area ({lo}); got {hi}"),
+            ));
+        }
+    }
+    if !params.min_fill.is_finite() || !(0.0..=1.0).contains(&params.min_fill) {
+        return Err(CoreError::invalid(
+            "min_fill",
+            format!("must be in [0, 1]; got {}", params.min_fill),
+        ));
+    }
+    if !params.max_aspect.is_finite() || params.max_aspect < 1.0 {
+        return Err(CoreError::invalid(
+            "max_aspect",
+            format!("must be a finite number >= 1; got {}", params.max_aspect),
+        ));
+    }
+    Ok(())
+}
+
+/// Luma x 256 in `u16`; for bright markers the image is inverted so markers are dark.
+fn compute_luma(image: &ImageView<'_, u8>, polarity: Polarity, out: &mut Vec<u16>) {
+    let n = image.height() * image.width();
+    out.clear();
+    out.resize(n, 0);
+    let data = image.data();
+    match image.channels() {
+        1 => {
+            for (o, &g) in out.iter_mut().zip(data) {
+                *o = u16::from(g) << 8;
+            }
+        }
+        3 => luma_bgr(data, out),
+        _ => luma_bgra(data, out),
+    }
+    if polarity == Polarity::Bright {
+        // 255 * 256 is the largest luma; the difference cannot underflow.
+        for v in out.iter_mut() {
+            *v = 65280 - *v;
+        }
+    }
+}
+
+multiversion! {
+    /// Luma of BGR pixels (u16 arithmetic is exact: the weights sum to 256).
+    fn luma_bgr(data: &[u8], out: &mut [u16]) {
+        for (o, px) in out.iter_mut().zip(data.chunks_exact(3)) {
+            *o = LUMA_B as u16 * u16::from(px[0])
+                + LUMA_G as u16 * u16::from(px[1])
+                + LUMA_R as u16 * u16::from(px[2]);
+        }
+    }
+}
+
+multiversion! {
+    /// Luma of BGRA pixels (alpha ignored).
+    fn luma_bgra(data: &[u8], out: &mut [u16]) {
+        for (o, px) in out.iter_mut().zip(data.chunks_exact(4)) {
+            *o = LUMA_B as u16 * u16::from(px[0])
+                + LUMA_G as u16 * u16::from(px[1])
+                + LUMA_R as u16 * u16::from(px[2]);
+        }
+    }
+}
+
+/// Reflect-101 index (`cv2.BORDER_REFLECT_101`): -1 -> 1, n -> n - 2. Requires `n >= 2` or `i == 0`.
+#[inline]
+fn reflect101(i: isize, n: usize) -> usize {
+    let n = n as isize;
+    if n == 1 {
+        return 0;
+    }
+    let mut i = i;
+    // Loop only matters for radius >= n, which the caller prevents; kept for safety.
+    while i < 0 || i >= n {
+        i = if i < 0 { -i } else { 2 * (n - 1) - i };
+    }
+    i as usize
+}
+
+multiversion! {
+    /// Local background and darkness `background - luma` (i16, 1/64 grey level), plus a histogram.
+    ///
+    /// The background only has to be smooth on the scale of the box, so it is computed on the image
+    /// binned 2x2 (a quarter of the pixels) with a box of `2 * (block / 4) + 1` binned pixels — an
+    /// effective side of about `block` pixels — and read back at the bin of each pixel.
+    ///
+    /// The histogram samples every other pixel of every other row (in whole chunks of 8): a
+    /// quarter of the pixels is plenty for a median, a MAD and Otsu.
+    fn box_darkness(
+        luma: &[u16],
+        h: usize,
+        w: usize,
+        block: usize,
+        ws: &mut BoxBuffers,
+        dark: &mut Vec<i16>,
+    ) -> [u32; HIST_BINS] {
+        let (hs, wsm) = (h.div_ceil(2), w.div_ceil(2));
+        // 2x2 bin sums (odd last row/column counted twice so every bin sums four pixels).
+        ws.binned.clear();
+        ws.binned.resize(hs * wsm, 0);
+        for by in 0..hs {
+            let r0 = &luma[2 * by * w..][..w];
+            let r1 = &luma[(2 * by + 1).min(h - 1) * w..][..w];
+            let out = &mut ws.binned[by * wsm..][..wsm];
+            for ((o, a), b) in out.iter_mut().zip(r0.chunks_exact(2)).zip(r1.chunks_exact(2)) {
+                *o = u32::from(a[0]) + u32::from(a[1]) + u32::from(b[0]) + u32::from(b[1]);
+            }
+            if w % 2 == 1 {
+                out[wsm - 1] = 2 * (u32::from(r0[w - 1]) + u32::from(r1[w - 1]));
+            }
+        }
+        box_mean_binned(&ws.binned, hs, wsm, block / 4, &mut ws.col, &mut ws.padded, &mut ws.mean);
+
+        dark.clear();
+        dark.resize(h * w, 0);
+        ws.row.clear();
+        ws.row.resize(w, 0);
+        let mut hist = [[0u32; HIST_BINS]; 4];
+        for y in 0..h {
+            if y % 2 == 0 {
+                let src = &ws.mean[(y / 2) * wsm..][..wsm];
+                for (pair, &m) in ws.row.chunks_exact_mut(2).zip(src) {
+                    pair[0] = m;
+                    pair[1] = m;
+                }
+                if w % 2 == 1 {
+                    ws.row[w - 1] = src[wsm - 1];
+                }
+            }
+            let lrow = &luma[y * w..][..w];
+            let drow = &mut dark[y * w..][..w];
+            for ((d, &m), &l) in drow.iter_mut().zip(&ws.row).zip(lrow) {
+                *d = ((i32::from(m) - i32::from(l)) >> DARK_SHIFT) as i16;
+            }
+            if y % 2 == 0 {
+                // Four histograms in turn: consecutive samples mostly hit the same bin, and one
+                // histogram would make every increment wait for the previous store.
+                for c in drow.chunks_exact(8) {
+                    for (k, sub) in hist.iter_mut().enumerate() {
+                        // d / 64 floored, shifted into [0, 512): |d| <= 16320 keeps it in range.
+                        sub[((i32::from(c[2 * k]) >> 6) + HIST_OFFSET) as usize] += 1;
+                    }
+                }
+            }
+        }
+        let mut total = [0u32; HIST_BINS];
+        for sub in &hist {
+            for (t, &c) in total.iter_mut().zip(sub) {
+                *t += c;
+            }
+        }
+        total
+    }
+}
+
+/// Buffers of [`box_darkness`].
+#[derive(Debug, Default, Clone)]
+struct BoxBuffers {
+    binned: Vec<u32>,
+    col: Vec<u32>,
+    padded: Vec<u32>,
+    mean: Vec<u16>,
+    row: Vec<u16>,
+}
+
+#[inline(always)]
+/// Box mean (radius `r` in binned pixels, reflect-101 borders) of 2x2 bin sums, as mean luma.
+fn box_mean_binned(
+    binned: &[u32],
+    h: usize,
+    w: usize,
+    r: usize,
+    col: &mut Vec<u32>,
+    padded: &mut Vec<u32>,
+    mean: &mut Vec<u16>,
+) {
+    // Radius limited so that reflect-101 never needs more than one bounce.
+    let ry = r.min(h.saturating_sub(1));
+    let rx = r.min(w.saturating_sub(1));
+    // Each bin sums 4 pixels; fixed-point reciprocal so mean = (sum * inv) >> 32.
+    let count = 4 * ((2 * ry + 1) * (2 * rx + 1)) as u64;
+    let inv = ((1u64 << 32) + count - 1) / count;
+    col.clear();
+    col.resize(w, 0);
+    for k in -(ry as isize)..=(ry as isize) {
+        for (c, &v) in col.iter_mut().zip(&binned[reflect101(k, h) * w..][..w]) {
+            *c += v;
+        }
+    }
+    padded.clear();
+    padded.resize(w + 2 * rx, 0);
+    mean.clear();
+    mean.resize(h * w, 0);
+    for y in 0..h {
+        if y > 0 {
+            let add = &binned[reflect101(y as isize + ry as isize, h) * w..][..w];
+            let sub = &binned[reflect101(y as isize - ry as isize - 1, h) * w..][..w];
+            for ((c, &a), &s) in col.iter_mut().zip(add).zip(sub) {
+                // Never negative: `s` was added when its row entered the window.
+                *c = *c + a - s;
+            }
+        }
+        // Column sums padded by reflect-101 so the running sum has no branches.
+        padded[rx..rx + w].copy_from_slice(col);
+        for k in 0..rx {
+            padded[rx - 1 - k] = col[reflect101(-1 - k as isize, w)];
+            padded[rx + w + k] = col[reflect101((w + k) as isize, w)];
+        }
+        // u32 cannot overflow: the window sums at most (2 * 63 + 1)^2 bins of 4 * 65280.
+        let mut acc: u32 = padded[..2 * rx + 1].iter().sum();
+        let out = &mut mean[y * w..][..w];
+        out[0] = ((u64::from(acc) * inv) >> 32) as u16;
+        // padded[x + 2 rx] enters the window centred on x, padded[x - 1] leaves it.
+        let entering = &padded[2 * rx + 1..];
+        let leaving = &padded[..w - 1];
+        for ((o, &a), &s) in out[1..].iter_mut().zip(entering).zip(leaving) {
+            acc = acc + a - s;
+            *o = ((u64::from(acc) * inv) >> 32) as u16;
+        }
+    }
+}
+
+/// Robust statistics of the darkness histogram.
+struct HistStats {
+    /// Median darkness (background level), grey levels.
+    median: f32,
+    /// Noise sigma from the MAD, grey levels (at least 0.5: the histogram has 1-level bins).
+    sigma: f32,
+    median_bin: usize,
+}
+
+impl HistStats {
+    fn from_hist(hist: &[u32; HIST_BINS]) -> Self {
+        let total: u64 = hist.iter().map(|&c| u64::from(c)).sum();
+        let half = total.div_ceil(2);
+        let mut acc = 0u64;
+        let mut median_bin = 0;
+        for (i, &c) in hist.iter().enumerate() {
+            acc += u64::from(c);
+            if acc >= half {
+                median_bin = i;
+                break;
+            }
+        }
+        // MAD: smallest radius r such that bins [m - r, m + r] hold half of the pixels.
+        let mut acc = u64::from(hist[median_bin]);
+        let mut r = 0usize;
+        while acc < half && r < HIST_BINS {
+            r += 1;
+            if median_bin >= r {
+                acc += u64::from(hist[median_bin - r]);
+            }
+            if median_bin + r < HIST_BINS {
+                acc += u64::from(hist[median_bin + r]);
+            }
+        }
+        let median = median_bin as f32 - HIST_OFFSET as f32 + 0.5;
+        Self {
+            median,
+            sigma: (MAD_TO_SIGMA * r as f32).max(0.5),
+            median_bin,
+        }
+    }
+}
+
+/// Otsu's threshold on the darker-than-background half of the histogram, floored above the noise.
+fn auto_threshold(hist: &[u32; HIST_BINS], stats: &HistStats) -> f32 {
+    let floor = stats.median + (NOISE_SIGMAS * stats.sigma).max(MIN_CONTRAST_LEVELS);
+    let lo = stats.median_bin;
+    let (mut total, mut sum) = (0f64, 0f64);
+    for (i, &c) in hist.iter().enumerate().skip(lo) {
+        total += f64::from(c);
+        sum += f64::from(c) * i as f64;
+    }
+    let (mut w0, mut sum0) = (0f64, 0f64);
+    let (mut best_var, mut best_bin) = (-1f64, lo);
+    for (i, &c) in hist.iter().enumerate().skip(lo) {
+        w0 += f64::from(c);
+        sum0 += f64::from(c) * i as f64;
+        let w1 = total - w0;
+        if w0 == 0.0 || w1 == 0.0 {
+            continue;
+        }
+        let diff = sum0 / w0 - (sum - sum0) / w1;
+        let var = w0 * w1 * diff * diff;
+        if var > best_var {
+            best_var = var;
+            best_bin = i;
+        }
+    }
+    // Otsu's class boundary is the upper edge of `best_bin`.
+    let otsu = (best_bin as f32 + 1.0) - HIST_OFFSET as f32;
+    otsu.max(floor)
+}
+
+multiversion! {
+    /// Finds runs of `dark > t` and unions 8-connected runs; returns the number of components and
+    /// leaves each run's compact component label in `runs`.
+    fn label_runs(
+        dark: &[i16],
+        h: usize,
+        w: usize,
+        t: i16,
+        runs: &mut Vec<Run>,
+        parent: &mut Vec<u32>,
+    ) -> usize {
+        runs.clear();
+        parent.clear();
+        let mut prev = 0..0;
+        for y in 0..h {
+            let row = &dark[y * w..][..w];
+            let start = runs.len();
+            let mut x = 0;
+            while x < w {
+                // Skip 16 background pixels at a time: the max over a chunk vectorises.
+                if x + SCAN_CHUNK <= w && row[x..x + SCAN_CHUNK].iter().fold(i16::MIN, |m, &v| m.max(v)) <= t
+                {
+                    x += SCAN_CHUNK;
+                    continue;
+                }
+                if row[x] > t {
+                    let x0 = x;
+                    while x < w && row[x] > t {
+                        x += 1;
+                    }
+                    let id = runs.len() as u32;
+                    runs.push(Run {
+                        y: y as u32,
+                        x0: x0 as u32,
+                        x1: x as u32,
+                        label: id,
+                    });
+                    parent.push(id);
+                } else {
+                    x += 1;
+                }
+            }
+            let cur = start..runs.len();
+            // Two-pointer sweep: runs in a row are sorted and disjoint.
+            let mut p = prev.start;
+            for c in cur.clone() {
+                let (cx0, cx1) = (runs[c].x0, runs[c].x1);
+                while p < prev.end && runs[p].x1 < cx0 {
+                    p += 1;
+                }
+                let mut q = p;
+                // 8-connectivity: touching diagonally counts, i.e. prev.x0 <= cx1 and prev.x1 >= cx0.
+                while q < prev.end && runs[q].x0 <= cx1 {
+                    union(parent, c as u32, q as u32);
+                    q += 1;
+                }
+            }
+            prev = cur;
+        }
+        // Compact labels in order of first appearance.
+        let mut compact = vec![u32::MAX; runs.len()];
+        let mut n = 0u32;
+        for i in 0..runs.len() {
+            let root = find(parent, i as u32) as usize;
+            if compact[root] == u32::MAX {
+                compact[root] = n;
+                n += 1;
+            }
+            runs[i].label = compact[root];
+        }
+        n as usize
+    }
+}
+
+fn find(parent: &mut [u32], mut i: u32) -> u32 {
+    while parent[i as usize] != i {
+        let gp = parent[parent[i as usize] as usize];
+        parent[i as usize] = gp;
+        i = gp;
+    }
+    i
+}
+
+fn union(parent: &mut [u32], a: u32, b: u32) {
+    let (ra, rb) = (find(parent, a), find(parent, b));
+    if ra != rb {
+        // Keep the smaller index as root so labels follow raster order.
+        let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
+        parent[hi as usize] = lo;
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Component {
+    area: u32,
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+}
+
+impl Component {
+    /// A blob on the border whose extent across it is clearly shorter than along it: a marker
+    /// cut by the frame edge, whose centre would be biased. Grazing markers are kept.
+    fn cut_by_border(&self, h: usize, w: usize) -> bool {
+        let (bw, bh) = (
+            (self.x1 - self.x0 + 1) as f32,
+            (self.y1 - self.y0 + 1) as f32,
+        );
+        let on_x = self.x0 == 0 || self.x1 as usize + 1 == w;
+        let on_y = self.y0 == 0 || self.y1 as usize + 1 == h;
+        (on_x && bw < BORDER_KEEP_RATIO * bh) || (on_y && bh < BORDER_KEEP_RATIO * bw)
+    }
+
+    fn on_border(&self, h: usize, w: usize) -> bool {
+        self.x0 == 0 || self.y0 == 0 || self.x1 as usize + 1 == w || self.y1 as usize + 1 == h
+    }
+
+    fn passes(&self, min_area: usize, max_area: usize, min_fill: f32, max_aspect: f32) -> bool {
+        let area = self.area as usize;
+        if area < min_area || area > max_area {
+            return false;
+        }
+        let (bw, bh) = (
+            (self.x1 - self.x0 + 1) as f32,
+            (self.y1 - self.y0 + 1) as f32,
+        );
+        let fill = self.area as f32 / (bw * bh);
+        fill >= min_fill && bw.max(bh) / bw.min(bh) <= max_aspect
+    }
+}
+
+/// Drops markers whose centre lies outside the frame: on the border with less than
+/// [`BORDER_MIN_AREA_FRACTION`] of the typical interior marker area visible, or — with too few
+/// interior markers to compare against — visibly cut across the border.
+fn drop_border_cut(comps: &[Component], keep: &mut [bool], h: usize, w: usize) {
+    let mut interior: Vec<f32> = comps
+        .iter()
+        .zip(keep.iter())
+        .filter(|(c, &k)| k && !c.on_border(h, w))
+        .map(|(c, _)| c.area as f32)
+        .collect();
+    let typical = if interior.len() >= MIN_INTERIOR_FOR_AREA_RULE {
+        crate::geometry::median(&mut interior)
+    } else {
+        None
+    };
+    for (c, k) in comps.iter().zip(keep.iter_mut()) {
+        if !*k || !c.on_border(h, w) {
+            continue;
+        }
+        *k = match typical {
+            Some(a) => c.area as f32 >= BORDER_MIN_AREA_FRACTION * a,
+            None => !c.cut_by_border(h, w),
+        };
+    }
+}
+
+fn component_stats(runs: &[Run], n: usize) -> Vec<Component> {
+    let mut comps = vec![
+        Component {
+            area: 0,
+            x0: u32::MAX,
+            y0: u32::MAX,
+            x1: 0,
+            y1: 0,
+        };
+        n
+    ];
+    for r in runs {
+        let c = &mut comps[r.label as usize];
+        c.area += r.x1 - r.x0;
+        c.x0 = c.x0.min(r.x0);
+        c.x1 = c.x1.max(r.x1 - 1);
+        c.y0 = c.y0.min(r.y);
+        c.y1 = c.y1.max(r.y);
+    }
+    comps
+}
+
+/// Local background from a ring around the box, then a darkness-weighted centre over the marker
+/// and a one-pixel margin (soft edges below the threshold still pull the centre). Also returns
+/// the marker's peak darkness below that ring, in luma units.
+fn refine_marker(
+    c: &Component,
+    label: u32,
+    luma: &[u16],
+    labels: &[u32],
+    h: usize,
+    w: usize,
+    sigma_units: f32,
+) -> (Marker, f32) {
+    let gap = RING_GAP as i64;
+    let (rx0, ry0) = (c.x0 as i64 - gap, c.y0 as i64 - gap);
+    let (rx1, ry1) = (c.x1 as i64 + gap, c.y1 as i64 + gap);
+    let (mut ring_sum, mut ring_n) = (0f64, 0u32);
+    let mut add_ring = |x: i64, y: i64| {
+        if x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h {
+            let i = y as usize * w + x as usize;
+            if labels[i] == 0 {
+                ring_sum += f64::from(luma[i]);
+                ring_n += 1;
+            }
+        }
+    };
+    for x in rx0..=rx1 {
+        add_ring(x, ry0);
+        add_ring(x, ry1);
+    }
+    for y in ry0 + 1..ry1 {
+        add_ring(rx0, y);
+        add_ring(rx1, y);
+    }
+
+    let mut min_luma = u16::MAX;
+    let mut own_sum = 0f64;
+    for y in c.y0..=c.y1 {
+        for x in c.x0..=c.x1 {
+            let i = y as usize * w + x as usize;
+            if labels[i] == label {
+                min_luma = min_luma.min(luma[i]);
+                own_sum += f64::from(luma[i]);
+            }
+        }
+    }
+    let background = if ring_n > 0 {
+        (ring_sum / f64::from(ring_n)) as f32
+    } else {
+        // Fully surrounded by other markers or the border: the brightest own pixel is the best guess.
+        (own_sum / f64::from(c.area.max(1))) as f32
+    };
+    let cut = background - CENTROID_NOISE_SIGMAS * sigma_units;
+
+    let (mut sw, mut sx, mut sy) = (0f64, 0f64, 0f64);
+    let x_lo = c.x0.saturating_sub(1) as usize;
+    let y_lo = c.y0.saturating_sub(1) as usize;
+    let x_hi = (c.x1 as usize + 1).min(w - 1);
+    let y_hi = (c.y1 as usize + 1).min(h - 1);
+    for y in y_lo..=y_hi {
+        for x in x_lo..=x_hi {
+            let i = y * w + x;
+            let l = labels[i];
+            if l != label && l != 0 {
+                continue;
+            }
+            let wgt = cut - f32::from(luma[i]);
+            if wgt > 0.0 {
+                let wgt = f64::from(wgt);
+                sw += wgt;
+                sx += wgt * x as f64;
+                sy += wgt * y as f64;
+            }
+        }
+    }
+    let centre = if sw > 0.0 {
+        [(sx / sw) as f32, (sy / sw) as f32]
+    } else {
+        [0.5 * (c.x0 + c.x1) as f32, 0.5 * (c.y0 + c.y1) as f32]
+    };
+    let contrast = if background > 0.0 {
+        (1.0 - f32::from(min_luma) / background).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let marker = Marker {
+        centre,
+        area: c.area,
+        bbox: [c.x0, c.y0, c.x1 - c.x0 + 1, c.y1 - c.y0 + 1],
+        contrast,
+    };
+    (marker, background - f32::from(min_luma))
+}
+
+/// One dilation by a 3x3 cross (`cv2.dilate` with the 3x3 `MORPH_ELLIPSE` kernel, border ignored).
+pub fn dilate_cross(mask: &[bool], h: usize, w: usize) -> Vec<bool> {
+    let mut out = mask.to_vec();
+    for y in 0..h {
+        let row = &mask[y * w..][..w];
+        let orow = &mut out[y * w..][..w];
+        for x in 0..w {
+            let mut v = row[x];
+            if x > 0 {
+                v |= row[x - 1];
+            }
+            if x + 1 < w {
+                v |= row[x + 1];
+            }
+            orow[x] = v;
+        }
+        if y > 0 {
+            let up = &mask[(y - 1) * w..][..w];
+            for (o, &u) in orow.iter_mut().zip(up) {
+                *o |= u;
+            }
+        }
+        if y + 1 < h {
+            let down = &mask[(y + 1) * w..][..w];
+            for (o, &d) in orow.iter_mut().zip(down) {
+                *o |= d;
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Renders anti-aliased dark discs (supersampled 8x8) on a flat background, grey.
+    fn render(h: usize, w: usize, centres: &[[f32; 2]], radius: f32, bg: f32, fg: f32) -> Vec<u8> {
+        let mut img = vec![bg.round() as u8; h * w];
+        for c in centres {
+            let x0 = (c[0] - radius - 1.0).floor().max(0.0) as usize;
+            let x1 = ((c[0] + radius + 1.0).ceil() as usize).min(w - 1);
+            let y0 = (c[1] - radius - 1.0).floor().max(0.0) as usize;
+            let y1 = ((c[1] + radius + 1.0).ceil() as usize).min(h - 1);
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let mut cover = 0.0;
+                    for sy in 0..8 {
+                        for sx in 0..8 {
+                            let px = x as f32 - 0.5 + (sx as f32 + 0.5) / 8.0;
+                            let py = y as f32 - 0.5 + (sy as f32 + 0.5) / 8.0;
+                            if (px - c[0]).powi(2) + (py - c[1]).powi(2) <= radius * radius {
+                                cover += 1.0 / 64.0;
+                            }
+                        }
+                    }
+                    let v = bg + (fg - bg) * cover;
+                    img[y * w + x] = v.round() as u8;
+                }
+            }
+        }
+        img
+    }
+
+    #[test]
+    fn finds_discs_with_subpixel_centres() {
+        let mut centres = Vec::new();
+        for j in 0..6 {
+            for i in 0..8 {
+                centres.push([
+                    40.0 + i as f32 * 80.0 + 0.37 * j as f32,
+                    40.0 + j as f32 * 80.0 + 0.21 * i as f32,
+                ]);
+            }
+        }
+        let img = render(480, 640, &centres, 11.5, 180.0, 40.0);
+        let view = ImageView::new(&img, 480, 640, 1, "img").unwrap();
+        let ex = extract_markers(&view, &ExtractParams::default()).unwrap();
+        assert_eq!(ex.markers.len(), 48);
+        for c in &centres {
+            let best = ex
+                .markers
+                .iter()
+                .map(|m| crate::geometry::dist2(m.centre, *c).sqrt())
+                .fold(f32::MAX, f32::min);
+            assert!(best < 0.1, "centre error {best}");
+        }
+    }
+
+    #[test]
+    fn flat_and_markerless_images_give_nothing() {
+        for v in [0u8, 128, 255] {
+            let img = vec![v; 120 * 160];
+            let view = ImageView::new(&img, 120, 160, 1, "img").unwrap();
+            let ex = extract_markers(&view, &ExtractParams::default()).unwrap();
+            assert!(ex.markers.is_empty());
+            assert!(ex.mask.iter().all(|&m| !m));
+        }
+    }
+
+    #[test]
+    fn bright_polarity_finds_bright_dots() {
+        let img = render(200, 200, &[[50.0, 50.0], [150.3, 120.6]], 6.0, 40.0, 220.0);
+        let view = ImageView::new(&img, 200, 200, 1, "img").unwrap();
+        let dark = extract_markers(&view, &ExtractParams::default()).unwrap();
+        assert!(dark.markers.is_empty());
+        let params = ExtractParams {
+            polarity: Polarity::Bright,
+            ..Default::default()
+        };
+        let bright = extract_markers(&view, &params).unwrap();
+        assert_eq!(bright.markers.len(), 2);
+        assert!((bright.markers[1].centre[0] - 150.3).abs() < 0.1);
+    }
+
+    #[test]
+    fn border_cut_markers_dropped_grazing_kept() {
+        // Left: centre 2 px outside the image (cut in half). Right: grazes the border by 1 px.
+        let img = render(
+            100,
+            100,
+            &[[-2.0, 30.0], [93.5, 60.0], [50.0, 50.0]],
+            6.0,
+            200.0,
+            40.0,
+        );
+        let view = ImageView::new(&img, 100, 100, 1, "img").unwrap();
+        let ex = extract_markers(&view, &ExtractParams::default()).unwrap();
+        assert_eq!(ex.markers.len(), 2);
+        assert!(ex.markers.iter().all(|m| m.centre[0] > 40.0));
+        let keep_all = ExtractParams {
+            exclude_border: false,
+            ..Default::default()
+        };
+        assert_eq!(extract_markers(&view, &keep_all).unwrap().markers.len(), 3);
+    }
+
+    #[test]
+    fn tiny_images_do_not_panic() {
+        for (h, w) in [(1, 1), (1, 7), (5, 1), (2, 2), (3, 40)] {
+            let img = vec![7u8; h * w * 3];
+            let view = ImageView::new(&img, h, w, 3, "img").unwrap();
+            let ex = extract_markers(&view, &ExtractParams::default()).unwrap();
+            assert_eq!(ex.mask.len(), h * w);
+        }
+    }
+
+    #[test]
+    fn labelling_is_8_connected() {
+        // Two pixels touching diagonally form one component.
+        let mut dark = vec![0i16; 9];
+        dark[0] = 100;
+        dark[4] = 100;
+        dark[8] = 100;
+        let (mut runs, mut parent) = (Vec::new(), Vec::new());
+        assert_eq!(label_runs(&dark, 3, 3, 10, &mut runs, &mut parent), 1);
+        dark[4] = 0;
+        assert_eq!(label_runs(&dark, 3, 3, 10, &mut runs, &mut parent), 2);
+    }
+
+    #[test]
+    fn reflect101_matches_opencv_rule() {
+        assert_eq!(reflect101(-1, 5), 1);
+        assert_eq!(reflect101(-2, 5), 2);
+        assert_eq!(reflect101(5, 5), 3);
+        assert_eq!(reflect101(6, 5), 2);
+        assert_eq!(reflect101(0, 1), 0);
+    }
+
+    #[test]
+    fn rejects_bad_parameters() {
+        let img = vec![0u8; 100];
+        let view = ImageView::new(&img, 10, 10, 1, "img").unwrap();
+        let bad = ExtractParams {
+            block_size: Some(4),
+            ..Default::default()
+        };
+        let err = extract_markers(&view, &bad).unwrap_err();
+        assert!(err.to_string().contains("block_size"));
+        let view2 = ImageView::new(&img, 10, 5, 2, "img").unwrap();
+        assert!(extract_markers(&view2, &ExtractParams::default()).is_err());
+    }
+}
+
+#[cfg(test)]
+mod profile {
+    use super::*;
+    use std::time::Instant;
+
+    /// `cargo test --release -p tacswitch-core profile_stages -- --ignored --nocapture`
+    #[test]
+    #[ignore]
+    fn profile_stages() {
+        let (h, w) = (480usize, 640usize);
+        let mut img = vec![180u8; h * w * 3];
+        for j in 0..6 {
+            for i in 0..8 {
+                let (cx, cy) = (40 + 80 * i, 40 + 80 * j);
+                for y in cy - 11..=cy + 11 {
+                    for x in cx - 11..=cx + 11 {
+                        if (x - cx) * (x - cx) + (y - cy) * (y - cy) <= 121 {
+                            img[(y * w + x) * 3..][..3].fill(40);
+                        }
+                    }
+                }
+            }
+        }
+        let view = ImageView::new(&img, h, w, 3, "img").unwrap();
+        let mut ws = ExtractWorkspace::default();
+        let p = ExtractParams::default();
+        let reps = 200;
+        let time = |name: &str, f: &mut dyn FnMut()| {
+            f();
+            let t = Instant::now();
+            for _ in 0..reps {
+                f();
+            }
+            println!(
+                "{name}: {:.1} us",
+                t.elapsed().as_secs_f64() * 1e6 / reps as f64
+            );
+        };
+        time("luma", &mut || {
+            compute_luma(&view, Polarity::Dark, &mut ws.luma)
+        });
+        let mut hist = [0u32; HIST_BINS];
+        time("box", &mut || {
+            hist = box_darkness(&ws.luma, h, w, 61, &mut ws.boxes, &mut ws.dark)
+        });
+        let st = HistStats::from_hist(&hist);
+        let t = auto_threshold(&hist, &st);
+        let tu = (t * 64.0) as i16;
+        let mut bb = BoxBuffers::default();
+        time("box_binned_only", &mut || {
+            let (hs, wsm) = (h / 2, w / 2);
+            bb.binned.resize(hs * wsm, 1000);
+            box_mean_binned(
+                &bb.binned,
+                hs,
+                wsm,
+                15,
+                &mut bb.col,
+                &mut bb.padded,
+                &mut bb.mean,
+            );
+        });
+        time("label", &mut || {
+            label_runs(&ws.dark, h, w, tu, &mut ws.runs, &mut ws.parent);
+        });
+        time("all", &mut || {
+            extract_markers_with(&view, &p, &mut ws).unwrap();
+        });
+    }
+}

@@ -1,0 +1,140 @@
+//! Mutual nearest-neighbour marker matching with a distance gate.
+
+use crate::error::{CoreError, Result};
+use crate::geometry::{check_finite, estimate_pitch, PointIndex};
+
+/// Default gate as a fraction of the marker pitch: half a pitch can never reach the wrong marker
+/// of an undistorted grid.
+pub const DEFAULT_GATE_FRACTION: f32 = 0.5;
+
+/// Result of [`match_markers`], aligned with the reference points.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Matches {
+    /// `(dx, dy)` = matched current point minus reference point; NaN where not matched.
+    pub motion: Vec<[f32; 2]>,
+    /// True where the reference point has a mutual nearest neighbour within the gate.
+    pub valid: Vec<bool>,
+    /// Index into the current points, `-1` where not matched.
+    pub index: Vec<i64>,
+    /// Gate used, pixels (infinite when no gate applied).
+    pub max_dist: f32,
+}
+
+/// The gate: `max_dist` if given, else half the pitch estimated from `reference`,
+/// else (fewer than two distinct reference points) no gate.
+pub fn resolve_gate(reference: &[[f32; 2]], max_dist: Option<f32>) -> Result<f32> {
+    match max_dist {
+        Some(d) if d.is_nan() || d <= 0.0 => Err(CoreError::invalid(
+            "max_dist",
+            format!("must be a positive number of pixels; got {d}"),
+        )),
+        Some(d) => Ok(d),
+        None => Ok(estimate_pitch(reference)
+            .map(|p| DEFAULT_GATE_FRACTION * p)
+            .unwrap_or(f32::INFINITY)),
+    }
+}
+
+/// Matches `current` to `reference`: reference `i` and current `j` match when each is the other's
+/// nearest neighbour and they are at most `max_dist` apart. A reference point whose nearest
+/// current point prefers another reference point is left unmatched rather than given its
+/// second choice, so a lost marker never borrows a neighbour's detection.
+///
+/// Ties are broken by the lowest index, so duplicated current points match at most once.
+pub fn match_markers(
+    reference: &[[f32; 2]],
+    current: &[[f32; 2]],
+    max_dist: Option<f32>,
+) -> Result<Matches> {
+    check_finite(reference, "ref_pts")?;
+    check_finite(current, "cur_pts")?;
+    let gate = resolve_gate(reference, max_dist)?;
+    Ok(match_with_gate(reference, current, gate))
+}
+
+/// [`match_markers`] for inputs already checked, with a resolved gate.
+pub fn match_with_gate(reference: &[[f32; 2]], current: &[[f32; 2]], gate: f32) -> Matches {
+    let n = reference.len();
+    let mut out = Matches {
+        motion: vec![[f32::NAN; 2]; n],
+        valid: vec![false; n],
+        index: vec![-1; n],
+        max_dist: gate,
+    };
+    if n == 0 || current.is_empty() {
+        return out;
+    }
+    let cur_index = PointIndex::new(current, gate);
+    let ref_index = PointIndex::new(reference, gate);
+    for (i, &p) in reference.iter().enumerate() {
+        let Some((j, _)) = cur_index.nearest_within(p, gate, None) else {
+            continue;
+        };
+        let back = ref_index.nearest_within(current[j], gate, None);
+        if back.map(|(k, _)| k) == Some(i) {
+            out.motion[i] = [current[j][0] - p[0], current[j][1] - p[1]];
+            out.valid[i] = true;
+            out.index[i] = j as i64;
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid(nx: usize, ny: usize, pitch: f32) -> Vec<[f32; 2]> {
+        (0..ny)
+            .flat_map(|j| (0..nx).map(move |i| [i as f32 * pitch, j as f32 * pitch]))
+            .collect()
+    }
+
+    #[test]
+    fn recovers_small_shift() {
+        let r = grid(10, 10, 20.0);
+        let c: Vec<_> = r.iter().rev().map(|p| [p[0] + 3.0, p[1] - 2.0]).collect();
+        let m = match_markers(&r, &c, None).unwrap();
+        assert!(m.valid.iter().all(|&v| v));
+        assert!((m.max_dist - 10.0).abs() < 1e-5);
+        for mv in &m.motion {
+            assert!((mv[0] - 3.0).abs() < 1e-5 && (mv[1] + 2.0).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn motion_beyond_the_gate_is_unmatched_not_mismatched() {
+        let r = grid(5, 5, 20.0);
+        // 11 px diagonally: beyond the 10 px gate for its own marker and for every neighbour.
+        let c: Vec<_> = r.iter().map(|p| [p[0] + 7.8, p[1] + 7.8]).collect();
+        let m = match_markers(&r, &c, None).unwrap();
+        assert!(m.valid.iter().all(|&v| !v));
+        assert!(m.motion.iter().all(|p| p[0].is_nan() && p[1].is_nan()));
+        let m = match_markers(&r, &c, Some(12.0)).unwrap();
+        assert!(m.valid.iter().all(|&v| v));
+    }
+
+    #[test]
+    fn lost_marker_is_nan_and_never_borrows() {
+        let r = grid(4, 4, 20.0);
+        let mut c = r.clone();
+        c.remove(5);
+        let m = match_markers(&r, &c, None).unwrap();
+        assert!(!m.valid[5]);
+        assert!(m.motion[5][0].is_nan());
+        assert_eq!(m.valid.iter().filter(|&&v| v).count(), 15);
+    }
+
+    #[test]
+    fn duplicates_match_once_and_bad_input_is_named() {
+        let r = grid(3, 3, 20.0);
+        let c = vec![r[0], r[0]];
+        let m = match_markers(&r, &c, Some(5.0)).unwrap();
+        assert_eq!(m.index[0], 0);
+        let err = match_markers(&[[f32::NAN, 0.0]], &r, None).unwrap_err();
+        assert!(err.to_string().starts_with("ref_pts"));
+        let err = match_markers(&r, &r, Some(-1.0)).unwrap_err();
+        assert!(err.to_string().starts_with("max_dist"));
+        assert!(match_markers(&[], &r, None).unwrap().valid.is_empty());
+    }
+}

@@ -1,0 +1,136 @@
+//! `extract_markers`: binding of `tacswitch_core::extract`.
+
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArrayDyn};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use tacswitch_core::extract::{
+    extract_markers_with, ExtractParams, ExtractWorkspace, Extraction, Polarity,
+};
+use tacswitch_core::image::ImageView;
+
+use crate::arrays::{image_u8, points_to_py};
+use crate::errors::to_py;
+
+/// Parses the polarity name.
+pub fn parse_polarity(polarity: &str) -> PyResult<Polarity> {
+    match polarity {
+        "dark" => Ok(Polarity::Dark),
+        "bright" => Ok(Polarity::Bright),
+        other => Err(PyValueError::new_err(format!(
+            "polarity: must be 'dark' or 'bright'; got {other:?}"
+        ))),
+    }
+}
+
+/// Builds core parameters from the keyword arguments shared by extraction and tracking.
+#[allow(clippy::too_many_arguments)]
+pub fn params_from_args(
+    polarity: &str,
+    block_size: Option<usize>,
+    threshold: Option<f32>,
+    min_area: Option<usize>,
+    max_area: Option<usize>,
+    min_fill: f32,
+    max_aspect: f32,
+    dilate: usize,
+    exclude_border: bool,
+) -> PyResult<ExtractParams> {
+    Ok(ExtractParams {
+        polarity: parse_polarity(polarity)?,
+        block_size,
+        threshold,
+        min_area,
+        max_area,
+        min_fill,
+        max_aspect,
+        dilate,
+        exclude_border,
+    })
+}
+
+/// Runs extraction on a borrowed image with the GIL released.
+pub fn run_extract(
+    py: Python<'_>,
+    img: &PyReadonlyArrayDyn<'_, u8>,
+    params: &ExtractParams,
+    ws: &mut ExtractWorkspace,
+) -> PyResult<Extraction> {
+    let arg = image_u8(img, "img")?;
+    let view =
+        ImageView::new(arg.data, arg.height, arg.width, arg.channels, "img").map_err(to_py)?;
+    py.detach(|| extract_markers_with(&view, params, ws))
+        .map_err(to_py)
+}
+
+/// Converts an extraction into a dict of numpy arrays.
+pub fn extraction_to_py<'py>(
+    py: Python<'py>,
+    ex: Extraction,
+    height: usize,
+    width: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let n = ex.markers.len();
+    let centres: Vec<[f32; 2]> = ex.markers.iter().map(|m| m.centre).collect();
+    let areas: Vec<u32> = ex.markers.iter().map(|m| m.area).collect();
+    let contrast: Vec<f32> = ex.markers.iter().map(|m| m.contrast).collect();
+    let bbox: Vec<i32> = ex
+        .markers
+        .iter()
+        .flat_map(|m| m.bbox.map(|v| v as i32))
+        .collect();
+    let d = PyDict::new(py);
+    d.set_item("centres", points_to_py(py, &centres)?)?;
+    d.set_item("areas", PyArray1::from_vec(py, areas))?;
+    d.set_item("bboxes", PyArray1::from_vec(py, bbox).reshape([n, 4])?)?;
+    d.set_item("contrast", PyArray1::from_vec(py, contrast))?;
+    d.set_item(
+        "mask",
+        PyArray1::from_vec(py, ex.mask).reshape([height, width])?,
+    )?;
+    d.set_item("threshold", ex.threshold)?;
+    d.set_item("background_level", ex.background_level)?;
+    d.set_item("noise_sigma", ex.noise_sigma)?;
+    d.set_item("block_size", ex.block_size)?;
+    d.set_item("n_components", ex.n_components)?;
+    Ok(d)
+}
+
+/// Extracts markers from a uint8 BGR/BGRA/grey image; returns a dict of arrays and scalars.
+#[pyfunction]
+#[pyo3(signature = (img, *, polarity="dark", block_size=None, threshold=None, min_area=None,
+    max_area=None, min_fill=0.35, max_aspect=3.0, dilate=0, exclude_border=true))]
+#[allow(clippy::too_many_arguments)]
+fn extract_markers<'py>(
+    py: Python<'py>,
+    img: PyReadonlyArrayDyn<'py, u8>,
+    polarity: &str,
+    block_size: Option<usize>,
+    threshold: Option<f32>,
+    min_area: Option<usize>,
+    max_area: Option<usize>,
+    min_fill: f32,
+    max_aspect: f32,
+    dilate: usize,
+    exclude_border: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let params = params_from_args(
+        polarity,
+        block_size,
+        threshold,
+        min_area,
+        max_area,
+        min_fill,
+        max_aspect,
+        dilate,
+        exclude_border,
+    )?;
+    let mut ws = ExtractWorkspace::default();
+    let ex = run_extract(py, &img, &params, &mut ws)?;
+    let arg = image_u8(&img, "img")?;
+    extraction_to_py(py, ex, arg.height, arg.width)
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(extract_markers, m)?)
+}

@@ -82,9 +82,10 @@ def extract_markers(
         dilate: dilations of ``mask`` by a 3x3 cross (the paper dilates once before inpainting).
         exclude_border: drop markers whose centre lies outside the frame: blobs on the image
             border with less than 0.3 of the median interior marker area visible (or, with fewer
-            than 3 interior markers, cut to less than half their extent). Partly cut markers
-            whose centre is inside are kept; their centres lean inward by up to ~1 px. Set False
-            to keep every blob, e.g. to build an inpainting mask.
+            than 3 interior markers, cut to less than half their extent). Set False to keep every
+            blob, e.g. to build an inpainting mask. Either way, the centre of a marker cut by
+            the border is placed one typical marker radius in from its far edge along the cut
+            axis, since the visible part's centroid would lean inward.
 
     Returns:
         :class:`Markers`. An image without markers (flat, black, white, markerless) gives zero.

@@ -44,6 +44,9 @@ const CENTROID_NOISE_SIGMAS: f32 = 2.0;
 /// shrink further at a cut edge, and 0.3 of a disc corresponds to a centre at most ~0.25 radius
 /// outside the frame.
 const BORDER_MIN_AREA_FRACTION: f32 = 0.3;
+/// A border blob narrower across the border than this fraction of its extent along it is cut:
+/// its centre is completed from the far edge.
+const CUT_RATIO: f32 = 0.9;
 /// Interior markers needed to use the area rule above.
 const MIN_INTERIOR_FOR_AREA_RULE: usize = 3;
 /// Without enough interior markers, a border blob is kept while its extent across the border is
@@ -207,8 +210,9 @@ pub fn extract_markers_with(
         .iter()
         .map(|c| c.passes(min_area, max_area, params.min_fill, params.max_aspect))
         .collect();
+    let typical_area = typical_interior_area(&comps, &keep, h, w);
     if params.exclude_border {
-        drop_border_cut(&comps, &mut keep, h, w);
+        drop_border_cut(&comps, &mut keep, h, w, typical_area);
     }
 
     // Label image (0 = background) so that centroids can tell their own pixels from a neighbour's.
@@ -229,8 +233,9 @@ pub fn extract_markers_with(
         if !keep[label] {
             continue;
         }
-        let (marker, local_dark) =
+        let (mut marker, local_dark) =
             refine_marker(c, label as u32 + 1, &ws.luma, &ws.labels, h, w, sigma_units);
+        complete_cut_centre(&mut marker, c, h, w, typical_area);
         // The box mean is pulled up next to bright features, so their dark-looking surroundings
         // can pass the threshold; a real marker is also darker than its own immediate ring.
         if local_dark > t_luma {
@@ -728,28 +733,73 @@ impl Component {
     }
 }
 
-/// Drops markers whose centre lies outside the frame: on the border with less than
-/// [`BORDER_MIN_AREA_FRACTION`] of the typical interior marker area visible, or — with too few
-/// interior markers to compare against — visibly cut across the border.
-fn drop_border_cut(comps: &[Component], keep: &mut [bool], h: usize, w: usize) {
+/// Median area of the kept markers that do not touch the border, if there are enough of them.
+fn typical_interior_area(comps: &[Component], keep: &[bool], h: usize, w: usize) -> Option<f32> {
     let mut interior: Vec<f32> = comps
         .iter()
         .zip(keep.iter())
         .filter(|(c, &k)| k && !c.on_border(h, w))
         .map(|(c, _)| c.area as f32)
         .collect();
-    let typical = if interior.len() >= MIN_INTERIOR_FOR_AREA_RULE {
+    if interior.len() >= MIN_INTERIOR_FOR_AREA_RULE {
         crate::geometry::median(&mut interior)
     } else {
         None
-    };
+    }
+}
+
+/// Drops markers whose centre lies outside the frame: on the border with less than
+/// [`BORDER_MIN_AREA_FRACTION`] of the typical interior marker area visible, or — with too few
+/// interior markers to compare against — visibly cut across the border.
+fn drop_border_cut(
+    comps: &[Component],
+    keep: &mut [bool],
+    h: usize,
+    w: usize,
+    typical_area: Option<f32>,
+) {
     for (c, k) in comps.iter().zip(keep.iter_mut()) {
         if !*k || !c.on_border(h, w) {
             continue;
         }
-        *k = match typical {
+        *k = match typical_area {
             Some(a) => c.area as f32 >= BORDER_MIN_AREA_FRACTION * a,
             None => !c.cut_by_border(h, w),
+        };
+    }
+}
+
+/// A marker cut by the border has its visible part's centroid pulled inward. Along each cut axis,
+/// place the centre one marker radius in from the far (uncut) edge instead; the radius is that of
+/// a typical interior marker, or half the blob's extent along the border.
+fn complete_cut_centre(
+    marker: &mut Marker,
+    c: &Component,
+    h: usize,
+    w: usize,
+    typical_area: Option<f32>,
+) {
+    let (bw, bh) = ((c.x1 - c.x0 + 1) as f32, (c.y1 - c.y0 + 1) as f32);
+    let radius = |along: f32| match typical_area {
+        Some(a) => (a / std::f32::consts::PI).sqrt(),
+        None => 0.5 * along,
+    };
+    let (left, right) = (c.x0 == 0, c.x1 as usize + 1 == w);
+    if (left != right) && bw < CUT_RATIO * bh {
+        let r = radius(bh);
+        marker.centre[0] = if left {
+            c.x1 as f32 + 0.5 - r
+        } else {
+            c.x0 as f32 - 0.5 + r
+        };
+    }
+    let (top, bottom) = (c.y0 == 0, c.y1 as usize + 1 == h);
+    if (top != bottom) && bh < CUT_RATIO * bw {
+        let r = radius(bw);
+        marker.centre[1] = if top {
+            c.y1 as f32 + 0.5 - r
+        } else {
+            c.y0 as f32 - 0.5 + r
         };
     }
 }

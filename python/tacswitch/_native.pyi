@@ -1,0 +1,75 @@
+"""Type stubs of the native extension ``tacswitch._native`` (checked by ``mypy.stubtest``)."""
+
+from typing import Any, final
+
+import numpy as np
+from numpy.typing import NDArray
+
+__version__: str
+__all__: list[str]
+
+def extract_markers(
+    img: NDArray[np.uint8],
+    *,
+    polarity: str = "dark",
+    block_size: int | None = None,
+    threshold: float | None = None,
+    min_area: int | None = None,
+    max_area: int | None = None,
+    min_fill: float = 0.35,
+    max_aspect: float = 3.0,
+    dilate: int = 0,
+    exclude_border: bool = True,
+) -> dict[str, Any]: ...
+def match_markers(
+    ref_pts: NDArray[np.float32],
+    cur_pts: NDArray[np.float32],
+    max_dist: float | None = None,
+) -> tuple[NDArray[np.float32], NDArray[np.bool_], NDArray[np.int64], float]: ...
+def estimate_pitch(points: NDArray[np.float32]) -> float | None: ...
+
+@final
+class Tracker:
+    def __new__(
+        cls,
+        ref_pts: NDArray[np.float32],
+        max_dist: float | None = None,
+        *,
+        polarity: str = "dark",
+        block_size: int | None = None,
+        threshold: float | None = None,
+        min_area: int | None = None,
+        max_area: int | None = None,
+        min_fill: float = 0.35,
+        max_aspect: float = 3.0,
+        exclude_border: bool = True,
+    ) -> Tracker: ...
+    def update_points(
+        self, points: NDArray[np.float32]
+    ) -> tuple[NDArray[np.float32], NDArray[np.bool_], int]: ...
+    def update_image(
+        self, img: NDArray[np.uint8]
+    ) -> tuple[NDArray[np.float32], NDArray[np.bool_], int]: ...
+    def reset(self) -> None: ...
+    @property
+    def reference(self) -> NDArray[np.float32]: ...
+    @property
+    def positions(self) -> NDArray[np.float32]: ...
+    @property
+    def max_dist(self) -> float: ...
+    @property
+    def frame(self) -> int: ...
+
+@final
+class SlipDetector:
+    def __new__(
+        cls,
+        threshold_px: float | None,
+        rigid_threshold_px: float | None = None,
+        active_fraction: float = 0.5,
+        points: NDArray[np.float32] | None = None,
+    ) -> SlipDetector: ...
+    def update(self, motion: NDArray[np.float32], valid: NDArray[np.bool_]) -> dict[str, Any]: ...
+    def reset(self) -> None: ...
+    @property
+    def first_slip(self) -> int | None: ...

@@ -1,0 +1,34 @@
+"""Shared fixtures: every test generates its own data (no files from outside the repository)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tacswitch import sim
+
+
+def disc_image(
+    centres: np.ndarray,
+    shape: tuple[int, int] = (480, 640),
+    diameter: float = 23.0,
+    *,
+    darkness: float = 0.85,
+    edge_px: float = 1.5,
+    noise: float = 0.0,
+    seed: int = 0,
+) -> np.ndarray:
+    """BGR frame with soft discs at ``centres`` on a GelSight-like background."""
+    bg = sim.gel_background(shape[0], shape[1], seed=seed)
+    return sim.render_markers(
+        bg, centres, diameter, darkness=darkness, edge_px=edge_px, noise_sigma=noise, seed=seed + 1
+    )
+
+
+@pytest.fixture
+def gelsight_grid() -> np.ndarray:
+    """48 marker centres of the paper's GelSight at sub-pixel offsets."""
+    p = sim.get_preset("gelsight")
+    pts = sim.marker_grid(p.height, p.width, p.rows, p.cols, p.pitch)
+    offsets = np.random.default_rng(3).uniform(-0.5, 0.5, pts.shape).astype(np.float32)
+    return pts + offsets

@@ -5,10 +5,10 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from conftest import disc_image
 from scipy.spatial import cKDTree
 
 import tacswitch as ts
+from conftest import disc_image
 from tacswitch import sim
 
 
@@ -61,7 +61,7 @@ def test_mini_markers_with_low_contrast_soft_edges() -> None:
 
 def test_lighting_changes_do_not_change_the_markers(gelsight_grid: np.ndarray) -> None:
     img = disc_image(gelsight_grid, noise=1.5).astype(np.float32)
-    h, w = img.shape[:2]
+    _h, w = img.shape[:2]
     ramp = np.linspace(0.45, 1.05, w, dtype=np.float32)[None, :, None]
     for variant in (img * 0.5, img * ramp, img * 0.8 + 30):
         m = ts.extract_markers(np.clip(variant, 0, 255).astype(np.uint8))
@@ -119,7 +119,7 @@ def test_mask_dilation_matches_opencv_3x3_ellipse(gelsight_grid: np.ndarray) -> 
 def test_components_match_opencv_labelling(gelsight_grid: np.ndarray) -> None:
     img = disc_image(gelsight_grid, noise=2.0)
     m = ts.extract_markers(img)
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(m.mask.astype(np.uint8), connectivity=8)
+    n, _labels, stats, _ = cv2.connectedComponentsWithStats(m.mask.astype(np.uint8), connectivity=8)
     assert n - 1 == len(m)
     cv_boxes = sorted(tuple(int(v) for v in s[:4]) for s in stats[1:])
     ours = sorted(tuple(int(v) for v in b) for b in m.bboxes)

@@ -1,4 +1,4 @@
-"""tacswitch: mode-switchable optical tactile sensing (GelSight, GelSight Mini, DIGIT-style sensors).
+"""tacswitch: mode-switchable optical tactile sensing (GelSight, GelSight Mini, DIGIT-style).
 
 One sensor, both modes, in software:
 

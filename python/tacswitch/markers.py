@@ -21,7 +21,8 @@ class Markers:
     Attributes:
         centres: ``N x 2`` float32 sub-pixel centres ``(x, y)`` in pixels, in raster order.
         areas: ``N`` uint32 areas in pixels (pixels above the threshold).
-        bboxes: ``N x 4`` int32 boxes ``(x, y, width, height)`` as ``cv2.connectedComponentsWithStats``.
+        bboxes: ``N x 4`` int32 boxes ``(x, y, width, height)``, as
+            ``cv2.connectedComponentsWithStats`` reports them.
         contrast: ``N`` float32 peak darkness ``1 - darkest / local background`` in ``[0, 1]``.
         mask: ``H x W`` bool, True on marker pixels (after the requested dilation).
         threshold: darkness threshold used, grey levels above the local background.

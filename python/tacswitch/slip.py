@@ -128,7 +128,7 @@ class SlipDetector:
         return None if self._native is None else self._native.first_slip
 
     def reset(self) -> None:
-        """Starts a new grasp: the next frame becomes the baseline. A tracker keeps its reference."""
+        """Starts a new grasp: the next frame is the baseline (a tracker keeps its reference)."""
         if self._native is not None:
             self._native.reset()
 

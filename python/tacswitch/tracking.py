@@ -80,7 +80,8 @@ class MarkerTracker:
             ``N x 2`` float ``(x, y)`` centres.
         max_dist: per-frame gate, pixels; default half the reference pitch.
         **extract_opts: options of :func:`extract_markers` used on every image (``polarity``,
-            ``block_size``, ``threshold``, ``min_area``, ``max_area``, ``min_fill``, ``max_aspect``).
+            ``block_size``, ``threshold``, ``min_area``, ``max_area``, ``min_fill``,
+            ``max_aspect``, ``exclude_border``).
 
     Example:
         >>> tracker = MarkerTracker(ref_frame)              # doctest: +SKIP

@@ -29,7 +29,8 @@ def press_field(
     c = np.asarray(centres, np.float64)
     rel = c - np.asarray(contact, np.float64)
     r = np.hypot(rel[:, 0], rel[:, 1])
-    mag = np.where(r <= radius, dilation_px * r / max(radius, 1e-9), dilation_px * _decay(r, radius))
+    inside = dilation_px * r / max(radius, 1e-9)
+    mag = np.where(r <= radius, inside, dilation_px * _decay(r, radius))
     unit = rel / np.maximum(r, 1e-9)[:, None]
     return (unit * mag[:, None]).astype(np.float32)
 

@@ -443,11 +443,15 @@ multiversion! {
             if y % 2 == 0 {
                 // Four histograms in turn: consecutive samples mostly hit the same bin, and one
                 // histogram would make every increment wait for the previous store.
-                for c in drow.chunks_exact(8) {
+                let chunks = drow.chunks_exact(8);
+                let tail = chunks.remainder();
+                for c in chunks {
                     for (k, sub) in hist.iter_mut().enumerate() {
-                        // d / 64 floored, shifted into [0, 512): |d| <= 16320 keeps it in range.
-                        sub[((i32::from(c[2 * k]) >> 6) + HIST_OFFSET) as usize] += 1;
+                        sub[hist_bin(c[2 * k])] += 1;
                     }
+                }
+                for &d in tail.iter().step_by(2) {
+                    hist[0][hist_bin(d)] += 1;
                 }
             }
         }
@@ -459,6 +463,12 @@ multiversion! {
         }
         total
     }
+}
+
+/// Histogram bin of a darkness value: d / 64 floored, shifted into [0, 512) (|d| <= 16320).
+#[inline(always)]
+fn hist_bin(d: i16) -> usize {
+    ((i32::from(d) >> 6) + HIST_OFFSET) as usize
 }
 
 /// Buffers of [`box_darkness`].
@@ -598,7 +608,7 @@ fn auto_threshold(hist: &[u32; HIST_BINS], stats: &HistStats) -> f32 {
     }
     // Otsu's class boundary is the upper edge of `best_bin`.
     let otsu = (best_bin as f32 + 1.0) - HIST_OFFSET as f32;
-    otsu.max(floor)
+    otsu.max(floor).clamp(0.0, 255.0)
 }
 
 multiversion! {

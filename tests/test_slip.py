@@ -1,0 +1,122 @@
+"""Slip detection: the paper's rule, its scaling, the rigid criterion, synthetic grasps."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import tacswitch as ts
+from tacswitch import sim
+from tacswitch.slip import scaled_threshold
+
+
+def run(seq: sim.GraspSequence, detector: ts.SlipDetector) -> int | None:
+    """Tracks a sequence and returns the first frame flagged as slip (None if never)."""
+    tracker = ts.MarkerTracker(seq.reference)
+    for t, frame in enumerate(seq.frames):
+        motion, valid = tracker.update(frame)
+        if t == seq.grasp_start:
+            detector.reset()
+        if t >= seq.grasp_start and detector.update(motion, valid).slip:
+            return t
+    return None
+
+
+@pytest.mark.parametrize("preset", ["gelsight", "gelsight_mini", "dense"])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_synthetic_grasps_are_classified(preset: str, seed: int) -> None:
+    width = sim.get_preset(preset).width
+    for kind in ("hold", "slip", "vibration"):
+        seq = sim.grasp_sequence(preset, kind, n_frames=40, seed=seed)
+        first = run(seq, ts.SlipDetector(image_width=width))
+        if kind == "slip":
+            onset = seq.slip.index(True)
+            assert first is not None and onset <= first <= onset + 3, (kind, first, onset)
+        else:
+            assert first is None, (kind, first)
+
+
+def test_threshold_scales_with_image_width() -> None:
+    assert scaled_threshold(640) == pytest.approx(3.25)
+    assert scaled_threshold(320) == pytest.approx(1.625)
+    assert ts.SlipDetector(image_width=320).threshold_px == pytest.approx(1.625)
+    assert ts.SlipDetector(2.0, image_width=320).threshold_px == 2.0
+    det = ts.SlipDetector()
+    det.update(np.zeros((4, 2)))
+    assert det.threshold_px == pytest.approx(3.25)
+
+
+def test_rule_is_relative_to_the_first_frame_of_the_grasp() -> None:
+    det = ts.SlipDetector(3.25)
+    base = np.full((48, 2), 10.0, np.float32)
+    assert not det.update(base).slip
+    m = base.copy()
+    m[7] += [3.0, 0.0]
+    state = det.update(m)
+    assert not state.slip and state.max_displacement == pytest.approx(3.0)
+    m[7] += [0.5, 0.0]
+    state = det.update(m)
+    assert state.slip and state.criterion == "displacement" and state.marker == 7
+    assert state.frame == 2 and det.first_slip == 2
+    det.reset()
+    assert not det.update(m).slip and det.first_slip is None
+
+
+def test_lost_markers_are_ignored_and_nan_means_invalid() -> None:
+    det = ts.SlipDetector(1.0)
+    m = np.zeros((5, 2), np.float32)
+    det.update(m)
+    m[2] = np.nan
+    m[3] = [0.5, 0.0]
+    state = det.update(m)
+    assert state.n_compared == 4 and not state.slip
+    state = det.update(m, valid=np.array([True, True, False, False, True]))
+    assert state.n_compared == 3
+
+
+def test_rigid_criterion_flags_edge_lag_not_rigid_shear() -> None:
+    pts = sim.marker_grid(480, 640, 6, 8, 80.0)
+    centre = pts[19]
+    contact = np.hypot(*(pts - centre).T) < 100
+    det = ts.SlipDetector(rigid_threshold_px=1.0, points=pts, use_displacement=False)
+    det.update(np.zeros_like(pts))
+    theta = 0.02
+    rel = pts - centre
+    rot = np.stack([np.cos(theta) * rel[:, 0] - np.sin(theta) * rel[:, 1],
+                    np.sin(theta) * rel[:, 0] + np.cos(theta) * rel[:, 1]], 1)
+    stick = (rot - rel + [8.0, -5.0]) * np.where(contact, 1.0, 0.15)[:, None]
+    state = det.update(stick.astype(np.float32))
+    assert not state.slip and state.rigid_residual < 0.05
+    lag = stick.copy()
+    edge = int(np.flatnonzero(contact)[0])
+    lag[edge] -= [3.0, 0.0]
+    state = det.update(lag.astype(np.float32))
+    assert state.slip and state.criterion == "rigid" and state.rigid_marker == edge
+
+
+def test_image_input_tracks_internally() -> None:
+    seq = sim.grasp_sequence("gelsight", "slip", n_frames=30, seed=2)
+    det = ts.SlipDetector()
+    det.update(seq.reference)
+    assert det.tracker is not None and det.threshold_px == pytest.approx(3.25)
+    states = [det.update(f) for f in seq.frames]
+    assert states[-1].slip and states[-1].max_displacement > 20
+
+
+def test_bad_arguments_are_named() -> None:
+    with pytest.raises(ValueError, match="threshold_px"):
+        ts.SlipDetector(-1)
+    with pytest.raises(ValueError, match="active_fraction"):
+        ts.SlipDetector(active_fraction=0)
+    with pytest.raises(ValueError, match="use_displacement"):
+        ts.SlipDetector(use_displacement=False)
+    with pytest.raises(ValueError, match="points"):
+        ts.SlipDetector(rigid_threshold_px=1.0).update(np.zeros((3, 2)))
+    det = ts.SlipDetector()
+    det.update(np.zeros((3, 2)))
+    with pytest.raises(ValueError, match="motion"):
+        det.update(np.zeros((4, 2)))
+    with pytest.raises(ValueError, match="valid"):
+        det.update(np.zeros((3, 2)), valid=np.ones(2, bool))
+    with pytest.raises(ValueError, match="motion_or_img"):
+        det.update(np.full((3, 2), np.inf))

@@ -14,6 +14,7 @@ pub mod image;
 pub mod matching;
 mod simd;
 pub mod slip;
+pub mod telea;
 pub mod tracker;
 
 pub use error::{CoreError, Result};

@@ -12,6 +12,7 @@ pub mod extract;
 pub mod geometry;
 pub mod image;
 pub mod matching;
+pub mod merge;
 mod simd;
 pub mod slip;
 pub mod telea;

@@ -8,7 +8,9 @@ mod arrays;
 mod errors;
 mod extract;
 mod matching;
+mod merge;
 mod slip;
+mod telea;
 mod tracker;
 
 use pyo3::prelude::*;
@@ -20,5 +22,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     matching::register(m)?;
     tracker::register(m)?;
     slip::register(m)?;
+    telea::register(m)?;
+    merge::register(m)?;
     Ok(())
 }

@@ -143,11 +143,11 @@ pub struct Extraction {
 #[derive(Debug, Default, Clone)]
 pub struct ExtractWorkspace {
     luma: Vec<u16>,
+    /// One row of darkness: rows are computed as needed, never the whole image.
     dark: Vec<i16>,
     boxes: BoxBuffers,
     labels: Vec<u32>,
-    runs: Vec<Run>,
-    parent: Vec<u32>,
+    labeller: RunLabeller,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -169,14 +169,16 @@ pub fn default_block_size(height: usize, width: usize) -> usize {
 /// Extracts markers from a BGR (`channels == 3`), BGRA (4) or grey (1) uint8 image.
 pub fn extract_markers(image: &ImageView<'_, u8>, params: &ExtractParams) -> Result<Extraction> {
     let mut ws = ExtractWorkspace::default();
-    extract_markers_with(image, params, &mut ws)
+    extract_markers_with(image, params, &mut ws, true)
 }
 
-/// [`extract_markers`] with caller-owned buffers.
+/// [`extract_markers`] with caller-owned buffers; `want_mask = false` leaves
+/// [`Extraction::mask`] empty (the markers are unchanged).
 pub fn extract_markers_with(
     image: &ImageView<'_, u8>,
     params: &ExtractParams,
     ws: &mut ExtractWorkspace,
+    want_mask: bool,
 ) -> Result<Extraction> {
     validate(image, params)?;
     let (h, w) = (image.height(), image.width());
@@ -186,7 +188,14 @@ pub fn extract_markers_with(
         .unwrap_or_else(|| default_block_size(h, w));
 
     compute_luma(image, params.polarity, &mut ws.luma);
-    let hist = box_darkness(&ws.luma, h, w, block, &mut ws.boxes, &mut ws.dark);
+    let bg = background(&ws.luma, h, w, block, &mut ws.boxes);
+    let hist = darkness_histogram(
+        &ws.luma,
+        &ws.boxes.mean,
+        bg,
+        &mut ws.boxes.row,
+        &mut ws.dark,
+    );
     let stats = HistStats::from_hist(&hist);
     let threshold = match params.threshold {
         Some(t) => t,
@@ -197,8 +206,16 @@ pub fn extract_markers_with(
         .floor()
         .clamp(i16::MIN as f32, i16::MAX as f32) as i16;
 
-    let n_components = label_runs(&ws.dark, h, w, t_units, &mut ws.runs, &mut ws.parent);
-    let comps = component_stats(&ws.runs, n_components);
+    let n_components = label_image(
+        &ws.luma,
+        &ws.boxes.mean,
+        bg,
+        t_units,
+        &mut ws.boxes.row,
+        &mut ws.dark,
+        &mut ws.labeller,
+    );
+    let comps = component_stats(&ws.labeller.runs, n_components);
 
     let min_area = params
         .min_area
@@ -221,7 +238,7 @@ pub fn extract_markers_with(
         ws.labels.clear();
         ws.labels.resize(n, 0);
     }
-    for r in &ws.runs {
+    for r in &ws.labeller.runs {
         let row = r.y as usize * w;
         ws.labels[row + r.x0 as usize..row + r.x1 as usize].fill(r.label + 1);
     }
@@ -244,7 +261,7 @@ pub fn extract_markers_with(
             keep[label] = false;
         }
     }
-    for r in &ws.runs {
+    for r in &ws.labeller.runs {
         let row = r.y as usize * w;
         ws.labels[row + r.x0 as usize..row + r.x1 as usize].fill(0);
     }
@@ -254,14 +271,20 @@ pub fn extract_markers_with(
             .then(a.centre[0].total_cmp(&b.centre[0]))
     });
 
-    let mut mask = vec![false; n];
-    for r in &ws.runs {
+    // A fresh 300 KB mask per frame costs page faults; streaming callers that only want centres
+    // skip it.
+    let mut mask = if want_mask {
+        vec![false; n]
+    } else {
+        Vec::new()
+    };
+    for r in ws.labeller.runs.iter().filter(|_| want_mask) {
         if keep[r.label as usize] {
             let row = r.y as usize * w;
             mask[row + r.x0 as usize..row + r.x1 as usize].fill(true);
         }
     }
-    for _ in 0..params.dilate {
+    for _ in 0..params.dilate * usize::from(want_mask) {
         mask = dilate_cross(&mask, h, w);
     }
 
@@ -385,74 +408,140 @@ fn reflect101(i: isize, n: usize) -> usize {
     i as usize
 }
 
+/// Geometry of the binned background: `factor x factor` pixel bins, `bins_w` bins per row.
+#[derive(Debug, Clone, Copy)]
+struct Background {
+    h: usize,
+    w: usize,
+    factor: usize,
+    bins_w: usize,
+}
+
+/// Bin side used for a background box of `block` pixels: the box is what must be smooth, so a
+/// 4x4 bin is fine from a 31-pixel box on (at least 7 bins across).
+fn bin_factor(block: usize) -> usize {
+    if block >= 31 {
+        4
+    } else {
+        2
+    }
+}
+
 multiversion! {
-    /// Local background and darkness `background - luma` (i16, 1/64 grey level), plus a histogram.
-    ///
-    /// The background only has to be smooth on the scale of the box, so it is computed on the image
-    /// binned 2x2 (a quarter of the pixels) with a box of `2 * (block / 4) + 1` binned pixels — an
-    /// effective side of about `block` pixels — and read back at the bin of each pixel.
-    ///
-    /// The histogram samples every other pixel of every other row (in whole chunks of 8): a
-    /// quarter of the pixels is plenty for a median, a MAD and Otsu.
-    fn box_darkness(
-        luma: &[u16],
-        h: usize,
-        w: usize,
-        block: usize,
-        ws: &mut BoxBuffers,
-        dark: &mut Vec<i16>,
-    ) -> [u32; HIST_BINS] {
-        let (hs, wsm) = (h.div_ceil(2), w.div_ceil(2));
-        // 2x2 bin sums (odd last row/column counted twice so every bin sums four pixels).
-        ws.binned.clear();
-        ws.binned.resize(hs * wsm, 0);
-        for by in 0..hs {
-            let r0 = &luma[2 * by * w..][..w];
-            let r1 = &luma[(2 * by + 1).min(h - 1) * w..][..w];
-            let out = &mut ws.binned[by * wsm..][..wsm];
-            for ((o, a), b) in out.iter_mut().zip(r0.chunks_exact(2)).zip(r1.chunks_exact(2)) {
-                *o = u32::from(a[0]) + u32::from(a[1]) + u32::from(b[0]) + u32::from(b[1]);
+    /// Local background: the box mean of luma over about `block x block` pixels with reflect-101
+    /// borders, computed on `F x F` bin sums (a box of `2 * (block / (2 F)) + 1` bins) and left
+    /// at bin resolution in `buf.mean`. The background only has to be smooth on the box scale;
+    /// reading it back at each pixel's bin changes nothing that matters for the threshold.
+    fn background(luma: &[u16], h: usize, w: usize, block: usize, buf: &mut BoxBuffers) -> Background {
+        let factor = bin_factor(block);
+        let (bins_h, bins_w) = (h.div_ceil(factor), w.div_ceil(factor));
+        buf.binned.clear();
+        buf.binned.resize(bins_h * bins_w, 0);
+        if factor == 4 {
+            bin_sums::<4>(luma, h, w, &mut buf.binned);
+        } else {
+            bin_sums::<2>(luma, h, w, &mut buf.binned);
+        }
+        let radius = block / (2 * factor);
+        box_mean_binned(
+            &buf.binned,
+            bins_h,
+            bins_w,
+            radius,
+            factor * factor,
+            &mut buf.col,
+            &mut buf.padded,
+            &mut buf.mean,
+        );
+        Background { h, w, factor, bins_w }
+    }
+}
+
+/// Sums of `F x F` pixel bins; partial bins at the right/bottom edge repeat the last pixel so that
+/// every bin sums `F * F` values.
+#[inline(always)]
+fn bin_sums<const F: usize>(luma: &[u16], h: usize, w: usize, out: &mut [u32]) {
+    let bins_w = w.div_ceil(F);
+    let full = w / F;
+    for (by, orow) in out.chunks_exact_mut(bins_w).enumerate() {
+        for k in 0..F {
+            let row = &luma[(by * F + k).min(h - 1) * w..][..w];
+            for (o, px) in orow.iter_mut().zip(row.chunks_exact(F)) {
+                *o += px.iter().map(|&v| u32::from(v)).sum::<u32>();
             }
-            if w % 2 == 1 {
-                out[wsm - 1] = 2 * (u32::from(r0[w - 1]) + u32::from(r1[w - 1]));
+            if full < bins_w {
+                let tail = &row[full * F..];
+                let last = u32::from(row[w - 1]);
+                orow[full] += tail.iter().map(|&v| u32::from(v)).sum::<u32>()
+                    + last * (F - tail.len()) as u32;
             }
         }
-        box_mean_binned(&ws.binned, hs, wsm, block / 4, &mut ws.col, &mut ws.padded, &mut ws.mean);
+    }
+}
 
-        dark.clear();
-        dark.resize(h * w, 0);
-        ws.row.clear();
-        ws.row.resize(w, 0);
+/// Background of row `y` at pixel resolution, read from the bins.
+#[inline(always)]
+fn expand_row(mean: &[u16], bg: Background, y: usize, row: &mut Vec<u16>) {
+    row.clear();
+    row.resize(bg.w, 0);
+    let src = &mean[(y / bg.factor) * bg.bins_w..][..bg.bins_w];
+    match bg.factor {
+        4 => expand::<4>(src, row),
+        _ => expand::<2>(src, row),
+    }
+}
+
+#[inline(always)]
+fn expand<const F: usize>(src: &[u16], row: &mut [u16]) {
+    let full = row.len() / F;
+    for (chunk, &m) in row.chunks_exact_mut(F).zip(src) {
+        for v in chunk {
+            *v = m;
+        }
+    }
+    if let Some(&m) = src.get(full) {
+        for v in &mut row[full * F..] {
+            *v = m;
+        }
+    }
+}
+
+/// Darkness of one row, i16 in 1/64 grey level: `(background - luma) >> 2`.
+#[inline(always)]
+fn darkness_row(bg_row: &[u16], luma_row: &[u16], out: &mut Vec<i16>) {
+    out.clear();
+    out.resize(luma_row.len(), 0);
+    for ((d, &m), &l) in out.iter_mut().zip(bg_row).zip(luma_row) {
+        *d = ((i32::from(m) - i32::from(l)) >> DARK_SHIFT) as i16;
+    }
+}
+
+multiversion! {
+    /// Histogram of darkness on every other pixel of every 1st-4th row (in chunks of 8, into four
+    /// sub-histograms so consecutive increments of the one busy bin do not wait on each other):
+    /// tens of thousands of samples are plenty for a median, a MAD and Otsu.
+    fn darkness_histogram(
+        luma: &[u16],
+        mean: &[u16],
+        bg: Background,
+        bg_row: &mut Vec<u16>,
+        dark_row: &mut Vec<i16>,
+    ) -> [u32; HIST_BINS] {
         let mut hist = [[0u32; HIST_BINS]; 4];
-        for y in 0..h {
-            if y % 2 == 0 {
-                let src = &ws.mean[(y / 2) * wsm..][..wsm];
-                for (pair, &m) in ws.row.chunks_exact_mut(2).zip(src) {
-                    pair[0] = m;
-                    pair[1] = m;
-                }
-                if w % 2 == 1 {
-                    ws.row[w - 1] = src[wsm - 1];
+        // Every 4th row on frames of 256+ rows (38k samples at 640x480), denser on small ones.
+        let row_step = (bg.h / 64).clamp(1, 4);
+        for y in (0..bg.h).step_by(row_step) {
+            expand_row(mean, bg, y, bg_row);
+            darkness_row(bg_row, &luma[y * bg.w..][..bg.w], dark_row);
+            let chunks = dark_row.chunks_exact(8);
+            let tail = chunks.remainder();
+            for c in chunks {
+                for (k, sub) in hist.iter_mut().enumerate() {
+                    sub[hist_bin(c[2 * k])] += 1;
                 }
             }
-            let lrow = &luma[y * w..][..w];
-            let drow = &mut dark[y * w..][..w];
-            for ((d, &m), &l) in drow.iter_mut().zip(&ws.row).zip(lrow) {
-                *d = ((i32::from(m) - i32::from(l)) >> DARK_SHIFT) as i16;
-            }
-            if y % 2 == 0 {
-                // Four histograms in turn: consecutive samples mostly hit the same bin, and one
-                // histogram would make every increment wait for the previous store.
-                let chunks = drow.chunks_exact(8);
-                let tail = chunks.remainder();
-                for c in chunks {
-                    for (k, sub) in hist.iter_mut().enumerate() {
-                        sub[hist_bin(c[2 * k])] += 1;
-                    }
-                }
-                for &d in tail.iter().step_by(2) {
-                    hist[0][hist_bin(d)] += 1;
-                }
+            for &d in tail.iter().step_by(2) {
+                hist[0][hist_bin(d)] += 1;
             }
         }
         let mut total = [0u32; HIST_BINS];
@@ -465,29 +554,55 @@ multiversion! {
     }
 }
 
+multiversion! {
+    /// Labels the pixels with darkness above `t`, computing darkness a row at a time.
+    fn label_image(
+        luma: &[u16],
+        mean: &[u16],
+        bg: Background,
+        t: i16,
+        bg_row: &mut Vec<u16>,
+        dark_row: &mut Vec<i16>,
+        labeller: &mut RunLabeller,
+    ) -> usize {
+        labeller.clear();
+        for y in 0..bg.h {
+            if y % bg.factor == 0 {
+                expand_row(mean, bg, y, bg_row);
+            }
+            darkness_row(bg_row, &luma[y * bg.w..][..bg.w], dark_row);
+            labeller.push_row(dark_row, y, t);
+        }
+        labeller.finish()
+    }
+}
+
 /// Histogram bin of a darkness value: d / 64 floored, shifted into [0, 512) (|d| <= 16320).
 #[inline(always)]
 fn hist_bin(d: i16) -> usize {
     ((i32::from(d) >> 6) + HIST_OFFSET) as usize
 }
 
-/// Buffers of [`box_darkness`].
+/// Buffers of [`background`].
 #[derive(Debug, Default, Clone)]
 struct BoxBuffers {
     binned: Vec<u32>,
     col: Vec<u32>,
     padded: Vec<u32>,
     mean: Vec<u16>,
+    /// Background of the current row at pixel resolution.
     row: Vec<u16>,
 }
 
 #[inline(always)]
-/// Box mean (radius `r` in binned pixels, reflect-101 borders) of 2x2 bin sums, as mean luma.
+/// Box mean (radius `r` in bins, reflect-101 borders) of bin sums of `per_bin` pixels, as luma.
+#[allow(clippy::too_many_arguments)]
 fn box_mean_binned(
     binned: &[u32],
     h: usize,
     w: usize,
     r: usize,
+    per_bin: usize,
     col: &mut Vec<u32>,
     padded: &mut Vec<u32>,
     mean: &mut Vec<u16>,
@@ -495,9 +610,9 @@ fn box_mean_binned(
     // Radius limited so that reflect-101 never needs more than one bounce.
     let ry = r.min(h.saturating_sub(1));
     let rx = r.min(w.saturating_sub(1));
-    // Each bin sums 4 pixels; fixed-point reciprocal so mean = (sum * inv) >> 32.
-    let count = 4 * ((2 * ry + 1) * (2 * rx + 1)) as u64;
-    let inv = ((1u64 << 32) + count - 1) / count;
+    // Fixed-point reciprocal so that mean = (sum * inv) >> 32.
+    let count = (per_bin * (2 * ry + 1) * (2 * rx + 1)) as u64;
+    let inv = (1u64 << 32).div_ceil(count);
     col.clear();
     col.resize(w, 0);
     for k in -(ry as isize)..=(ry as isize) {
@@ -524,7 +639,7 @@ fn box_mean_binned(
             padded[rx - 1 - k] = col[reflect101(-1 - k as isize, w)];
             padded[rx + w + k] = col[reflect101((w + k) as isize, w)];
         }
-        // u32 cannot overflow: the window sums at most (2 * 63 + 1)^2 bins of 4 * 65280.
+        // u32 cannot overflow: a window covers at most ~MAX_BLOCK^2 pixels of at most 65280.
         let mut acc: u32 = padded[..2 * rx + 1].iter().sum();
         let out = &mut mean[y * w..][..w];
         out[0] = ((u64::from(acc) * inv) >> 32) as u16;
@@ -611,75 +726,84 @@ fn auto_threshold(hist: &[u32; HIST_BINS], stats: &HistStats) -> f32 {
     otsu.max(floor).clamp(0.0, 255.0)
 }
 
-multiversion! {
-    /// Finds runs of `dark > t` and unions 8-connected runs; returns the number of components and
-    /// leaves each run's compact component label in `runs`.
-    fn label_runs(
-        dark: &[i16],
-        h: usize,
-        w: usize,
-        t: i16,
-        runs: &mut Vec<Run>,
-        parent: &mut Vec<u32>,
-    ) -> usize {
-        runs.clear();
-        parent.clear();
-        let mut prev = 0..0;
-        for y in 0..h {
-            let row = &dark[y * w..][..w];
-            let start = runs.len();
-            let mut x = 0;
-            while x < w {
-                // Skip 16 background pixels at a time: the max over a chunk vectorises.
-                if x + SCAN_CHUNK <= w && row[x..x + SCAN_CHUNK].iter().fold(i16::MIN, |m, &v| m.max(v)) <= t
-                {
-                    x += SCAN_CHUNK;
-                    continue;
-                }
-                if row[x] > t {
-                    let x0 = x;
-                    while x < w && row[x] > t {
-                        x += 1;
-                    }
-                    let id = runs.len() as u32;
-                    runs.push(Run {
-                        y: y as u32,
-                        x0: x0 as u32,
-                        x1: x as u32,
-                        label: id,
-                    });
-                    parent.push(id);
-                } else {
+/// Run-length 8-connected labelling, fed one row of darkness at a time.
+#[derive(Debug, Default, Clone)]
+struct RunLabeller {
+    runs: Vec<Run>,
+    parent: Vec<u32>,
+    prev: std::ops::Range<usize>,
+}
+
+impl RunLabeller {
+    fn clear(&mut self) {
+        self.runs.clear();
+        self.parent.clear();
+        self.prev = 0..0;
+    }
+
+    /// Adds the runs of `row[x] > t` of row `y` and unions them with touching runs above.
+    #[inline(always)]
+    fn push_row(&mut self, row: &[i16], y: usize, t: i16) {
+        let w = row.len();
+        let start = self.runs.len();
+        let mut x = 0;
+        while x < w {
+            // Skip background a chunk at a time: the max over a chunk vectorises.
+            if x + SCAN_CHUNK <= w
+                && row[x..x + SCAN_CHUNK]
+                    .iter()
+                    .fold(i16::MIN, |m, &v| m.max(v))
+                    <= t
+            {
+                x += SCAN_CHUNK;
+                continue;
+            }
+            if row[x] > t {
+                let x0 = x;
+                while x < w && row[x] > t {
                     x += 1;
                 }
+                let id = self.runs.len() as u32;
+                self.runs.push(Run {
+                    y: y as u32,
+                    x0: x0 as u32,
+                    x1: x as u32,
+                    label: id,
+                });
+                self.parent.push(id);
+            } else {
+                x += 1;
             }
-            let cur = start..runs.len();
-            // Two-pointer sweep: runs in a row are sorted and disjoint.
-            let mut p = prev.start;
-            for c in cur.clone() {
-                let (cx0, cx1) = (runs[c].x0, runs[c].x1);
-                while p < prev.end && runs[p].x1 < cx0 {
-                    p += 1;
-                }
-                let mut q = p;
-                // 8-connectivity: touching diagonally counts, i.e. prev.x0 <= cx1 and prev.x1 >= cx0.
-                while q < prev.end && runs[q].x0 <= cx1 {
-                    union(parent, c as u32, q as u32);
-                    q += 1;
-                }
-            }
-            prev = cur;
         }
-        // Compact labels in order of first appearance.
-        let mut compact = vec![u32::MAX; runs.len()];
+        let cur = start..self.runs.len();
+        // Two-pointer sweep: runs in a row are sorted and disjoint.
+        let mut p = self.prev.start;
+        for c in cur.clone() {
+            let (cx0, cx1) = (self.runs[c].x0, self.runs[c].x1);
+            while p < self.prev.end && self.runs[p].x1 < cx0 {
+                p += 1;
+            }
+            let mut q = p;
+            // 8-connectivity: runs touch, diagonals included, when prev.x0 <= cx1 and prev.x1 >= cx0.
+            while q < self.prev.end && self.runs[q].x0 <= cx1 {
+                union(&mut self.parent, c as u32, q as u32);
+                q += 1;
+            }
+        }
+        self.prev = cur;
+    }
+
+    /// Compacts labels in order of first appearance; returns the number of components.
+    fn finish(&mut self) -> usize {
+        let mut compact = vec![u32::MAX; self.runs.len()];
         let mut n = 0u32;
-        for i in 0..runs.len() {
-            let root = find(parent, i as u32) as usize;
+        for (i, run) in self.runs.iter_mut().enumerate() {
+            let root = find(&mut self.parent, i as u32) as usize;
             if compact[root] == u32::MAX {
                 compact[root] = n;
                 n += 1;
             }
-            runs[i].label = compact[root];
+            run.label = compact[root];
         }
         n as usize
     }
@@ -851,13 +975,14 @@ fn refine_marker(
     let gap = RING_GAP as i64;
     let (rx0, ry0) = (c.x0 as i64 - gap, c.y0 as i64 - gap);
     let (rx1, ry1) = (c.x1 as i64 + gap, c.y1 as i64 + gap);
-    let (mut ring_sum, mut ring_n) = (0f64, 0u32);
+    // The median of the ring: robust to neighbouring markers' soft edges and to bright features
+    // the ring happens to cross.
+    let mut ring: Vec<f32> = Vec::with_capacity(2 * ((rx1 - rx0) + (ry1 - ry0)) as usize + 4);
     let mut add_ring = |x: i64, y: i64| {
         if x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h {
             let i = y as usize * w + x as usize;
             if labels[i] == 0 {
-                ring_sum += f64::from(luma[i]);
-                ring_n += 1;
+                ring.push(f32::from(luma[i]));
             }
         }
     };
@@ -881,12 +1006,10 @@ fn refine_marker(
             }
         }
     }
-    let background = if ring_n > 0 {
-        (ring_sum / f64::from(ring_n)) as f32
-    } else {
-        // Fully surrounded by other markers or the border: the brightest own pixel is the best guess.
-        (own_sum / f64::from(c.area.max(1))) as f32
-    };
+    let background = crate::geometry::median(&mut ring).unwrap_or(
+        // Fully surrounded by other markers or the border: the mean own level is the best guess.
+        (own_sum / f64::from(c.area.max(1))) as f32,
+    );
     let cut = background - CENTROID_NOISE_SIGMAS * sigma_units;
 
     let (mut sw, mut sx, mut sy) = (0f64, 0f64, 0f64);
@@ -1083,10 +1206,16 @@ mod tests {
         dark[0] = 100;
         dark[4] = 100;
         dark[8] = 100;
-        let (mut runs, mut parent) = (Vec::new(), Vec::new());
-        assert_eq!(label_runs(&dark, 3, 3, 10, &mut runs, &mut parent), 1);
+        let count = |dark: &[i16]| {
+            let mut l = RunLabeller::default();
+            for (y, row) in dark.chunks_exact(3).enumerate() {
+                l.push_row(row, y, 10);
+            }
+            l.finish()
+        };
+        assert_eq!(count(&dark), 1);
         dark[4] = 0;
-        assert_eq!(label_runs(&dark, 3, 3, 10, &mut runs, &mut parent), 2);
+        assert_eq!(count(&dark), 2);
     }
 
     #[test]
@@ -1154,32 +1283,35 @@ mod profile {
         time("luma", &mut || {
             compute_luma(&view, Polarity::Dark, &mut ws.luma)
         });
-        let mut hist = [0u32; HIST_BINS];
-        time("box", &mut || {
-            hist = box_darkness(&ws.luma, h, w, 61, &mut ws.boxes, &mut ws.dark)
+        let mut bg = background(&ws.luma, h, w, 61, &mut ws.boxes);
+        time("background", &mut || {
+            bg = background(&ws.luma, h, w, 61, &mut ws.boxes);
         });
-        let st = HistStats::from_hist(&hist);
-        let t = auto_threshold(&hist, &st);
-        let tu = (t * 64.0) as i16;
-        let mut bb = BoxBuffers::default();
-        time("box_binned_only", &mut || {
-            let (hs, wsm) = (h / 2, w / 2);
-            bb.binned.resize(hs * wsm, 1000);
-            box_mean_binned(
-                &bb.binned,
-                hs,
-                wsm,
-                15,
-                &mut bb.col,
-                &mut bb.padded,
-                &mut bb.mean,
+        let mut hist = [0u32; HIST_BINS];
+        time("histogram", &mut || {
+            hist = darkness_histogram(
+                &ws.luma,
+                &ws.boxes.mean,
+                bg,
+                &mut ws.boxes.row,
+                &mut ws.dark,
             );
         });
+        let st = HistStats::from_hist(&hist);
+        let tu = (auto_threshold(&hist, &st) * 64.0) as i16;
         time("label", &mut || {
-            label_runs(&ws.dark, h, w, tu, &mut ws.runs, &mut ws.parent);
+            label_image(
+                &ws.luma,
+                &ws.boxes.mean,
+                bg,
+                tu,
+                &mut ws.boxes.row,
+                &mut ws.dark,
+                &mut ws.labeller,
+            );
         });
         time("all", &mut || {
-            extract_markers_with(&view, &p, &mut ws).unwrap();
+            extract_markers_with(&view, &p, &mut ws, false).unwrap();
         });
     }
 }

@@ -179,9 +179,9 @@ impl SlipDetector {
             self.baseline = vec![[f32::NAN; 2]; motion.len()];
         }
         // A marker first seen later in the grasp gets its baseline then.
-        for i in 0..motion.len() {
-            if usable(i) && self.baseline[i][0].is_nan() {
-                self.baseline[i] = motion[i];
+        for (i, base) in self.baseline.iter_mut().enumerate() {
+            if usable(i) && base[0].is_nan() {
+                *base = motion[i];
             }
         }
 

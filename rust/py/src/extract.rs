@@ -55,11 +55,12 @@ pub fn run_extract(
     img: &PyReadonlyArrayDyn<'_, u8>,
     params: &ExtractParams,
     ws: &mut ExtractWorkspace,
+    want_mask: bool,
 ) -> PyResult<Extraction> {
     let arg = image_u8(img, "img")?;
     let view =
         ImageView::new(arg.data, arg.height, arg.width, arg.channels, "img").map_err(to_py)?;
-    py.detach(|| extract_markers_with(&view, params, ws))
+    py.detach(|| extract_markers_with(&view, params, ws, want_mask))
         .map_err(to_py)
 }
 
@@ -126,7 +127,7 @@ fn extract_markers<'py>(
         exclude_border,
     )?;
     let mut ws = ExtractWorkspace::default();
-    let ex = run_extract(py, &img, &params, &mut ws)?;
+    let ex = run_extract(py, &img, &params, &mut ws, true)?;
     let arg = image_u8(&img, "img")?;
     extraction_to_py(py, ex, arg.height, arg.width)
 }

@@ -7,6 +7,9 @@ use tacswitch_core::geometry;
 use crate::arrays::{finite_opt, points_f32, points_to_py};
 use crate::errors::to_py;
 
+/// `(motion, valid, index, max_dist)` as returned to Python.
+type MatchOut<'py> = (Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>, f32);
+
 /// Mutual nearest-neighbour matching; returns `(motion, valid, index, max_dist)`.
 #[pyfunction]
 #[pyo3(signature = (ref_pts, cur_pts, max_dist=None))]
@@ -15,7 +18,7 @@ fn match_markers<'py>(
     ref_pts: PyReadonlyArray2<'py, f32>,
     cur_pts: PyReadonlyArray2<'py, f32>,
     max_dist: Option<f32>,
-) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>, f32)> {
+) -> PyResult<MatchOut<'py>> {
     let r = points_f32(&ref_pts, "ref_pts")?;
     let c = points_f32(&cur_pts, "cur_pts")?;
     let max_dist = finite_opt(max_dist, "max_dist")?;

@@ -84,7 +84,7 @@ impl Tracker {
         py: Python<'py>,
         img: PyReadonlyArrayDyn<'py, u8>,
     ) -> PyResult<Update<'py>> {
-        let ex = run_extract(py, &img, &self.params, &mut self.ws)?;
+        let ex = run_extract(py, &img, &self.params, &mut self.ws, false)?;
         let pts: Vec<[f32; 2]> = ex.markers.iter().map(|m| m.centre).collect();
         let inner = &mut self.inner;
         let st = py.detach(|| inner.update(&pts)).map_err(to_py)?;

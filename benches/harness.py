@@ -1,0 +1,109 @@
+"""Shared timing harness for the benchmarks: warm-up, GC off, medians and spread, Markdown rows.
+
+Run benchmarks on an otherwise idle machine; they print ratios against the peer measured in the
+same run, which survive a noisy machine far better than absolute times.
+"""
+
+from __future__ import annotations
+
+import gc
+import os
+import platform
+import statistics
+import subprocess
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+
+@dataclass
+class Timing:
+    """Per-call times of one function, seconds."""
+
+    samples: list[float]
+
+    @property
+    def median(self) -> float:
+        return statistics.median(self.samples)
+
+    @property
+    def iqr(self) -> tuple[float, float]:
+        q = statistics.quantiles(self.samples, n=4)
+        return q[0], q[2]
+
+    def fmt(self, unit: str = "ms") -> str:
+        k = {"ms": 1e3, "us": 1e6}[unit]
+        lo, hi = self.iqr
+        return f"{self.median * k:.3f} {unit} [{lo * k:.3f}, {hi * k:.3f}]"
+
+
+def measure(fn: Callable[[], object], *, repeat: int = 200, inner: int = 1,
+            warmup: int = 10) -> Timing:
+    """Times ``fn``: ``warmup`` untimed calls, then ``repeat`` samples of ``inner`` calls each."""
+    for _ in range(warmup):
+        fn()
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        samples = []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            for _ in range(inner):
+                fn()
+            samples.append((time.perf_counter() - t0) / inner)
+    finally:
+        if was_enabled:
+            gc.enable()
+    return Timing(samples)
+
+
+def interleaved(fns: dict[str, Callable[[], object]], *, rounds: int = 15, repeat: int = 20,
+                inner: int = 1) -> dict[str, Timing]:
+    """Times several functions in alternating rounds so machine noise hits them alike."""
+    out: dict[str, list[float]] = {k: [] for k in fns}
+    for fn in fns.values():
+        for _ in range(5):
+            fn()
+    for _ in range(rounds):
+        for name, fn in fns.items():
+            out[name] += measure(fn, repeat=repeat, inner=inner, warmup=1).samples
+    return {k: Timing(v) for k, v in out.items()}
+
+
+def single_thread() -> None:
+    """Pins OpenCV, rayon and BLAS to one thread (call before the first measurement)."""
+    os.environ.setdefault("RAYON_NUM_THREADS", "1")
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    import cv2
+
+    cv2.setNumThreads(1)
+
+
+def machine() -> str:
+    """One line: CPU, cores, Python, OpenCV, commit."""
+    import cv2
+    import numpy as np
+
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                                text=True, cwd=Path(__file__).parent).stdout.strip()
+    except OSError:
+        commit = "?"
+    return (f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, "
+            f"numpy {np.__version__}, OpenCV {cv2.__version__}, commit {commit}")
+
+
+def table(header: list[str], rows: list[list[str]]) -> str:
+    """A Markdown table."""
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return "\n".join(lines)

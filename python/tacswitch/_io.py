@@ -1,0 +1,56 @@
+"""File output helpers: every write is atomic (temporary file in the same folder, then rename)."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import IO
+
+import numpy as np
+from numpy.typing import NDArray
+
+
+@contextmanager
+def atomic_open(path: str | os.PathLike[str], mode: str = "w") -> Iterator[IO]:
+    """Opens a temporary sibling of ``path`` for writing and renames it over ``path`` on success.
+
+    A crash or an exception leaves any previous ``path`` untouched and no partial file behind.
+    """
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    try:
+        with os.fdopen(fd, mode) as fh:
+            yield fh
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, target)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_image(path: str | os.PathLike[str], img: NDArray[np.uint8]) -> Path:
+    """Encodes ``img`` (BGR or grey uint8) by the file extension and writes it atomically."""
+    import cv2
+
+    target = Path(path)
+    ok, buf = cv2.imencode(target.suffix or ".png", img)
+    if not ok:
+        raise ValueError(f"path: cannot encode an image as {target.suffix!r}")
+    with atomic_open(target, "wb") as fh:
+        fh.write(buf.tobytes())
+    return target
+
+
+def read_image(path: str | os.PathLike[str]) -> NDArray[np.uint8]:
+    """Reads an image file as BGR uint8 (``cv2.IMREAD_COLOR``); ``ValueError`` if unreadable."""
+    import cv2
+
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if img is None:
+        raise ValueError(f"path: cannot read an image from {str(path)!r}")
+    return img

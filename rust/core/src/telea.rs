@@ -54,7 +54,7 @@ pub trait Sample: Copy + Send + Sync + 'static {
     const FLOAT: bool = false;
     /// The value as `f32` (exact for `u8` and `u16`).
     fn to_f32(self) -> f32;
-    /// The nearest representable value (integers round half away from zero and saturate).
+    /// The nearest representable value (integers round half up and saturate).
     fn from_f32(v: f32) -> Self;
     /// False for NaN and infinities.
     fn is_finite(self) -> bool {
@@ -67,7 +67,8 @@ impl Sample for u8 {
         f32::from(self)
     }
     fn from_f32(v: f32) -> Self {
-        v.round().clamp(0.0, f32::from(u8::MAX)) as u8
+        // Round half up of a non-negative value; `as` truncates (and maps NaN to 0).
+        (v.clamp(0.0, f32::from(u8::MAX)) + 0.5) as u8
     }
 }
 
@@ -76,7 +77,7 @@ impl Sample for u16 {
         f32::from(self)
     }
     fn from_f32(v: f32) -> Self {
-        v.round().clamp(0.0, f32::from(u16::MAX)) as u16
+        (v.clamp(0.0, f32::from(u16::MAX)) + 0.5) as u16
     }
 }
 
@@ -380,14 +381,25 @@ fn group_holes(boxes: &[BBox], reach: usize) -> (Vec<u32>, Vec<BBox>) {
     (group_of, groups)
 }
 
-/// One row of the disk: `len` consecutive pixels starting at window offset `lin`, with
-/// `r = p - q` per pixel and the geometric weight `1 / |r|^3` (0 for the centre, which is never
-/// known when it is being filled).
-struct DiskRow {
-    lin: isize,
-    ry: f32,
+/// The disk of radius `r` as flat lists: window offset of each pixel, `r = p - q` and the
+/// geometric weight `1 / |r|^3`. Padded to a multiple of [`DISK_CHUNK`] with entries of weight 0
+/// pointing at the centre (never usable while it is being filled), so the weight loop runs on
+/// whole vectors.
+struct Disk {
+    lin: Vec<isize>,
     rx: Vec<f32>,
+    ry: Vec<f32>,
     geometric: Vec<f32>,
+}
+
+/// Vector width the disk is padded to.
+const DISK_CHUNK: usize = 8;
+
+/// Per-fill scratch: the disk's usable flags, arrival times and weights.
+struct Scratch {
+    usable: Vec<f32>,
+    t: Vec<f32>,
+    w: Vec<f32>,
 }
 
 /// Heap key: arrival time in the high half (non-negative, so its bits order like the value), the
@@ -524,8 +536,13 @@ impl<T: Sample> Ctx<'_, '_, T> {
         }
 
         // Inward front: each pixel is filled when first reached.
-        let disk = disk_rows(r, ww);
-        let mut wrow = vec![0.0f32; 2 * r + 1];
+        let disk = disk_offsets(r, ww);
+        let n_disk = disk.lin.len();
+        let mut scratch = Scratch {
+            usable: vec![0.0; n_disk],
+            t: vec![0.0; n_disk],
+            w: vec![0.0; n_disk],
+        };
         heap.extend(band.iter().map(|&wi| key(0.0, wi)));
         while let Some(Reverse(k)) = heap.pop() {
             let wi = key_index(k);
@@ -536,7 +553,18 @@ impl<T: Sample> Ctx<'_, '_, T> {
                 }
                 let tp = arrival(&t, nb, ww);
                 t[nb] = tp;
-                val[nb] = fill(nb, wi, tp, &disk, &flag, &usable, &t, &val, ww, &mut wrow);
+                val[nb] = fill(
+                    nb,
+                    wi,
+                    tp,
+                    &disk,
+                    &flag,
+                    &usable,
+                    &t,
+                    &val,
+                    ww,
+                    &mut scratch,
+                );
                 flag[nb] = BAND;
                 usable[nb] = 1.0;
                 heap.push(key(tp, nb));
@@ -554,96 +582,97 @@ impl<T: Sample> Ctx<'_, '_, T> {
     }
 }
 
-/// Independent partial sums in [`fill`], so the additions do not wait on each other.
-const LANES: usize = 4;
-
 /// Telea's weighted mean at window pixel `p` (arrival time `tp`) over the known disk pixels,
 /// taken relative to `src`, the known pixel whose front reached `p`: equal neighbours give
-/// exactly their value.
+/// exactly their value. Weights are `direction * level-set * geometric`, the direction term
+/// floored so that no neighbour drops out; unusable pixels get weight 0 and hold finite values,
+/// so they add exactly 0.
 #[allow(clippy::too_many_arguments)]
 #[inline]
 fn fill(
     p: usize,
     src: usize,
     tp: f32,
-    disk: &[DiskRow],
+    disk: &Disk,
     flag: &[u8],
     usable: &[f32],
     t: &[f32],
     val: &[[f32; MAX_CHANNELS]],
     ww: usize,
-    wrow: &mut [f32],
+    scratch: &mut Scratch,
 ) -> [f32; MAX_CHANNELS] {
     let (gx, gy) = grad_t(flag, t, p, ww);
-    let reference = val[src];
-    // Lane sums of weight * (value - reference) per channel, and of the weights.
-    let mut acc = [[0.0f32; MAX_CHANNELS]; LANES];
-    let mut acc_w = [0.0f32; LANES];
-    for row in disk {
-        let len = row.rx.len();
-        // In bounds: p lies `radius + 2` inside the window and the disk reaches `radius`.
-        let q0 = (p as isize + row.lin) as usize;
-        let (us, ts, vs) = (&usable[q0..q0 + len], &t[q0..q0 + len], &val[q0..q0 + len]);
-        let ry_gy = row.ry * gy;
-        // Branch-free: unknown pixels get weight 0 and hold finite values, so they add exactly 0.
-        let geo = row.rx.iter().zip(&row.geometric);
-        for (((w, &u), &tq), (&rx, &g)) in wrow.iter_mut().zip(us).zip(ts).zip(geo) {
-            let level = 1.0 / (1.0 + (tq - tp).abs());
-            let dir = rx * gx + ry_gy;
-            let dir = if dir.abs() <= MIN_DIRECTION {
-                DIRECTION_FLOOR
-            } else {
-                dir
-            };
-            *w = u * (g * level * dir).abs();
-        }
-        for (i, (&wq, vq)) in wrow[..len].iter().zip(vs).enumerate() {
-            let lane = i % LANES;
-            for ch in 0..MAX_CHANNELS {
-                acc[lane][ch] += wq * (vq[ch] - reference[ch]);
-            }
-            acc_w[lane] += wq;
-        }
+    // Gather, then compute the weights in straight vectorisable passes.
+    // In bounds: p lies `radius + 2` inside the window and the disk reaches `radius`.
+    for ((&off, u), tq) in disk.lin.iter().zip(&mut scratch.usable).zip(&mut scratch.t) {
+        let q = (p as isize + off) as usize;
+        *u = usable[q];
+        *tq = t[q];
     }
-    // sum_w > 0: `src` is a known 4-neighbour of p, inside the disk since radius >= 1.
-    let sum_w = (acc_w[0] + acc_w[1]) + (acc_w[2] + acc_w[3]);
+    let terms = disk.rx.iter().zip(&disk.ry).zip(&disk.geometric);
+    let known = scratch.usable.iter().zip(&scratch.t);
+    for (w, ((&u, &tq), ((&rx, &ry), &g))) in scratch.w.iter_mut().zip(known.zip(terms)) {
+        let level = 1.0 / (1.0 + (tq - tp).abs());
+        let dir = rx * gx + ry * gy;
+        let dir = if dir.abs() <= MIN_DIRECTION {
+            DIRECTION_FLOOR
+        } else {
+            dir
+        };
+        *w = u * (g * level * dir).abs();
+    }
+    // Two independent sums so that consecutive additions do not wait on each other.
+    let reference = val[src];
+    let (mut acc0, mut acc1) = ([0.0f32; MAX_CHANNELS], [0.0f32; MAX_CHANNELS]);
+    let (mut sum0, mut sum1) = (0.0f32, 0.0f32);
+    for (offs, ws) in disk.lin.chunks_exact(2).zip(scratch.w.chunks_exact(2)) {
+        let v0 = val[(p as isize + offs[0]) as usize];
+        let v1 = val[(p as isize + offs[1]) as usize];
+        for ch in 0..MAX_CHANNELS {
+            acc0[ch] += ws[0] * (v0[ch] - reference[ch]);
+            acc1[ch] += ws[1] * (v1[ch] - reference[ch]);
+        }
+        sum0 += ws[0];
+        sum1 += ws[1];
+    }
+    // The sum is > 0: `src` is a known 4-neighbour of p, inside the disk since radius >= 1.
+    let sum_w = sum0 + sum1;
     let mut out = reference;
     for ch in 0..MAX_CHANNELS {
-        let a = (acc[0][ch] + acc[1][ch]) + (acc[2][ch] + acc[3][ch]);
-        out[ch] += a / sum_w;
+        out[ch] += (acc0[ch] + acc1[ch]) / sum_w;
     }
     out
 }
 
-/// The disk of radius `r` as row segments in a window `ww` pixels wide.
-fn disk_rows(r: usize, ww: usize) -> Vec<DiskRow> {
+/// The disk of radius `r` without its centre, for a window `ww` pixels wide.
+fn disk_offsets(r: usize, ww: usize) -> Disk {
     let r = r as isize;
-    let mut rows = Vec::new();
+    let mut disk = Disk {
+        lin: Vec::new(),
+        rx: Vec::new(),
+        ry: Vec::new(),
+        geometric: Vec::new(),
+    };
     for dy in -r..=r {
-        // Widest |dx| with dx^2 + dy^2 <= r^2 (dy = 0 reaches r, so the search always succeeds).
-        let half = (0..=r)
-            .rev()
-            .find(|dx| dx * dx + dy * dy <= r * r)
-            .unwrap_or(0);
-        let mut rx = Vec::new();
-        let mut geometric = Vec::new();
-        for dx in -half..=half {
-            let len2 = (dx * dx + dy * dy) as f64;
-            rx.push(-dx as f32);
-            geometric.push(if len2 == 0.0 {
-                0.0
-            } else {
-                (1.0 / (len2 * len2.sqrt())) as f32
-            });
+        for dx in -r..=r {
+            let d2 = dx * dx + dy * dy;
+            if d2 == 0 || d2 > r * r {
+                continue;
+            }
+            let len2 = d2 as f64;
+            disk.lin.push(dy * ww as isize + dx);
+            disk.rx.push(-dx as f32);
+            disk.ry.push(-dy as f32);
+            disk.geometric.push((1.0 / (len2 * len2.sqrt())) as f32);
         }
-        rows.push(DiskRow {
-            lin: dy * ww as isize - half,
-            ry: -dy as f32,
-            rx,
-            geometric,
-        });
     }
-    rows
+    while disk.lin.len() % DISK_CHUNK != 0 {
+        disk.lin.push(0);
+        disk.rx.push(0.0);
+        disk.ry.push(0.0);
+        disk.geometric.push(0.0);
+    }
+    disk
 }
 
 /// Gradient of `T` at `p` from its known 4-neighbours (central, one-sided, or 0).
@@ -660,13 +689,10 @@ fn grad_t(flag: &[u8], t: &[f32], p: usize, ww: usize) -> (f32, f32) {
 }
 
 /// First-order upwind arrival time at `p` from its 4-neighbours (unreached ones hold `FAR_T`).
-#[inline(never)]
+/// OpenCV takes the least of the four (vertical, horizontal) pairings; [`solve_pair`] is
+/// nondecreasing in both arguments, so that least is the pairing of the two smaller neighbours.
 fn arrival(t: &[f32], p: usize, ww: usize) -> f32 {
-    let (up, left, down, right) = (t[p - ww], t[p - 1], t[p + ww], t[p + 1]);
-    solve_pair(up, left)
-        .min(solve_pair(down, left))
-        .min(solve_pair(up, right))
-        .min(solve_pair(down, right))
+    solve_pair(t[p - ww].min(t[p + ww]), t[p - 1].min(t[p + 1]))
 }
 
 /// Solution of `|grad T| = 1` from one vertical and one horizontal neighbour.

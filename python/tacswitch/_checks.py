@@ -35,22 +35,26 @@ def as_image_u8(img: Any, name: str = "img") -> NDArray[np.uint8]:
     return np.ascontiguousarray(img)
 
 
-def as_points(pts: Any, name: str) -> NDArray[np.float32]:
-    """Returns ``pts`` as a C-contiguous ``N x 2`` float32 array of finite ``(x, y)``."""
+def as_points(pts: Any, name: str, *, check_finite: bool = True) -> NDArray[np.float32]:
+    """Returns ``pts`` as a C-contiguous ``N x 2`` float32 array of ``(x, y)``.
+
+    ``check_finite=False`` leaves the NaN/Inf check to the native call, which raises the same
+    ``ValueError`` naming ``name`` (it saves a pass on hot paths).
+    """
     if isinstance(pts, np.ndarray) and pts.dtype == np.bool_:
         raise TypeError(f"{name}: expected numeric (x, y) points, got a boolean array")
     try:
-        arr = np.asarray(pts, dtype=np.float32)
+        arr = np.ascontiguousarray(pts, dtype=np.float32)
     except (TypeError, ValueError) as exc:
         raise TypeError(f"{name}: expected an N x 2 array of (x, y) points ({exc})") from None
     if arr.size == 0:
         return np.zeros((0, 2), dtype=np.float32)
     if arr.ndim != 2 or arr.shape[1] != 2:
         raise ValueError(f"{name}: expected an N x 2 array of (x, y) points; got shape {arr.shape}")
-    if not np.isfinite(arr).all():
+    if check_finite and not np.isfinite(arr).all():
         bad = int(np.flatnonzero(~np.isfinite(arr).all(axis=1))[0])
         raise ValueError(f"{name}: point {bad} is not finite ({arr[bad, 0]}, {arr[bad, 1]})")
-    return np.ascontiguousarray(arr)
+    return arr
 
 
 def as_valid(valid: Any, n: int, name: str = "valid") -> NDArray[np.bool_]:

@@ -53,8 +53,9 @@ def match_markers(
     Raises:
         ValueError: bad shapes, NaN/Inf coordinates or a non-positive ``max_dist``.
     """
-    ref = as_points(ref_pts, "ref_pts")
-    cur = as_points(cur_pts, "cur_pts")
+    # The native call checks for NaN/Inf and names the argument.
+    ref = as_points(ref_pts, "ref_pts", check_finite=False)
+    cur = as_points(cur_pts, "cur_pts", check_finite=False)
     gate = positive_or_none(max_dist, "max_dist")
     motion, valid, index, _ = _native.match_markers(ref, cur, gate)
     if return_index:

@@ -5,8 +5,8 @@
 
 use crate::error::{CoreError, Result};
 
-/// Below this many candidate points a linear scan beats building a grid.
-const BRUTE_FORCE_MAX_POINTS: usize = 160;
+/// Query points sampled (evenly, deterministically) for the pitch median.
+const PITCH_SAMPLES: usize = 32;
 
 /// Squared Euclidean distance.
 #[inline]
@@ -33,16 +33,9 @@ pub fn check_finite(points: &[[f32; 2]], name: &'static str) -> Result<()> {
     }
 }
 
-/// A uniform bucket grid over a point set for nearest-neighbour queries.
-///
-/// Small sets are scanned linearly; larger ones are bucketed so that a query within radius `r`
-/// touches only the cells the disc of radius `r` overlaps.
-pub struct PointIndex<'a> {
-    points: &'a [[f32; 2]],
-    grid: Option<Grid>,
-}
-
-struct Grid {
+/// Points bucketed in square cells at least `min_cell` wide: the 3x3 cells around a query hold
+/// every point within `min_cell` of it.
+pub struct CellGrid {
     min: [f32; 2],
     cell: f32,
     cols: usize,
@@ -52,12 +45,13 @@ struct Grid {
     order: Vec<u32>,
 }
 
-impl<'a> PointIndex<'a> {
-    /// Builds an index; `cell_hint` is the typical query radius (pixels), used as the cell size.
-    pub fn new(points: &'a [[f32; 2]], cell_hint: f32) -> Self {
-        if points.len() <= BRUTE_FORCE_MAX_POINTS {
-            return Self { points, grid: None };
-        }
+/// Cells per side at most: bounds memory whatever the gate.
+const MAX_CELLS_PER_SIDE: usize = 1024;
+
+impl CellGrid {
+    /// Buckets `points`; cells are `min_cell` wide (wider if needed to stay within
+    /// `MAX_CELLS_PER_SIDE` per side).
+    pub fn new(points: &[[f32; 2]], min_cell: f32) -> Self {
         let (mut min, mut max) = ([f32::MAX; 2], [f32::MIN; 2]);
         for p in points {
             for k in 0..2 {
@@ -65,33 +59,28 @@ impl<'a> PointIndex<'a> {
                 max[k] = max[k].max(p[k]);
             }
         }
-        let span = (max[0] - min[0]).max(max[1] - min[1]).max(1.0);
-        // At most ~4 points per cell on average whatever the hint, and never more than 2^20 cells.
-        let density_cell = span / ((points.len() as f32 / 4.0).sqrt().max(1.0));
-        let cell = if cell_hint.is_finite() && cell_hint > 0.0 {
-            cell_hint.max(span / 1024.0)
-        } else {
-            density_cell
-        };
-        let cols = (((max[0] - min[0]) / cell) as usize + 1).min(1024);
-        let rows = (((max[1] - min[1]) / cell) as usize + 1).min(1024);
-        let cell = cell
-            .max((max[0] - min[0]) / cols as f32)
-            .max((max[1] - min[1]) / rows as f32);
-        let cell_of = |p: &[f32; 2]| -> usize {
+        if points.is_empty() {
+            (min, max) = ([0.0; 2], [0.0; 2]);
+        }
+        let span = (max[0] - min[0]).max(max[1] - min[1]);
+        let cell = min_cell
+            .max(span / MAX_CELLS_PER_SIDE as f32)
+            .max(f32::MIN_POSITIVE);
+        let cols = ((max[0] - min[0]) / cell) as usize + 1;
+        let rows = ((max[1] - min[1]) / cell) as usize + 1;
+        let mut starts = vec![0u32; cols * rows + 1];
+        let cell_of = |p: &[f32; 2]| {
             let cx = (((p[0] - min[0]) / cell) as usize).min(cols - 1);
             let cy = (((p[1] - min[1]) / cell) as usize).min(rows - 1);
             cy * cols + cx
         };
-        let mut counts = vec![0u32; cols * rows + 1];
         for p in points {
-            counts[cell_of(p) + 1] += 1;
+            starts[cell_of(p) + 1] += 1;
         }
-        for c in 1..counts.len() {
-            counts[c] += counts[c - 1];
+        for c in 1..starts.len() {
+            starts[c] += starts[c - 1];
         }
-        let starts = counts.clone();
-        let mut fill = counts;
+        let mut fill = starts.clone();
         let mut order = vec![0u32; points.len()];
         for (i, p) in points.iter().enumerate() {
             let c = cell_of(p);
@@ -99,103 +88,41 @@ impl<'a> PointIndex<'a> {
             fill[c] += 1;
         }
         Self {
-            points,
-            grid: Some(Grid {
-                min,
-                cell,
-                cols,
-                rows,
-                starts,
-                order,
-            }),
+            min,
+            cell,
+            cols,
+            rows,
+            starts,
+            order,
         }
     }
 
-    /// The indexed points.
-    pub fn points(&self) -> &'a [[f32; 2]] {
-        self.points
+    /// Cell width, pixels.
+    pub fn cell(&self) -> f32 {
+        self.cell
     }
 
-    /// Index and squared distance of the nearest point to `q` within `radius` (inclusive),
-    /// skipping index `exclude`. Ties go to the lowest index, so results are deterministic.
-    pub fn nearest_within(
-        &self,
-        q: [f32; 2],
-        radius: f32,
-        exclude: Option<usize>,
-    ) -> Option<(usize, f32)> {
-        let r2 = if radius.is_finite() {
-            radius * radius
-        } else {
-            f32::INFINITY
+    /// Indices of the points in the 3x3 cells around `p` (nothing if `p` is far outside).
+    pub fn candidates(&self, p: [f32; 2]) -> impl Iterator<Item = usize> + '_ {
+        let fx = ((p[0] - self.min[0]) / self.cell).floor();
+        let fy = ((p[1] - self.min[1]) / self.cell).floor();
+        let span = |f: f32, n: usize| -> std::ops::Range<usize> {
+            if f < -1.0 || f > n as f32 {
+                return 0..0;
+            }
+            let lo = (f - 1.0).max(0.0) as usize;
+            let hi = ((f + 1.0) as usize).min(n - 1);
+            lo..hi + 1
         };
-        let mut best: Option<(usize, f32)> = None;
-        let consider = |i: usize, best: &mut Option<(usize, f32)>| {
-            if Some(i) == exclude {
-                return;
-            }
-            let d = dist2(q, self.points[i]);
-            if d > r2 {
-                return;
-            }
-            match *best {
-                Some((bi, bd)) if d > bd || (d == bd && i > bi) => {}
-                _ => *best = Some((i, d)),
-            }
-        };
-        match &self.grid {
-            None => {
-                for i in 0..self.points.len() {
-                    consider(i, &mut best);
-                }
-            }
-            Some(g) => {
-                if !radius.is_finite() {
-                    return self.nearest_unbounded(q, exclude);
-                }
-                let lo_x = ((q[0] - radius - g.min[0]) / g.cell).floor().max(0.0) as usize;
-                let lo_y = ((q[1] - radius - g.min[1]) / g.cell).floor().max(0.0) as usize;
-                let hi_x = ((q[0] + radius - g.min[0]) / g.cell).floor();
-                let hi_y = ((q[1] + radius - g.min[1]) / g.cell).floor();
-                if hi_x < 0.0 || hi_y < 0.0 {
-                    return None;
-                }
-                let hi_x = (hi_x as usize).min(g.cols - 1);
-                let hi_y = (hi_y as usize).min(g.rows - 1);
-                for cy in lo_y..=hi_y {
-                    for cx in lo_x..=hi_x {
-                        let c = cy * g.cols + cx;
-                        for &i in &g.order[g.starts[c] as usize..g.starts[c + 1] as usize] {
-                            consider(i as usize, &mut best);
-                        }
-                    }
-                }
-            }
-        }
-        best
-    }
-
-    /// Nearest point with no radius limit: grows the search ring by ring.
-    fn nearest_unbounded(&self, q: [f32; 2], exclude: Option<usize>) -> Option<(usize, f32)> {
-        let n_others = self.points.len() - usize::from(exclude.is_some());
-        if n_others == 0 {
-            return None;
-        }
-        let Some(g) = &self.grid else {
-            return self.nearest_within(q, f32::INFINITY, exclude);
-        };
-        let mut radius = g.cell;
-        loop {
-            if let Some(hit) = self.nearest_within(q, radius, exclude) {
-                return Some(hit);
-            }
-            radius *= 2.0;
-        }
-    }
-
-    /// Nearest neighbour with no radius limit.
-    pub fn nearest(&self, q: [f32; 2], exclude: Option<usize>) -> Option<(usize, f32)> {
-        self.nearest_unbounded(q, exclude)
+        let (xs, ys) = (span(fx, self.cols), span(fy, self.rows));
+        ys.flat_map(move |cy| {
+            let row = cy * self.cols;
+            let (a, b) = (self.starts[row + xs.start], self.starts[row + xs.end]);
+            // Cells of one grid row are contiguous in `order`.
+            self.order[a as usize..b as usize]
+                .iter()
+                .map(|&j| j as usize)
+        })
     }
 }
 
@@ -207,25 +134,39 @@ pub fn estimate_pitch(points: &[[f32; 2]]) -> Option<f32> {
     if points.len() < 2 {
         return None;
     }
-    let index = PointIndex::new(points, f32::NAN);
-    let mut nn: Vec<f32> = Vec::with_capacity(points.len());
-    for (i, &p) in points.iter().enumerate() {
-        if let Some((j, d2)) = index.nearest(p, Some(i)) {
-            if d2 > 0.0 {
-                nn.push(d2.sqrt());
-            } else {
-                // A duplicate: look past it for the nearest distinct neighbour.
-                let mut best = f32::INFINITY;
-                for (k, &o) in points.iter().enumerate() {
-                    let d = dist2(p, o);
-                    if k != i && k != j && d > 0.0 && d < best {
-                        best = d;
-                    }
-                }
-                if best.is_finite() {
-                    nn.push(best.sqrt());
-                }
-            }
+    let (mut lo, mut hi) = ([f32::MAX; 2], [f32::MIN; 2]);
+    for p in points {
+        for k in 0..2 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    // Cells 1.5 mean spacings wide: on a marker grid the nearest neighbour lies within one cell,
+    // and a neighbour found closer than one cell is the true nearest; otherwise a full scan
+    // settles it.
+    let area = ((hi[0] - lo[0]) * (hi[1] - lo[1])).max(1.0);
+    let grid = CellGrid::new(points, 1.5 * (area / points.len() as f32).sqrt());
+    let cell2 = grid.cell() * grid.cell();
+    fn nearest_distinct(
+        p: [f32; 2],
+        points: &[[f32; 2]],
+        within: impl Iterator<Item = usize>,
+    ) -> f32 {
+        within
+            .map(|j| dist2(p, points[j]))
+            .filter(|&d| d > 0.0)
+            .fold(f32::INFINITY, f32::min)
+    }
+    // A median needs no more than a few dozen samples; an even stride keeps it deterministic.
+    let stride = points.len().div_ceil(PITCH_SAMPLES);
+    let mut nn: Vec<f32> = Vec::with_capacity(PITCH_SAMPLES);
+    for &p in points.iter().step_by(stride) {
+        let mut d = nearest_distinct(p, points, grid.candidates(p));
+        if d > cell2 {
+            d = nearest_distinct(p, points, 0..points.len());
+        }
+        if d.is_finite() {
+            nn.push(d.sqrt());
         }
     }
     median(&mut nn)
@@ -340,23 +281,30 @@ mod tests {
     }
 
     #[test]
-    fn grid_and_brute_force_agree() {
-        let pts = grid_points(30, 20, 9.0);
-        let idx = PointIndex::new(&pts, 4.5);
-        assert!(idx.grid.is_some());
-        for q in [[13.0, 15.0], [-40.0, 3.0], [400.0, 400.0], [100.2, 50.7]] {
-            let grid_hit = idx.nearest_within(q, 4.5, None);
-            let brute = (0..pts.len())
-                .map(|i| (i, dist2(q, pts[i])))
-                .filter(|&(_, d)| d <= 4.5 * 4.5)
-                .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
-            assert_eq!(grid_hit, brute);
-            let unb = idx.nearest(q, None).unwrap();
-            let brute_unb = (0..pts.len())
-                .map(|i| (i, dist2(q, pts[i])))
-                .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
-                .unwrap();
-            assert_eq!(unb.1, brute_unb.1);
+    fn grid_candidates_cover_the_cell_radius() {
+        let pts: Vec<[f32; 2]> = (0..500)
+            .map(|i| {
+                let t = i as f32 * 0.618;
+                [(t * 97.0) % 300.0, (t * 41.0) % 200.0]
+            })
+            .collect();
+        let grid = CellGrid::new(&pts, 7.5);
+        for q in [
+            [13.0, 15.0],
+            [-5.0, 3.0],
+            [299.0, 199.0],
+            [150.2, 50.7],
+            [900.0, 10.0],
+        ] {
+            let mut got: Vec<usize> = grid
+                .candidates(q)
+                .filter(|&j| dist2(q, pts[j]) <= 7.5 * 7.5)
+                .collect();
+            got.sort_unstable();
+            let want: Vec<usize> = (0..pts.len())
+                .filter(|&j| dist2(q, pts[j]) <= 7.5 * 7.5)
+                .collect();
+            assert_eq!(got, want);
         }
     }
 

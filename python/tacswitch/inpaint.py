@@ -1,0 +1,274 @@
+"""Marker removal: TELEA inpainting (Rust core), NS (OpenCV), patch tiling and merging.
+
+Conventions: images are numpy ``H x W x C`` (C in 1, 3, 4; colour order **BGR**, as OpenCV) or grey
+``H x W``; masks are ``H x W`` bool or uint8, True / nonzero = pixel to fill; patch origins are
+``(x, y)`` in pixels of the patch's top-left corner.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tacswitch import _native
+from tacswitch._checks import VALID_CHANNELS
+
+InpaintMethod = Literal["telea", "ns", "tacdiff", "hybrid"]
+MergeMode = Literal["average", "feather"]
+
+#: dtypes the native TELEA, tiling and merging accept.
+NATIVE_DTYPES = (np.dtype(np.uint8), np.dtype(np.uint16), np.dtype(np.float32))
+#: Largest TELEA radius (OpenCV clamps to the same bound).
+MAX_RADIUS = 100
+#: Methods that need the learned model, added by another module.
+_MODEL_METHODS = ("tacdiff", "hybrid")
+
+
+def _as_image(img: Any, name: str = "img", *, any_channels: bool = False) -> NDArray[Any]:
+    """``img`` as a C-contiguous uint8/uint16/float32 ``H x W`` or ``H x W x C`` array
+    (C in 1, 3, 4 unless ``any_channels``)."""
+    if not isinstance(img, np.ndarray):
+        raise TypeError(f"{name}: expected a numpy array, got {type(img).__name__}")
+    if img.dtype not in NATIVE_DTYPES:
+        raise TypeError(
+            f"{name}: expected dtype uint8, uint16 or float32, got {img.dtype}; convert "
+            f"explicitly, e.g. img.astype(np.float32)"
+        )
+    bad_channels = img.ndim == 3 and (
+        img.shape[2] < 1 or (not any_channels and img.shape[2] not in VALID_CHANNELS)
+    )
+    if img.ndim not in (2, 3) or bad_channels:
+        raise ValueError(
+            f"{name}: expected a grey H x W or H x W x C image with C in {VALID_CHANNELS}; "
+            f"got shape {img.shape}"
+        )
+    if img.shape[0] < 1 or img.shape[1] < 1:
+        raise ValueError(f"{name}: image must be at least 1 x 1 pixels; got shape {img.shape}")
+    return np.ascontiguousarray(img)
+
+
+def _as_mask(mask: Any, shape: tuple[int, ...]) -> NDArray[np.uint8]:
+    """``mask`` as a C-contiguous ``H x W`` uint8 view (bool is reinterpreted, not copied)."""
+    if not isinstance(mask, np.ndarray):
+        raise TypeError(f"mask: expected a numpy array, got {type(mask).__name__}")
+    if mask.dtype == np.bool_:
+        mask = mask.view(np.uint8)
+    elif mask.dtype != np.uint8:
+        raise TypeError(
+            f"mask: expected dtype bool or uint8, got {mask.dtype}; use (mask != 0) to convert"
+        )
+    if mask.ndim == 3 and mask.shape[2] == 1:
+        mask = mask[:, :, 0]
+    if mask.shape != tuple(shape[:2]):
+        raise ValueError(f"mask: expected shape {tuple(shape[:2])} to match img; got {mask.shape}")
+    return np.ascontiguousarray(mask)
+
+
+def _as_radius(radius: Any) -> int:
+    if isinstance(radius, bool) or not isinstance(radius, (int, float, np.integer, np.floating)):
+        raise TypeError(f"radius: expected a number of pixels, got {type(radius).__name__}")
+    if not np.isfinite(radius) or not 1 <= np.rint(radius) <= MAX_RADIUS:
+        raise ValueError(f"radius: must be between 1 and {MAX_RADIUS} pixels; got {radius!r}")
+    return int(np.rint(radius))
+
+
+def _as_count(value: Any, name: str, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name}: expected an integer, got {type(value).__name__}")
+    if value < minimum:
+        raise ValueError(f"{name}: must be >= {minimum}; got {value}")
+    return int(value)
+
+
+def inpaint_telea(img: NDArray[Any], mask: NDArray[Any], radius: float = 3) -> NDArray[Any]:
+    """Fills the masked pixels by Telea's fast-marching method (Rust core).
+
+    Drop-in for ``cv2.inpaint(img, mask, radius, cv2.INPAINT_TELEA)``: same front order, same
+    weights (direction x level-set distance x geometric distance) and the same outward level set
+    up to ``radius`` pixels, so results agree with OpenCV to about one grey level where OpenCV is
+    not defective. Deliberate differences:
+
+    - no ``+0.5`` before rounding and no OpenCV normalised-gradient term (up to +-1.4 grey levels
+      of noise): a flat image comes back exactly flat, float images are not biased;
+    - holes touching any image border are filled (OpenCV leaves the top row and left column);
+    - each 8-connected hole sees only known pixels and its own group of holes (holes closer than
+      ``2 * radius + 2`` px are solved together); OpenCV lets a hole borrow a nearby hole's
+      freshly filled pixels. Groups run in parallel (rayon; ``RAYON_NUM_THREADS`` caps it),
+      bit-identical to one sequential solve.
+
+    Args:
+        img: ``H x W`` or ``H x W x C`` (C in 1, 3, 4; BGR order is kept, channels are
+            independent) of dtype uint8, uint16 or float32. Masked pixels may hold anything,
+            NaN included; unmasked float pixels must be finite.
+        mask: ``H x W`` bool or uint8; True / nonzero = fill.
+        radius: neighbourhood radius in pixels, ``1..100`` (rounded like OpenCV's ``cvRound``).
+
+    Returns:
+        A new array of ``img``'s dtype and shape. Unmasked pixels are bit-identical to ``img``;
+        integer outputs are rounded half up and saturated. An empty mask returns a copy.
+
+    Raises:
+        TypeError: ``img`` or ``mask`` is not a numpy array of a supported dtype.
+        ValueError: bad shapes, ``radius`` out of range, a mask covering every pixel, or NaN/Inf
+            in an unmasked pixel; the message names the argument.
+    """
+    arr = _as_image(img)
+    m = _as_mask(mask, arr.shape)
+    r = _as_radius(radius)
+    out: NDArray[Any] = _native.inpaint_telea(arr, m, r)
+    return out
+
+
+def tile(
+    img: NDArray[Any], patch: int = 256, overlap: int = 30
+) -> tuple[NDArray[Any], NDArray[np.int64]]:
+    """Cuts an image into overlapping ``patch x patch`` patches (the paper's layout).
+
+    Starts are ``0, patch - overlap, 2 (patch - overlap), ...`` along each axis, the last patch
+    snapped to the image edge: 640 x 480 with ``patch=256, overlap=30`` gives 3 x 2 = 6 patches at
+    x = 0, 226, 384 and y = 0, 224. A side shorter than ``patch`` is padded by reflection
+    (``cv2.BORDER_REFLECT_101``); :func:`merge_patches` crops it away.
+
+    Args:
+        img: ``H x W`` or ``H x W x C`` (any C >= 1) uint8, uint16 or float32 (BGR kept as is).
+        patch: patch side in pixels, >= 1.
+        overlap: nominal overlap in pixels, ``0 <= overlap < patch``.
+
+    Returns:
+        ``(patches, origins)``: ``N x patch x patch [x C]`` of ``img``'s dtype, row by row
+        (y outer, x inner), and ``N x 2`` int64 top-left corners ``(x, y)``.
+    """
+    arr = _as_image(img, any_channels=True)
+    p = _as_count(patch, "patch", 1)
+    o = _as_count(overlap, "overlap", 0)
+    if o >= p:
+        raise ValueError(f"overlap: must be smaller than patch ({p}); got {o}")
+    patches, origins = _native.tile(arr, p, o)
+    return patches, origins
+
+
+def merge_patches(
+    patches: NDArray[Any],
+    origins: Any,
+    shape: tuple[int, ...],
+    mode: MergeMode = "average",
+) -> NDArray[Any]:
+    """Merges square patches back into an image.
+
+    ``"average"`` is the paper's plain mean of overlapping pixels. ``"feather"`` weighs each patch
+    by a raised-cosine ramp over the overlap (from the smallest overlap between neighbouring
+    origins) rising from every patch edge, which hides the seams that patches disagreeing by a
+    small offset leave with a plain mean. Both are computed relative to the first covering patch,
+    so unmodified patches reproduce the image bit for bit. Patch pixels outside the image (the
+    padding of :func:`tile`) are ignored. Equivalent to accumulating ``weight * patch`` and
+    ``weight`` in numpy and dividing.
+
+    Args:
+        patches: ``N x P x P`` or ``N x P x P x C``, uint8, uint16 or float32.
+        origins: ``N x 2`` top-left corners ``(x, y)`` in pixels, as returned by :func:`tile`.
+        shape: output ``(H, W)`` or ``(H, W, C)``; C must match the patches.
+        mode: ``"average"`` or ``"feather"``.
+
+    Returns:
+        ``H x W [x C]`` of the patches' dtype (integers rounded half up).
+
+    Raises:
+        ValueError: shapes disagree, an origin lies outside the image, a pixel is covered by no
+            patch, or an unknown ``mode``; the message names the argument.
+    """
+    if not isinstance(patches, np.ndarray):
+        raise TypeError(f"patches: expected a numpy array, got {type(patches).__name__}")
+    if patches.dtype not in NATIVE_DTYPES:
+        raise TypeError(f"patches: expected dtype uint8, uint16 or float32, got {patches.dtype}")
+    if patches.ndim not in (3, 4) or patches.shape[1] != patches.shape[2]:
+        raise ValueError(f"patches: expected N x P x P or N x P x P x C; got {patches.shape}")
+    try:
+        org = np.asarray(origins, dtype=np.int64)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"origins: expected an N x 2 array of (x, y) ({exc})") from None
+    if org.ndim != 2 or org.shape != (patches.shape[0], 2):
+        raise ValueError(
+            f"origins: expected shape ({patches.shape[0]}, 2), one (x, y) per patch; "
+            f"got {org.shape}"
+        )
+    if (org < 0).any():
+        raise ValueError("origins: must be non-negative")
+    dims = tuple(int(v) for v in shape)
+    channels = patches.shape[3] if patches.ndim == 4 else None
+    if len(dims) not in (2, 3) or min(dims) < 1:
+        raise ValueError(f"shape: expected (H, W) or (H, W, C) of positive sizes; got {shape}")
+    if len(dims) == 3 and dims[2] != channels:
+        raise ValueError(f"shape: {dims[2]} channels but the patches have {channels}")
+    if len(dims) == 2 and channels is not None:
+        raise ValueError(f"shape: (H, W) given but the patches have {channels} channels")
+    if mode not in ("average", "feather"):
+        raise ValueError(f"mode: must be 'average' or 'feather'; got {mode!r}")
+    out: NDArray[Any] = _native.merge_patches(
+        np.ascontiguousarray(patches), np.ascontiguousarray(org), dims[0], dims[1], mode
+    )
+    return out
+
+
+def remove_markers(
+    img: NDArray[Any],
+    mask: NDArray[Any] | None = None,
+    method: InpaintMethod = "telea",
+    radius: float = 3,
+    dilate: int = 1,
+    **extract_opts: Any,
+) -> NDArray[Any]:
+    """Removes the painted markers of a tactile image (marker -> markerless).
+
+    Args:
+        img: ``H x W x 3`` uint8 **BGR** (grey ``H x W`` and BGRA accepted; uint16/float32 work
+            with a given ``mask`` and ``method="telea"``).
+        mask: ``H x W`` bool/uint8 marker mask. None: extract the markers first with
+            :func:`tacswitch.extract_markers` (``dilate`` dilations by a 3x3 cross, which is
+            OpenCV's 3x3 ellipse: the paper dilates the mask once before inpainting).
+        method: ``"telea"`` (:func:`inpaint_telea`, the Rust core) or ``"ns"``
+            (``cv2.inpaint(img, mask, radius, cv2.INPAINT_NS)``, uint8/uint16/float32 grey or
+            3-channel, as OpenCV allows). ``"tacdiff"`` / ``"hybrid"`` need the learned model,
+            which is not available yet.
+        radius: inpainting radius in pixels.
+        dilate: dilations applied to the extracted mask (ignored when ``mask`` is given).
+        **extract_opts: passed to :func:`tacswitch.extract_markers` when ``mask`` is None.
+
+    Returns:
+        A new image of ``img``'s dtype and shape; unmasked pixels are bit-identical to ``img``.
+
+    Raises:
+        TypeError / ValueError: bad arguments (the message names the argument), or a method that
+            is not available.
+    """
+    if method in _MODEL_METHODS:
+        raise ValueError(
+            f"method: {method!r} needs the TacDiff model, which is not available yet; "
+            f"use 'telea' or 'ns'"
+        )
+    if method not in ("telea", "ns"):
+        raise ValueError(f"method: must be 'telea', 'ns', 'tacdiff' or 'hybrid'; got {method!r}")
+    arr = _as_image(img)
+    if mask is None:
+        from tacswitch.markers import extract_markers
+
+        d = _as_count(dilate, "dilate", 0)
+        m = extract_markers(arr, dilate=d, **extract_opts).mask.view(np.uint8)
+    else:
+        m = _as_mask(mask, arr.shape)
+    if method == "telea":
+        return inpaint_telea(arr, m, radius)
+    r = _as_radius(radius)
+    if not m.any():
+        return arr.copy()
+    import cv2
+
+    if arr.ndim == 3 and arr.shape[2] not in (1, 3):
+        raise ValueError(f"img: method 'ns' takes grey or 3-channel images; got {arr.shape}")
+    filled = cv2.inpaint(arr, m, r, cv2.INPAINT_NS)
+    # OpenCV leaves its own borders alone but rounds everywhere; keep unmasked pixels exact.
+    out = arr.copy()
+    sel = m.astype(bool)
+    out[sel] = filled.reshape(arr.shape)[sel]
+    return out

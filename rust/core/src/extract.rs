@@ -148,6 +148,7 @@ pub struct ExtractWorkspace {
     boxes: BoxBuffers,
     labels: Vec<u32>,
     labeller: RunLabeller,
+    ring: Vec<u16>,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -250,8 +251,16 @@ pub fn extract_markers_with(
         if !keep[label] {
             continue;
         }
-        let (mut marker, local_dark) =
-            refine_marker(c, label as u32 + 1, &ws.luma, &ws.labels, h, w, sigma_units);
+        let (mut marker, local_dark) = refine_marker(
+            c,
+            label as u32 + 1,
+            &ws.luma,
+            &ws.labels,
+            h,
+            w,
+            sigma_units,
+            &mut ws.ring,
+        );
         complete_cut_centre(&mut marker, c, h, w, typical_area);
         // The box mean is pulled up next to bright features, so their dark-looking surroundings
         // can pass the threshold; a real marker is also darker than its own immediate ring.
@@ -963,6 +972,7 @@ fn component_stats(runs: &[Run], n: usize) -> Vec<Component> {
 /// Local background from a ring around the box, then a darkness-weighted centre over the marker
 /// and a one-pixel margin (soft edges below the threshold still pull the centre). Also returns
 /// the marker's peak darkness below that ring, in luma units.
+#[allow(clippy::too_many_arguments)]
 fn refine_marker(
     c: &Component,
     label: u32,
@@ -971,18 +981,19 @@ fn refine_marker(
     h: usize,
     w: usize,
     sigma_units: f32,
+    ring: &mut Vec<u16>,
 ) -> (Marker, f32) {
+    // The median of the ring: robust to neighbouring markers' soft edges and to bright features
+    // the ring happens to cross.
     let gap = RING_GAP as i64;
     let (rx0, ry0) = (c.x0 as i64 - gap, c.y0 as i64 - gap);
     let (rx1, ry1) = (c.x1 as i64 + gap, c.y1 as i64 + gap);
-    // The median of the ring: robust to neighbouring markers' soft edges and to bright features
-    // the ring happens to cross.
-    let mut ring: Vec<f32> = Vec::with_capacity(2 * ((rx1 - rx0) + (ry1 - ry0)) as usize + 4);
+    ring.clear();
     let mut add_ring = |x: i64, y: i64| {
         if x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h {
             let i = y as usize * w + x as usize;
             if labels[i] == 0 {
-                ring.push(f32::from(luma[i]));
+                ring.push(luma[i]);
             }
         }
     };
@@ -994,50 +1005,48 @@ fn refine_marker(
         add_ring(rx0, y);
         add_ring(rx1, y);
     }
+    let ring_median = if ring.is_empty() {
+        None
+    } else {
+        let mid = ring.len() / 2;
+        Some(i32::from(*ring.select_nth_unstable(mid).1))
+    };
 
-    let mut min_luma = u16::MAX;
-    let mut own_sum = 0f64;
-    for y in c.y0..=c.y1 {
-        for x in c.x0..=c.x1 {
-            let i = y as usize * w + x as usize;
-            if labels[i] == label {
-                min_luma = min_luma.min(luma[i]);
-                own_sum += f64::from(luma[i]);
-            }
-        }
-    }
-    let background = crate::geometry::median(&mut ring).unwrap_or(
-        // Fully surrounded by other markers or the border: the mean own level is the best guess.
-        (own_sum / f64::from(c.area.max(1))) as f32,
-    );
-    let cut = background - CENTROID_NOISE_SIGMAS * sigma_units;
-
-    let (mut sw, mut sx, mut sy) = (0f64, 0f64, 0f64);
+    // One pass over the box grown by a pixel: own minimum and sum, and the darkness-weighted
+    // centroid in exact integers. Pixels of other markers weigh nothing.
     let x_lo = c.x0.saturating_sub(1) as usize;
     let y_lo = c.y0.saturating_sub(1) as usize;
     let x_hi = (c.x1 as usize + 1).min(w - 1);
     let y_hi = (c.y1 as usize + 1).min(h - 1);
+    // Fully surrounded by other markers or the border: the box's brightest pixel stands in.
+    let background = ring_median.unwrap_or_else(|| {
+        (y_lo..=y_hi)
+            .flat_map(|y| luma[y * w + x_lo..=y * w + x_hi].iter())
+            .map(|&v| i32::from(v))
+            .max()
+            .unwrap_or(0)
+    });
+    let cut = background - (CENTROID_NOISE_SIGMAS * sigma_units) as i32;
+    let (mut sw, mut sx, mut sy) = (0i64, 0i64, 0i64);
+    let mut min_luma = u16::MAX;
     for y in y_lo..=y_hi {
-        for x in x_lo..=x_hi {
-            let i = y * w + x;
-            let l = labels[i];
-            if l != label && l != 0 {
-                continue;
-            }
-            let wgt = cut - f32::from(luma[i]);
-            if wgt > 0.0 {
-                let wgt = f64::from(wgt);
-                sw += wgt;
-                sx += wgt * x as f64;
-                sy += wgt * y as f64;
-            }
-        }
+        let lrow = &luma[y * w + x_lo..=y * w + x_hi];
+        let labrow = &labels[y * w + x_lo..=y * w + x_hi];
+        let (rw, rx, row_min) = centroid_row(lrow, labrow, label, cut);
+        min_luma = min_luma.min(row_min);
+        sw += rw;
+        sx += rx + rw * x_lo as i64;
+        sy += rw * y as i64;
     }
-    let centre = if sw > 0.0 {
-        [(sx / sw) as f32, (sy / sw) as f32]
+    let centre = if sw > 0 {
+        [
+            (sx as f64 / sw as f64) as f32,
+            (sy as f64 / sw as f64) as f32,
+        ]
     } else {
         [0.5 * (c.x0 + c.x1) as f32, 0.5 * (c.y0 + c.y1) as f32]
     };
+    let background = background as f32;
     let contrast = if background > 0.0 {
         (1.0 - f32::from(min_luma) / background).clamp(0.0, 1.0)
     } else {
@@ -1050,6 +1059,38 @@ fn refine_marker(
         contrast,
     };
     (marker, background - f32::from(min_luma))
+}
+
+/// Rows up to this wide accumulate in i32 (weights < 2^12, sum of offsets < 2^17).
+const CENTROID_I32_MAX_WIDTH: usize = 512;
+
+multiversion! {
+    /// One row of the centroid: sum of weights, sum of weight x offset (from the row start), and
+    /// the row's minimum over the marker's own pixels. Weights are darkness below `cut` in
+    /// 1/16 grey level, on own and unlabelled pixels only.
+    fn centroid_row(lrow: &[u16], labrow: &[u32], label: u32, cut: i32) -> (i64, i64, u16) {
+        let mut row_min = u16::MAX;
+        if lrow.len() <= CENTROID_I32_MAX_WIDTH {
+            let (mut rw, mut rx) = (0i32, 0i32);
+            for (k, (&l, &v)) in labrow.iter().zip(lrow).enumerate() {
+                let own = l == label;
+                row_min = row_min.min(if own { v } else { u16::MAX });
+                let wgt = ((cut - i32::from(v)).max(0) >> 4) * i32::from(own || l == 0);
+                rw += wgt;
+                rx += wgt * k as i32;
+            }
+            return (i64::from(rw), i64::from(rx), row_min);
+        }
+        let (mut rw, mut rx) = (0i64, 0i64);
+        for (k, (&l, &v)) in labrow.iter().zip(lrow).enumerate() {
+            let own = l == label;
+            row_min = row_min.min(if own { v } else { u16::MAX });
+            let wgt = i64::from(((cut - i32::from(v)).max(0) >> 4) * i32::from(own || l == 0));
+            rw += wgt;
+            rx += wgt * k as i64;
+        }
+        (rw, rx, row_min)
+    }
 }
 
 /// One dilation by a 3x3 cross (`cv2.dilate` with the 3x3 `MORPH_ELLIPSE` kernel, border ignored).

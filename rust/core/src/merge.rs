@@ -83,7 +83,7 @@ fn reflect_101(i: usize, len: usize) -> usize {
 /// Cuts `img` into `patch x patch` patches; returns them (`N x patch x patch x C`, C-order) and
 /// their origins `(x, y)`. An image side shorter than `patch` is padded by reflection
 /// (`BORDER_REFLECT_101`); [`merge_patches`] crops the padding away again.
-pub fn tile<T: Copy + Send + Sync>(
+pub fn tile<T: Copy>(
     img: &ImageView<'_, T>,
     patch: usize,
     overlap: usize,
@@ -94,22 +94,21 @@ pub fn tile<T: Copy + Send + Sync>(
         .checked_mul(patch)
         .and_then(|v| v.checked_mul(c))
         .ok_or_else(|| CoreError::invalid("patch", format!("{patch} is too large")))?;
-    let mut out = vec![img.data()[0]; per * origins.len()];
-    out.par_chunks_mut(per)
-        .zip(&origins)
-        .for_each(|(dst, &[ox, oy])| {
-            for (py, dst_row) in dst.chunks_exact_mut(patch * c).enumerate() {
-                let src = img.row(reflect_101(oy + py, h));
-                if ox + patch <= w {
-                    dst_row.copy_from_slice(&src[ox * c..(ox + patch) * c]);
-                } else {
-                    for (px, d) in dst_row.chunks_exact_mut(c).enumerate() {
-                        let sx = reflect_101(ox + px, w);
-                        d.copy_from_slice(&src[sx * c..(sx + 1) * c]);
-                    }
+    // Built by appending (no zero-fill pass): tiling is a copy, bound by memory traffic.
+    let mut out = Vec::with_capacity(per * origins.len());
+    for &[ox, oy] in &origins {
+        for py in 0..patch {
+            let src = img.row(reflect_101(oy + py, h));
+            if ox + patch <= w {
+                out.extend_from_slice(&src[ox * c..(ox + patch) * c]);
+            } else {
+                for px in 0..patch {
+                    let sx = reflect_101(ox + px, w);
+                    out.extend_from_slice(&src[sx * c..(sx + 1) * c]);
                 }
             }
-        });
+        }
+    }
     Ok((out, origins))
 }
 

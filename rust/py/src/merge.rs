@@ -24,7 +24,7 @@ fn origins_to_py<'py>(py: Python<'py>, origins: &[[usize; 2]]) -> PyResult<Bound
         .into_any())
 }
 
-fn run_tile<'py, T: Element + Copy + Send + Sync>(
+fn run_tile<'py, T: Element + Copy>(
     py: Python<'py>,
     arr: PyReadonlyArrayDyn<'py, T>,
     patch: usize,

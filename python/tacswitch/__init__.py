@@ -2,9 +2,9 @@
 
 One sensor, both modes, in software:
 
-- marker -> markerless: remove painted markers from an image (:func:`remove_markers`);
-- markerless -> marker: predict marker motion from a markerless image (:func:`predict_motion`);
-- the fast paths around both: :func:`extract_markers`, :func:`match_markers`,
+- marker -> markerless: remove painted markers from an image (:func:`remove_markers`,
+  :func:`inpaint_telea`), with patch :func:`tile` / :func:`merge_patches` for patch models;
+- the fast paths around it: :func:`extract_markers`, :func:`match_markers`,
   :class:`MarkerTracker`, :class:`SlipDetector`.
 
 Conventions: images are numpy ``H x W x 3`` uint8 in **BGR** order (OpenCV's), grey ``H x W``
@@ -19,6 +19,7 @@ torch are imported by the functions that need them.
 from __future__ import annotations
 
 from tacswitch._native import __version__
+from tacswitch.inpaint import inpaint_telea, merge_patches, remove_markers, tile
 from tacswitch.markers import Markers, extract_markers
 from tacswitch.slip import SlipDetector, SlipState
 from tacswitch.tracking import MarkerTracker, estimate_pitch, match_markers
@@ -31,5 +32,9 @@ __all__ = [
     "__version__",
     "estimate_pitch",
     "extract_markers",
+    "inpaint_telea",
     "match_markers",
+    "merge_patches",
+    "remove_markers",
+    "tile",
 ]

@@ -6,7 +6,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 __version__: str
-__all__: list[str]
+__all__ = [
+    "SlipDetector",
+    "Tracker",
+    "__version__",
+    "estimate_pitch",
+    "extract_markers",
+    "inpaint_telea",
+    "match_markers",
+    "merge_patches",
+    "tile",
+]
 
 def extract_markers(
     img: NDArray[np.uint8],
@@ -27,6 +37,17 @@ def match_markers(
     max_dist: float | None = None,
 ) -> tuple[NDArray[np.float32], NDArray[np.bool_], NDArray[np.int64], float]: ...
 def estimate_pitch(points: NDArray[np.float32]) -> float | None: ...
+def inpaint_telea(img: NDArray[Any], mask: NDArray[np.uint8], radius: int) -> NDArray[Any]: ...
+def tile(
+    img: NDArray[Any], patch: int, overlap: int
+) -> tuple[NDArray[Any], NDArray[np.int64]]: ...
+def merge_patches(
+    patches: NDArray[Any],
+    origins: NDArray[np.int64],
+    height: int,
+    width: int,
+    mode: str = "average",
+) -> NDArray[Any]: ...
 
 @final
 class Tracker:

@@ -266,7 +266,10 @@ fn mask_runs(mask: &[u8], h: usize, w: usize) -> Vec<Run> {
         let row = &mask[y * w..(y + 1) * w];
         let mut x = 0;
         while x < w {
-            if x + WORD <= w && row[x..x + WORD].iter().all(|&m| m == 0) {
+            let word = row
+                .get(x..x + WORD)
+                .and_then(|b| <[u8; WORD]>::try_from(b).ok());
+            if word.is_some_and(|b| u64::from_ne_bytes(b) == 0) {
                 x += WORD;
                 continue;
             }
@@ -707,27 +710,35 @@ fn solve_pair(a: f32, b: f32) -> f32 {
     sol as f32
 }
 
-/// Pixels within Chebyshev distance `r` of an `INSIDE` pixel (separable, by prefix counts).
+/// Pixels within Chebyshev distance `r` of an `INSIDE` pixel: a horizontal pass by prefix
+/// counts, then a vertical pass OR-ing whole rows (contiguous, so it vectorises).
 fn dilate_rect(flag: &[u8], ww: usize, wh: usize, r: usize) -> Vec<bool> {
-    let mut rows = vec![false; ww * wh];
-    let mut prefix = vec![0u32; ww.max(wh) + 1];
-    for y in 0..wh {
-        for x in 0..ww {
-            prefix[x + 1] = prefix[x] + u32::from(flag[y * ww + x] == INSIDE);
+    let mut rows = vec![0u8; ww * wh];
+    let mut prefix = vec![0u32; ww + 1];
+    for (frow, drow) in flag.chunks_exact(ww).zip(rows.chunks_exact_mut(ww)) {
+        for (x, &f) in frow.iter().enumerate() {
+            prefix[x + 1] = prefix[x] + u32::from(f == INSIDE);
         }
-        for x in 0..ww {
+        for (x, d) in drow.iter_mut().enumerate() {
             let (lo, hi) = (x.saturating_sub(r), (x + r + 1).min(ww));
-            rows[y * ww + x] = prefix[hi] > prefix[lo];
+            *d = u8::from(prefix[hi] > prefix[lo]);
         }
     }
     let mut out = vec![false; ww * wh];
-    for x in 0..ww {
-        for y in 0..wh {
-            prefix[y + 1] = prefix[y] + u32::from(rows[y * ww + x]);
+    let mut acc = vec![0u8; ww];
+    for (y, orow) in out.chunks_exact_mut(ww).enumerate() {
+        acc.fill(0);
+        for src in rows
+            .chunks_exact(ww)
+            .take((y + r + 1).min(wh))
+            .skip(y.saturating_sub(r))
+        {
+            for (a, &s) in acc.iter_mut().zip(src) {
+                *a |= s;
+            }
         }
-        for y in 0..wh {
-            let (lo, hi) = (y.saturating_sub(r), (y + r + 1).min(wh));
-            out[y * ww + x] = prefix[hi] > prefix[lo];
+        for (o, &a) in orow.iter_mut().zip(&acc) {
+            *o = a != 0;
         }
     }
     out

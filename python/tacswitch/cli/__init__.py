@@ -6,9 +6,15 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from tacswitch.cli import demo, markers, slip
+from tacswitch.cli import demo, markers, remove_markers, slip, track
 
-COMMANDS = {"demo": demo, "markers": markers, "slip": slip}
+COMMANDS = {
+    "demo": demo,
+    "markers": markers,
+    "track": track,
+    "slip": slip,
+    "remove-markers": remove_markers,
+}
 
 #: Exit codes scripts can rely on.
 EXIT_OK, EXIT_ERROR, EXIT_USAGE = 0, 1, 2

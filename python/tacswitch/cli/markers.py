@@ -8,7 +8,7 @@ import io
 import json
 from pathlib import Path
 
-IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"}
+from tacswitch.cli.sources import collect_images
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -24,22 +24,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="darkness threshold in grey levels (default: chosen per image)")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(run=run)
-
-
-def collect_images(inputs: list[str]) -> list[Path]:
-    """Image files named or found (sorted) in the named folders; ``FileNotFoundError`` if none."""
-    files: list[Path] = []
-    for item in inputs:
-        path = Path(item)
-        if path.is_dir():
-            files += sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
-        elif path.is_file():
-            files.append(path)
-        else:
-            raise FileNotFoundError(f"input {item!r} does not exist")
-    if not files:
-        raise FileNotFoundError("no images found in the inputs")
-    return files
 
 
 def run(args: argparse.Namespace) -> int:

@@ -7,15 +7,11 @@ import csv
 import os
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 
-from tacswitch.cli.markers import IMAGE_SUFFIXES
-
-#: Consecutive unreadable frames after which a camera or video counts as disconnected.
-MAX_FAILED_READS = 30
+from tacswitch.cli.sources import frames
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -36,46 +32,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--show", action="store_true", help="show an overlay window (needs a display)")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(run=run)
-
-
-def frames(source: str) -> Iterator[np.ndarray | None]:
-    """Yields BGR frames from a folder, a video or a camera; None for an unreadable frame."""
-    import cv2
-
-    path = Path(source)
-    if path.is_dir():
-        files = sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
-        if not files:
-            raise FileNotFoundError(f"source: no images in folder {source!r}")
-        for f in files:
-            yield cv2.imread(str(f), cv2.IMREAD_COLOR)
-        return
-    if source.isdigit():
-        cap = cv2.VideoCapture(int(source))
-        if not cap.isOpened():
-            raise FileNotFoundError(f"source: cannot open camera {source}")
-    else:
-        if not path.is_file():
-            raise FileNotFoundError(f"source: {source!r} is not a file, folder or camera index")
-        cap = cv2.VideoCapture(str(path))
-        if not cap.isOpened():
-            raise ValueError(f"source: cannot decode video {source!r}")
-    failed = 0
-    try:
-        while True:
-            ok, frame = cap.read()
-            if ok:
-                failed = 0
-                yield frame
-                continue
-            if not source.isdigit():
-                return  # end of the video file
-            failed += 1
-            if failed >= MAX_FAILED_READS:
-                raise ConnectionError(f"camera {source} stopped delivering frames")
-            yield None
-    finally:
-        cap.release()
 
 
 def run(args: argparse.Namespace) -> int:

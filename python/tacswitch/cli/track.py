@@ -1,0 +1,71 @@
+"""``tacswitch track``: marker motion field per frame of a video or image folder, as CSV."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+from pathlib import Path
+
+from tacswitch.cli.sources import frames
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "track",
+        help="track markers through a video or image folder (motion per frame, CSV)",
+        description="The first frame is the reference. Writes one CSV row per frame and marker: "
+        "frame, marker, x_ref, y_ref, dx, dy, valid (dx, dy empty when lost). The file is "
+        "flushed every frame.",
+    )
+    p.add_argument("source", help="video file, folder of images, or camera index")
+    p.add_argument("-o", "--out", default="track.csv", help="CSV output (default: %(default)s)")
+    p.add_argument("--max-dist", type=float, default=None,
+                   help="per-frame gate in pixels (default: half the marker pitch)")
+    p.add_argument("--polarity", choices=("dark", "bright"), default="dark")
+    p.add_argument("--max-frames", type=int, default=None)
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    import tacswitch as ts
+
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tracker: ts.MarkerTracker | None = None
+    n = skipped = 0
+    with open(out, "w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(["frame", "marker", "x_ref", "y_ref", "dx", "dy", "valid"])
+        for frame in frames(args.source):
+            if args.max_frames is not None and n >= args.max_frames:
+                break
+            if frame is None:
+                skipped += 1
+                continue
+            if tracker is None:
+                tracker = ts.MarkerTracker(frame, args.max_dist, polarity=args.polarity)
+                if len(tracker) == 0:
+                    raise ValueError(f"source: no markers found in the first frame of "
+                                     f"{args.source!r}")
+            if frame.shape[:2] != tracker.reference_shape:
+                skipped += 1
+                continue
+            motion, valid = tracker.update(frame)
+            ref = tracker.reference
+            for i in range(len(ref)):
+                dx, dy = ("", "") if not valid[i] else (f"{motion[i, 0]:.3f}",
+                                                         f"{motion[i, 1]:.3f}")
+                writer.writerow([n, i, f"{ref[i, 0]:.3f}", f"{ref[i, 1]:.3f}", dx, dy,
+                                 int(valid[i])])
+            fh.flush()
+            n += 1
+            if not args.quiet and n % 100 == 0:
+                print(f"{n} frames, {int(np.sum(valid))}/{len(ref)} markers tracked")
+    if n == 0:
+        raise ValueError(f"source: no readable frames in {args.source!r}")
+    if not args.quiet:
+        print(f"{n} frames ({skipped} skipped), {len(tracker or [])} markers -> {out}")
+    return 0

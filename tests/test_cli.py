@@ -1,0 +1,130 @@
+"""The command line, end to end on generated data in temporary folders."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from tacswitch import sim
+from tacswitch.cli import main
+
+
+@pytest.fixture(scope="module")
+def grasp() -> sim.GraspSequence:
+    return sim.grasp_sequence("gelsight_mini", "slip", n_frames=24, seed=4)
+
+
+@pytest.fixture
+def frame_folder(tmp_path: Path, grasp: sim.GraspSequence) -> Path:
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    cv2.imwrite(str(folder / "0000.png"), grasp.frames[grasp.grasp_start - 1])
+    for i, f in enumerate(grasp.frames[grasp.grasp_start:], start=1):
+        cv2.imwrite(str(folder / f"{i:04d}.png"), f)
+    return folder
+
+
+@pytest.fixture
+def video(tmp_path: Path, grasp: sim.GraspSequence) -> Path:
+    path = tmp_path / "grasp.avi"
+    h, w = grasp.reference.shape[:2]
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 30, (w, h))
+    assert writer.isOpened()
+    for f in [grasp.reference, *grasp.frames]:
+        writer.write(f)
+    writer.release()
+    return path
+
+
+def test_demo_writes_a_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["demo", "-o", str(tmp_path / "d"), "--frames", "16"]) == 0
+    out = capsys.readouterr().out
+    report = cv2.imread(str(tmp_path / "d" / "report.png"))
+    assert report is not None and report.shape[0] > 400
+    assert "slip detected at frame" in out and "no slip" in out
+
+
+def test_markers_command_writes_csv_json_and_overlay(tmp_path: Path, grasp) -> None:
+    img = tmp_path / "ref.png"
+    cv2.imwrite(str(img), grasp.reference)
+    assert main(["markers", str(img), "-o", str(tmp_path / "o"), "--overlay", "-q"]) == 0
+    with open(tmp_path / "o" / "ref.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == len(grasp.rest)
+    assert (tmp_path / "o" / "ref_markers.png").is_file()
+    assert main(["markers", str(img), "-o", str(tmp_path / "j"), "--format", "json", "-q"]) == 0
+    data = json.loads((tmp_path / "j" / "ref.json").read_text())
+    assert len(data["markers"]) == len(grasp.rest)
+
+
+def test_slip_on_a_folder_detects_the_slip(tmp_path: Path, frame_folder: Path, grasp) -> None:
+    log = tmp_path / "log.csv"
+    assert main(["slip", str(frame_folder), "--log", str(log), "-q"]) == 0
+    with open(log) as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == len(grasp.frames) - grasp.grasp_start + 1
+    first = next(int(r["frame"]) for r in rows if r["slip"] == "1")
+    onset = grasp.slip.index(True) - grasp.grasp_start + 1
+    assert onset <= first <= onset + 3
+
+
+def test_slip_survives_corrupt_frames(tmp_path: Path, frame_folder: Path) -> None:
+    (frame_folder / "0005.png").write_bytes(b"not a png")
+    log = tmp_path / "log.csv"
+    assert main(["slip", str(frame_folder), "--log", str(log), "-q"]) == 0
+    assert sum(1 for _ in open(log)) > 10
+
+
+def test_track_video_writes_motion_per_frame(tmp_path: Path, video: Path, grasp) -> None:
+    out = tmp_path / "track.csv"
+    assert main(["track", str(video), "-o", str(out), "-q"]) == 0
+    with open(out) as fh:
+        rows = list(csv.DictReader(fh))
+    n_markers = len(grasp.rest)
+    assert len(rows) == n_markers * (len(grasp.frames) + 1)
+    last = [r for r in rows if int(r["frame"]) == len(grasp.frames)]
+    moved = np.array([float(r["dx"]) for r in last if r["valid"] == "1"])
+    assert len(moved) > 0.9 * n_markers and np.abs(moved).max() > 5
+
+
+def test_remove_markers_resumes(tmp_path: Path, grasp) -> None:
+    src = tmp_path / "in"
+    src.mkdir()
+    for i in range(3):
+        cv2.imwrite(str(src / f"{i}.png"), grasp.frames[i])
+    out = tmp_path / "out"
+    assert main(["remove-markers", str(src), "-o", str(out), "-q"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["0.png", "1.png", "2.png"]
+    stamp = (out / "1.png").stat().st_mtime_ns
+    assert main(["remove-markers", str(src), "-o", str(out), "-q"]) == 0
+    assert (out / "1.png").stat().st_mtime_ns == stamp
+    clean = cv2.imread(str(out / "0.png"))
+    assert clean.shape == grasp.frames[0].shape
+
+
+def test_user_mistakes_are_one_line_errors(tmp_path: Path) -> None:
+    cmd = [sys.executable, "-m", "tacswitch", "slip", str(tmp_path / "missing.mp4"),
+           "--log", str(tmp_path / "l.csv")]
+    out = subprocess.run(cmd, capture_output=True, text=True)
+    assert out.returncode == 1
+    assert "Traceback" not in out.stderr
+    assert out.stderr.strip().count("\n") == 0 and "missing.mp4" in out.stderr
+    out = subprocess.run([sys.executable, "-m", "tacswitch", "nope"], capture_output=True,
+                         text=True)
+    assert out.returncode == 2
+
+
+def test_every_command_has_help() -> None:
+    from tacswitch.cli import COMMANDS
+
+    for name in COMMANDS:
+        out = subprocess.run([sys.executable, "-m", "tacswitch", name, "--help"],
+                             capture_output=True, text=True)
+        assert out.returncode == 0 and "usage" in out.stdout

@@ -22,13 +22,9 @@ fn match_markers<'py>(
     let r = points_f32(&ref_pts, "ref_pts")?;
     let c = points_f32(&cur_pts, "cur_pts")?;
     let max_dist = finite_opt(max_dist, "max_dist")?;
-    // Small inputs finish in microseconds: releasing the GIL would cost more than it saves.
-    let m = if r.len() * c.len() > 40_000 {
-        py.detach(|| tacswitch_core::matching::match_markers(&r, &c, max_dist))
-    } else {
-        tacswitch_core::matching::match_markers(&r, &c, max_dist)
-    }
-    .map_err(to_py)?;
+    let m = py
+        .detach(|| tacswitch_core::matching::match_markers(&r, &c, max_dist))
+        .map_err(to_py)?;
     Ok((
         points_to_py(py, &m.motion)?,
         PyArray1::from_vec(py, m.valid).into_any(),

@@ -74,7 +74,8 @@ impl Tracker {
         points: PyReadonlyArray2<'py, f32>,
     ) -> PyResult<Update<'py>> {
         let p = points_f32(&points, "points")?;
-        let st = self.inner.update(&p).map_err(to_py)?;
+        let inner = &mut self.inner;
+        let st = py.detach(|| inner.update(&p)).map_err(to_py)?;
         state_to_py(py, st)
     }
 

@@ -221,3 +221,15 @@ def test_model_methods_say_not_available(method: str) -> None:
         remove_markers(img, np.zeros((8, 8), bool), method=method)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="method"):
         remove_markers(img, np.zeros((8, 8), bool), method="nope")  # type: ignore[arg-type]
+
+
+def test_remove_markers_also_removes_markers_cut_by_the_border() -> None:
+    pts = np.array([[-2.0, 60.0], [100.0, 60.0], [159.0, 100.0]], np.float32)
+    bg = sim.gel_background(120, 160, seed=0)
+    with_markers = sim.render_markers(bg, pts, 12.0, darkness=0.8)
+    truth = sim.render_markers(bg, pts[:0], 12.0)
+    clean = remove_markers(with_markers)
+    # Every marker, the two cut by the left and right borders included, is gone.
+    err = np.abs(clean.astype(int) - truth.astype(int))
+    assert err.max() < 25, err.max()
+    assert np.abs(with_markers.astype(int) - truth.astype(int)).max() > 80

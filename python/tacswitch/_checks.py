@@ -10,22 +10,31 @@ from numpy.typing import NDArray
 VALID_CHANNELS = (1, 3, 4)
 
 
-def as_image_u8(img: Any, name: str = "img") -> NDArray[np.uint8]:
-    """Returns ``img`` as a C-contiguous uint8 ``H x W`` or ``H x W x C`` array (C in 1, 3, 4).
+def as_image(
+    img: Any,
+    name: str = "img",
+    *,
+    dtypes: tuple[np.dtype, ...] = (np.dtype(np.uint8),),
+    any_channels: bool = False,
+) -> NDArray[Any]:
+    """Returns ``img`` as a C-contiguous ``H x W`` or ``H x W x C`` array of one of ``dtypes``.
 
-    Copies only when the layout is not C-contiguous. Raises ``TypeError`` for a non-array or a
-    dtype other than uint8, ``ValueError`` for a bad shape.
+    C must be 1, 3 or 4 unless ``any_channels``.
+    Copies only when the layout is not C-contiguous. Raises ``TypeError`` for a non-array or
+    another dtype, ``ValueError`` for a bad shape; messages name ``name``.
     """
     if not isinstance(img, np.ndarray):
         raise TypeError(f"{name}: expected a numpy array, got {type(img).__name__}")
-    if img.dtype != np.uint8:
-        raise TypeError(
-            f"{name}: expected dtype uint8, got {img.dtype}; convert explicitly, e.g. "
-            f"np.clip(x, 0, 255).astype(np.uint8) for 0..255 floats"
-        )
-    if img.ndim == 3 and img.shape[2] == 1:
-        img = img[:, :, 0]
-    if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] not in VALID_CHANNELS):
+    if img.dtype not in dtypes:
+        wanted = ", ".join(str(d) for d in dtypes)
+        hint = ("np.clip(x, 0, 255).astype(np.uint8) for 0..255 floats"
+                if dtypes == (np.dtype(np.uint8),) else "img.astype(np.float32)")
+        raise TypeError(f"{name}: expected dtype {wanted}, got {img.dtype}; convert explicitly, "
+                        f"e.g. {hint}")
+    bad_channels = img.ndim == 3 and (
+        img.shape[2] < 1 or (not any_channels and img.shape[2] not in VALID_CHANNELS)
+    )
+    if img.ndim not in (2, 3) or bad_channels:
         raise ValueError(
             f"{name}: expected a grey H x W or BGR H x W x 3 (or BGRA x 4) image; "
             f"got shape {img.shape}"
@@ -33,6 +42,20 @@ def as_image_u8(img: Any, name: str = "img") -> NDArray[np.uint8]:
     if img.shape[0] < 1 or img.shape[1] < 1:
         raise ValueError(f"{name}: image must be at least 1 x 1 pixels; got shape {img.shape}")
     return np.ascontiguousarray(img)
+
+
+def as_image_u8(img: Any, name: str = "img") -> NDArray[np.uint8]:
+    """:func:`as_image` for uint8 images (grey, BGR or BGRA)."""
+    return as_image(img, name)
+
+
+def as_count(value: Any, name: str, minimum: int) -> int:
+    """Checks an integer argument (bools refused) against a minimum."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name}: expected an integer, got {type(value).__name__}")
+    if value < minimum:
+        raise ValueError(f"{name}: must be >= {minimum}; got {value}")
+    return int(value)
 
 
 def as_points(pts: Any, name: str, *, check_finite: bool = True) -> NDArray[np.float32]:

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch import _native
-from tacswitch._checks import VALID_CHANNELS
+from tacswitch._checks import as_count, as_image
 
 InpaintMethod = Literal["telea", "ns", "tacdiff", "hybrid"]
 MergeMode = Literal["average", "feather"]
@@ -27,26 +27,8 @@ _MODEL_METHODS = ("tacdiff", "hybrid")
 
 
 def _as_image(img: Any, name: str = "img", *, any_channels: bool = False) -> NDArray[Any]:
-    """``img`` as a C-contiguous uint8/uint16/float32 ``H x W`` or ``H x W x C`` array
-    (C in 1, 3, 4 unless ``any_channels``)."""
-    if not isinstance(img, np.ndarray):
-        raise TypeError(f"{name}: expected a numpy array, got {type(img).__name__}")
-    if img.dtype not in NATIVE_DTYPES:
-        raise TypeError(
-            f"{name}: expected dtype uint8, uint16 or float32, got {img.dtype}; convert "
-            f"explicitly, e.g. img.astype(np.float32)"
-        )
-    bad_channels = img.ndim == 3 and (
-        img.shape[2] < 1 or (not any_channels and img.shape[2] not in VALID_CHANNELS)
-    )
-    if img.ndim not in (2, 3) or bad_channels:
-        raise ValueError(
-            f"{name}: expected a grey H x W or H x W x C image with C in {VALID_CHANNELS}; "
-            f"got shape {img.shape}"
-        )
-    if img.shape[0] < 1 or img.shape[1] < 1:
-        raise ValueError(f"{name}: image must be at least 1 x 1 pixels; got shape {img.shape}")
-    return np.ascontiguousarray(img)
+    """``img`` as a C-contiguous uint8/uint16/float32 image (see :func:`as_image`)."""
+    return as_image(img, name, dtypes=NATIVE_DTYPES, any_channels=any_channels)
 
 
 def _as_mask(mask: Any, shape: tuple[int, ...]) -> NDArray[np.uint8]:
@@ -72,14 +54,6 @@ def _as_radius(radius: Any) -> int:
     if not np.isfinite(radius) or not 1 <= np.rint(radius) <= MAX_RADIUS:
         raise ValueError(f"radius: must be between 1 and {MAX_RADIUS} pixels; got {radius!r}")
     return int(np.rint(radius))
-
-
-def _as_count(value: Any, name: str, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name}: expected an integer, got {type(value).__name__}")
-    if value < minimum:
-        raise ValueError(f"{name}: must be >= {minimum}; got {value}")
-    return int(value)
 
 
 def inpaint_telea(img: NDArray[Any], mask: NDArray[Any], radius: float = 3) -> NDArray[Any]:
@@ -141,8 +115,8 @@ def tile(
         (y outer, x inner), and ``N x 2`` int64 top-left corners ``(x, y)``.
     """
     arr = _as_image(img, any_channels=True)
-    p = _as_count(patch, "patch", 1)
-    o = _as_count(overlap, "overlap", 0)
+    p = as_count(patch, "patch", 1)
+    o = as_count(overlap, "overlap", 0)
     if o >= p:
         raise ValueError(f"overlap: must be smaller than patch ({p}); got {o}")
     patches, origins = _native.tile(arr, p, o)
@@ -226,7 +200,8 @@ def remove_markers(
             with a given ``mask`` and ``method="telea"``).
         mask: ``H x W`` bool/uint8 marker mask. None: extract the markers first with
             :func:`tacswitch.extract_markers` (``dilate`` dilations by a 3x3 cross, which is
-            OpenCV's 3x3 ellipse: the paper dilates the mask once before inpainting).
+            OpenCV's 3x3 ellipse: the paper dilates the mask once before inpainting), keeping
+            markers cut by the frame border (``exclude_border=False`` unless given).
         method: ``"telea"`` (:func:`inpaint_telea`, the Rust core) or ``"ns"``
             (``cv2.inpaint(img, mask, radius, cv2.INPAINT_NS)``, uint8/uint16/float32 grey or
             3-channel, as OpenCV allows). ``"tacdiff"`` / ``"hybrid"`` need the learned model,
@@ -253,7 +228,9 @@ def remove_markers(
     if mask is None:
         from tacswitch.markers import extract_markers
 
-        d = _as_count(dilate, "dilate", 0)
+        d = as_count(dilate, "dilate", 0)
+        # Markers cut by the frame edge must go too (extraction drops them for tracking only).
+        extract_opts.setdefault("exclude_border", False)
         m = extract_markers(arr, dilate=d, **extract_opts).mask.view(np.uint8)
     else:
         m = _as_mask(mask, arr.shape)

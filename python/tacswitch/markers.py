@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch import _native
-from tacswitch._checks import as_image_u8
+from tacswitch._checks import as_count, as_image_u8
 
 Polarity = Literal["dark", "bright"]
 
@@ -96,10 +96,11 @@ def extract_markers(
         ValueError: bad shape or option; the message names the argument.
     """
     arr = as_image_u8(img)
-    _check_int(block_size, "block_size", 3)
-    _check_int(min_area, "min_area", 0)
-    _check_int(max_area, "max_area", 0)
-    _check_int(dilate, "dilate", 0)
+    for value, name, minimum in ((block_size, "block_size", 3), (min_area, "min_area", 0),
+                                 (max_area, "max_area", 0)):
+        if value is not None:
+            as_count(value, name, minimum)
+    as_count(dilate, "dilate", 0)
     out = _native.extract_markers(
         arr,
         polarity=polarity,
@@ -113,12 +114,3 @@ def extract_markers(
         exclude_border=bool(exclude_border),
     )
     return Markers(**out)
-
-
-def _check_int(value: int | None, name: str, minimum: int) -> None:
-    if value is None:
-        return
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name}: expected an integer, got {type(value).__name__}")
-    if value < minimum:
-        raise ValueError(f"{name}: must be >= {minimum}; got {value}")

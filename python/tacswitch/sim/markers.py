@@ -136,3 +136,55 @@ def render_preset(
         noise_sigma=preset.noise_sigma if noise else 0.0,
         seed=rng,
     )
+
+
+def marker_layer(
+    height: int,
+    width: int,
+    centres: NDArray,
+    diameters: NDArray,
+    darkness: NDArray,
+    *,
+    edge_px: float = 2.5,
+    shape: NDArray | None = None,
+) -> NDArray[np.float32]:
+    """Transmittance of painted markers, ``H x W`` float32: 1 off the markers, ``1 - darkness``
+    at a dot's centre.
+
+    Each dot is an ellipse: the unit circle mapped by ``shape[n]`` (2x2, px per unit radius of
+    a round dot; identity for a round dot: it carries the size/shape jitter of the painting and the
+    local strain of the gel) times ``diameters[n] / 2``; its edge ramps linearly over ``edge_px``
+    (soft, partly transparent edges of real dots). Overlapping dots do not darken twice: the
+    darkest wins.
+
+    Args:
+        centres: ``N x 2`` ``(x, y)`` px. diameters, darkness: ``N``. shape: ``N x 2 x 2``.
+    """
+    pts = np.asarray(centres, np.float64).reshape(-1, 2)
+    n = pts.shape[0]
+    diam = np.broadcast_to(np.asarray(diameters, np.float64), (n,))
+    dark = np.broadcast_to(np.asarray(darkness, np.float64), (n,))
+    mats = np.broadcast_to(np.eye(2), (n, 2, 2)) if shape is None else np.asarray(shape)
+    edge = max(float(edge_px), 1e-3)
+    trans = np.ones((height, width), np.float32)
+    for (cx, cy), d, k, a in zip(pts, diam, dark, mats, strict=True):
+        r = d / 2
+        inv = np.linalg.inv(a)
+        # Reach of the ellipse plus its soft edge along x and y.
+        reach = np.abs(a).sum(axis=1) * r + edge
+        x0, x1 = max(int(np.floor(cx - reach[0])), 0), min(int(np.ceil(cx + reach[0])), width - 1)
+        y0, y1 = max(int(np.floor(cy - reach[1])), 0), min(int(np.ceil(cy + reach[1])), height - 1)
+        if x0 > x1 or y0 > y1:
+            continue
+        yy, xx = np.mgrid[y0 : y1 + 1, x0 : x1 + 1]
+        qx = inv[0, 0] * (xx - cx) + inv[0, 1] * (yy - cy)
+        qy = inv[1, 0] * (xx - cx) + inv[1, 1] * (yy - cy)
+        # Distance from the ellipse rim in px, to first order (|q| - r scaled by the local size).
+        qn = np.hypot(qx, qy)
+        scale = np.hypot(*(a @ np.stack([qx.ravel(), qy.ravel()]))).reshape(qn.shape) / np.maximum(
+            qn, 1e-9)
+        dist = (qn - r) * np.where(qn > 1e-9, scale, 1.0)
+        cover = np.clip(0.5 - dist / edge, 0.0, 1.0)
+        patch = trans[y0 : y1 + 1, x0 : x1 + 1]
+        np.minimum(patch, (1.0 - k * cover).astype(np.float32), out=patch)
+    return trans

@@ -54,3 +54,158 @@ def twist_field(
     cos, sin = np.cos(angle_rad), np.sin(angle_rad)
     rot = np.stack([cos * rel[:, 0] - sin * rel[:, 1], sin * rel[:, 0] + cos * rel[:, 1]], axis=1)
     return ((rot - rel) * _decay(r, radius)[:, None]).astype(np.float32)
+
+
+# --- Elastic fields of a pressed, sheared and twisted contact -----------------------------------
+#
+# The fields below are computed on a coarse grid (``step`` px per cell): gel motion is smooth on
+# the scale of a marker, and the FFT convolutions stay cheap at any resolution.
+
+
+def _cerruti_fft(gh: int, gw: int, step_mm: float, thickness_mm: float, nu: float
+                 ) -> tuple[NDArray, NDArray, NDArray, tuple[int, int]]:
+    """FFTs of the surface Cerruti kernels of a half-space, cut off at the gel thickness.
+
+    A tangential point force ``Q`` on an elastic half-space moves the surface by (Johnson,
+    *Contact Mechanics*, eq. 3.86b, up to the factor ``1 / (2 pi G)``)
+    ``u = Q [(1 - nu) / rho + nu x x^T / rho^3]``. A gel layer bonded to rigid glass cannot move
+    far from the load: the factor ``exp(-rho / thickness)`` is the finite-thickness cutoff.
+    """
+    ph, pw = 2 * gh, 2 * gw
+    ky = np.fft.fftfreq(ph, 1.0 / ph)[:, None] * step_mm
+    kx = np.fft.fftfreq(pw, 1.0 / pw)[None, :] * step_mm
+    # The centre cell carries the integral of 1/rho over its own area (regularised singularity).
+    rho = np.sqrt(kx * kx + ky * ky + (0.5 * step_mm) ** 2)
+    cut = np.exp(-rho / thickness_mm) / rho
+    kxx = ((1 - nu) + nu * kx * kx / rho**2) * cut
+    kxy = (nu * kx * ky / rho**2) * cut
+    kyy = ((1 - nu) + nu * ky * ky / rho**2) * cut
+    return np.fft.rfft2(kxx), np.fft.rfft2(kxy), np.fft.rfft2(kyy), (ph, pw)
+
+
+def elastic_displacement(traction: NDArray, step_mm: float, thickness_mm: float,
+                         nu: float = 0.45) -> NDArray[np.float64]:
+    """Surface displacement (arbitrary units) of a tangential traction field ``gh x gw x 2``."""
+    gh, gw = traction.shape[:2]
+    kxx, kxy, kyy, (ph, pw) = _cerruti_fft(gh, gw, step_mm, thickness_mm, nu)
+    fx = np.fft.rfft2(traction[..., 0], (ph, pw))
+    fy = np.fft.rfft2(traction[..., 1], (ph, pw))
+    ux = np.fft.irfft2(kxx * fx + kxy * fy, (ph, pw))[:gh, :gw]
+    uy = np.fft.irfft2(kxy * fx + kyy * fy, (ph, pw))[:gh, :gw]
+    return np.stack([ux, uy], axis=-1)
+
+
+def stick_cap(pressure: NDArray, load_ratio: float) -> float:
+    """Traction cap ``tau`` (pressure units, friction coefficient 1) for a ratio ``Q / (mu P)``.
+
+    Cattaneo-Mindlin partial slip generalised to any pressure field: where ``mu p`` is below the
+    cap the contact slips and carries its friction limit; where it is above, the contact sticks
+    and carries the cap. ``sum(min(p, tau)) = load_ratio * sum(p)``; as the ratio approaches 1 the
+    stuck zone (``p > tau``) shrinks from the edge of the contact to nothing.
+    """
+    p = np.sort(pressure[pressure > 0].ravel())
+    if p.size == 0 or load_ratio <= 0:
+        return float(p[-1]) if p.size else 0.0
+    if load_ratio >= 1:
+        return 0.0
+    # sum(min(p, tau)) over sorted p: cumulative sum below tau plus tau times the count above.
+    target = load_ratio * p.sum()
+    csum = np.concatenate([[0.0], np.cumsum(p)])
+    n = p.size
+    lo, hi = 0.0, float(p[-1])
+    for _ in range(40):
+        tau = 0.5 * (lo + hi)
+        k = int(np.searchsorted(p, tau))
+        if csum[k] + tau * (n - k) < target:
+            lo = tau
+        else:
+            hi = tau
+    return 0.5 * (lo + hi)
+
+
+def contact_displacement(
+    pressure: NDArray,
+    step_px: float,
+    mm_per_px: float,
+    thickness_mm: float,
+    *,
+    centre: tuple[float, float],
+    shear_px: tuple[float, float] = (0.0, 0.0),
+    load_ratio: float = 0.5,
+    twist_rad: float = 0.0,
+    dilation: float = 0.0,
+    gel: NDArray | None = None,
+) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
+    """Gel surface displacement of one contact on a coarse grid, pixels ``(dx, dy)`` per cell.
+
+    Args:
+        pressure: ``gh x gw`` contact pressure (any unit; 0 off the contact) on the coarse grid.
+        step_px: grid cell size, px; cell ``(i, j)`` is centred on pixel ``(j, i) * step_px``.
+        mm_per_px, thickness_mm: sensor scale and gel thickness (cutoff of the kernels).
+        centre: contact centre ``(x, y)`` px (the axis of the twist).
+        shear_px: displacement of the stuck zone (the object's tangential motion), px.
+        load_ratio: ``Q / (mu P)`` in [0, 1]: partial slip (see :func:`stick_cap`).
+        twist_rad: rotation of the stuck zone about ``centre``, rad.
+        dilation: normal-press dilation gain: the surface flows outward by
+            ``dilation * thickness * -grad(blurred indentation)`` (incompressible layer squeezed
+            out from under the indenter); needs ``gel`` (coarse indentation, mm).
+        gel: ``gh x gw`` gel indentation, mm.
+
+    Returns:
+        ``(field, stick)``: ``gh x gw x 2`` float32 displacement (px) and the stuck-zone mask.
+    """
+    gh, gw = pressure.shape
+    step_mm = step_px * mm_per_px
+    out = np.zeros((gh, gw, 2), np.float64)
+    tau = stick_cap(pressure, load_ratio)
+    q = np.minimum(pressure, tau)
+    stick = pressure > tau
+    contact = pressure > 0
+    zone = stick if stick.any() else contact
+    if np.hypot(*shear_px) > 0 and contact.any():
+        e = np.asarray(shear_px, np.float64) / np.hypot(*shear_px)
+        u = elastic_displacement(q[..., None] * e, step_mm, thickness_mm)
+        # Scale so the stuck zone moves with the object: its mean motion is the commanded shear.
+        along = (u[zone] @ e).mean()
+        if along > 0:
+            out += u * (np.hypot(*shear_px) / along)
+    if twist_rad != 0 and contact.any():
+        gy, gx = np.mgrid[0:gh, 0:gw] * step_px
+        rel = np.stack([gx - centre[0], gy - centre[1]], axis=-1)
+        rigid = np.stack([-rel[..., 1], rel[..., 0]], axis=-1) * twist_rad
+        u = elastic_displacement(np.where(contact, q, 0.0)[..., None] * rigid, step_mm,
+                                 thickness_mm)
+        den = (u[zone] * u[zone]).sum()
+        if den > 0:
+            out += u * ((u[zone] * rigid[zone]).sum() / den)
+    if dilation != 0 and gel is not None:
+        import cv2
+
+        s = max(thickness_mm / step_mm, 0.5)
+        k = int(2 * np.ceil(3 * s) + 1)
+        smooth = cv2.GaussianBlur(np.asarray(gel, np.float32), (k, k), s,
+                                  borderType=cv2.BORDER_REFLECT_101)
+        dy, dx = np.gradient(smooth, step_mm)
+        out -= dilation * thickness_mm / mm_per_px * np.stack([dx, dy], axis=-1)
+    return out.astype(np.float32), stick
+
+
+def sample_field(field: NDArray, step_px: float, pts: NDArray
+                 ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """Bilinear samples of a coarse field at points ``(x, y)`` px, and its Jacobian there.
+
+    Returns ``(values N x 2, jacobian N x 2 x 2)`` where ``jacobian[n] = d(value) / d(x, y)``.
+    """
+    gh, gw = field.shape[:2]
+    p = np.asarray(pts, np.float64) / step_px
+    x = np.clip(p[:, 0], 0, gw - 1.000001)
+    y = np.clip(p[:, 1], 0, gh - 1.000001)
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    f00, f01 = field[y0, x0], field[y0, x0 + 1]
+    f10, f11 = field[y0 + 1, x0], field[y0 + 1, x0 + 1]
+    val = (f00 * (1 - fx) + f01 * fx) * (1 - fy) + (f10 * (1 - fx) + f11 * fx) * fy
+    ddx = ((f01 - f00) * (1 - fy) + (f11 - f10) * fy) / step_px
+    ddy = ((f10 - f00) * (1 - fx) + (f11 - f01) * fx) / step_px
+    jac = np.stack([ddx, ddy], axis=-1)  # jac[n, i, j] = d value_i / d coord_j
+    return val.astype(np.float32), jac.astype(np.float32)

@@ -19,6 +19,13 @@ class SensorPreset:
             Mini dots keep 0.25-0.30 of the background, i.e. darkness ~0.72).
         edge_px: width of the soft dot edge, pixels.
         noise_sigma: temporal camera noise, grey levels per channel.
+        mm_per_px: size of one pixel on the gel, mm (the physical scale of indenters,
+            deformation and gel thickness).
+        calib: name of the shipped Taxim calibration (``"gelsight"``, ``"gelsight_mini"``) whose
+            real colour tables and no-contact background the optical renderer uses; ``None``:
+            Phong shading on a synthetic background.
+        gel_thickness_mm: elastomer thickness; the elastic kernels are cut off beyond it.
+        fps: camera frame rate of sequences, frames per second.
     """
 
     name: str
@@ -31,17 +38,25 @@ class SensorPreset:
     darkness: float
     edge_px: float
     noise_sigma: float
+    mm_per_px: float = 0.059
+    calib: str | None = None
+    gel_thickness_mm: float = 2.0
+    fps: float = 30.0
 
 
 PRESETS: dict[str, SensorPreset] = {
     # The paper's GelSight: 640x480, 48 black markers (8x6), pitch ~80 px, ~23 px dots.
-    "gelsight": SensorPreset("gelsight", 480, 640, 6, 8, 80.0, 23.0, 0.85, 1.5, 1.7),
+    "gelsight": SensorPreset("gelsight", 480, 640, 6, 8, 80.0, 23.0, 0.85, 1.5, 1.7,
+                             mm_per_px=0.0295, calib="gelsight", fps=30.0),
     # GelSight Mini after crop/resize: 320x240, 9x11 grid, pitch ~29 px, ~11 px soft grey dots.
-    "gelsight_mini": SensorPreset("gelsight_mini", 240, 320, 9, 11, 28.5, 11.0, 0.72, 2.5, 1.5),
+    "gelsight_mini": SensorPreset("gelsight_mini", 240, 320, 9, 11, 28.5, 11.0, 0.72, 2.5, 1.5,
+                                  mm_per_px=0.059, calib="gelsight_mini", fps=25.0),
     # DIGIT at 320x240 with a painted grid (DIGITs usually ship without markers).
-    "digit": SensorPreset("digit", 240, 320, 7, 9, 32.0, 9.0, 0.7, 2.0, 2.0),
+    "digit": SensorPreset("digit", 240, 320, 7, 9, 32.0, 9.0, 0.7, 2.0, 2.0,
+                          mm_per_px=0.06, gel_thickness_mm=1.5, fps=30.0),
     # Dense GelSlim-3.0-like grid: 427x320, ~265 dots, pitch 22 px.
-    "dense": SensorPreset("dense", 320, 427, 14, 19, 22.0, 8.0, 0.75, 1.5, 1.5),
+    "dense": SensorPreset("dense", 320, 427, 14, 19, 22.0, 8.0, 0.75, 1.5, 1.5,
+                          mm_per_px=0.06, gel_thickness_mm=1.5, fps=30.0),
 }
 
 

@@ -111,9 +111,10 @@ def test_shipped_calibration_contact_brightness() -> None:
 
 @pytest.mark.skipif(importlib.util.find_spec("taxim") is None, reason="taxim not installed")
 def test_contact_brightness_matches_real_taxim_presses() -> None:
+    from pathlib import Path
+
     import cv2
     import taxim  # only its data files are read
-    from pathlib import Path
 
     data = np.load(Path(taxim.__file__).parent / "calib/gelsight/dataPack.npz")
     f0 = cv2.GaussianBlur(data["f0"].astype(np.float32), (0, 0), 2)

@@ -128,3 +128,11 @@ def test_every_command_has_help() -> None:
         out = subprocess.run([sys.executable, "-m", "tacswitch", name, "--help"],
                              capture_output=True, text=True)
         assert out.returncode == 0 and "usage" in out.stdout
+
+
+def test_bench_writes_table_and_plot(tmp_path: Path) -> None:
+    assert main(["bench", "-o", str(tmp_path / "b"), "--quick", "-q"]) == 0
+    table = (tmp_path / "b" / "bench.md").read_text()
+    assert table.count("TELEA (tacswitch)") == 2 and "NS (OpenCV)" in table
+    assert "yes" in table  # a Pareto-optimal setting is marked
+    assert cv2.imread(str(tmp_path / "b" / "bench.png")) is not None

@@ -155,3 +155,14 @@ def test_markers_cut_by_the_border() -> None:
     assert len(m) == 3
     assert nearest_errors(m.centres, pts[1:]).max() < 1.5
     assert len(ts.extract_markers(img, exclude_border=False)) == 4
+
+
+def test_dilate_mask_matches_opencv() -> None:
+    rng = np.random.default_rng(1)
+    mask = rng.random((37, 53)) > 0.97
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))
+    for k in (0, 1, 3):
+        ref = cv2.dilate(mask.astype(np.uint8), kernel, iterations=k).astype(bool)
+        np.testing.assert_array_equal(ts.dilate_mask(mask, k), ref)
+    with pytest.raises(ValueError, match="mask"):
+        ts.dilate_mask(np.zeros((2, 2, 2), bool))

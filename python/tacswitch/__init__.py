@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from tacswitch._native import __version__
 from tacswitch.inpaint import inpaint_telea, merge_patches, remove_markers, tile
-from tacswitch.markers import Markers, extract_markers
+from tacswitch.markers import Markers, dilate_mask, extract_markers
 from tacswitch.slip import SlipDetector, SlipState
 from tacswitch.tracking import MarkerTracker, estimate_pitch, match_markers
 
@@ -30,6 +30,7 @@ __all__ = [
     "SlipDetector",
     "SlipState",
     "__version__",
+    "dilate_mask",
     "estimate_pitch",
     "extract_markers",
     "inpaint_telea",

@@ -10,6 +10,7 @@ __all__ = [
     "SlipDetector",
     "Tracker",
     "__version__",
+    "dilate_mask",
     "estimate_pitch",
     "extract_markers",
     "inpaint_telea",
@@ -31,6 +32,7 @@ def extract_markers(
     dilate: int = 0,
     exclude_border: bool = True,
 ) -> dict[str, Any]: ...
+def dilate_mask(mask: NDArray[np.bool_], iterations: int = 1) -> NDArray[np.bool_]: ...
 def match_markers(
     ref_pts: NDArray[np.float32],
     cur_pts: NDArray[np.float32],

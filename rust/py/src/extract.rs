@@ -1,11 +1,13 @@
 //! `extract_markers`: binding of `tacswitch_core::extract`.
 
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArrayDyn};
+use numpy::{
+    PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArrayDyn, PyUntypedArrayMethods,
+};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use tacswitch_core::extract::{
-    extract_markers_with, ExtractParams, ExtractWorkspace, Extraction, Polarity,
+    dilate_cross, extract_markers_with, ExtractParams, ExtractWorkspace, Extraction, Polarity,
 };
 use tacswitch_core::image::ImageView;
 
@@ -132,6 +134,28 @@ fn extract_markers<'py>(
     extraction_to_py(py, ex, arg.height, arg.width)
 }
 
+/// Dilates a bool mask `iterations` times by a 3x3 cross (cv2's 3x3 `MORPH_ELLIPSE`).
+#[pyfunction]
+#[pyo3(signature = (mask, iterations=1))]
+fn dilate_mask<'py>(
+    py: Python<'py>,
+    mask: PyReadonlyArray2<'py, bool>,
+    iterations: usize,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (h, w) = (mask.shape()[0], mask.shape()[1]);
+    let src = mask
+        .as_slice()
+        .map_err(|_| PyValueError::new_err("mask: array must be C-contiguous"))?;
+    let mut out = src.to_vec();
+    py.detach(|| {
+        for _ in 0..iterations {
+            out = dilate_cross(&out, h, w);
+        }
+    });
+    Ok(PyArray1::from_vec(py, out).reshape([h, w])?.into_any())
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_function(wrap_pyfunction!(extract_markers, m)?)
+    m.add_function(wrap_pyfunction!(extract_markers, m)?)?;
+    m.add_function(wrap_pyfunction!(dilate_mask, m)?)
 }

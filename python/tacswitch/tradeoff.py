@@ -1,0 +1,176 @@
+"""Speed/accuracy trade-off of marker-removal methods: every knob on both axes, one table.
+
+Frames come with the truth (simulated pairs: the markerless image is known), so quality is the
+error against the true pixels under the marker mask, overall and where the gel is in contact
+(where texture and edges make inpainting hard). Time is the median per 640x480 frame on one
+thread, measured alternately with the other methods.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tacswitch.metrics import masked_mae, masked_psnr
+
+Inpaint = Callable[[NDArray[np.uint8], NDArray[np.uint8]], NDArray[np.uint8]]
+
+
+@dataclass(frozen=True)
+class PairedFrame:
+    """A frame with markers, its true markerless image, the mask to fill and the contact mask."""
+
+    with_markers: NDArray[np.uint8]
+    truth: NDArray[np.uint8]
+    mask: NDArray[np.bool_]
+    contact: NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class Row:
+    """One method at one setting: quality and time."""
+
+    method: str
+    knob: str
+    ms: float
+    mae: float
+    mae_contact: float
+    psnr: float
+
+
+def default_methods(radii: Sequence[int] = (3, 5, 8, 12), opencv: bool = True
+                    ) -> dict[tuple[str, str], Inpaint]:
+    """TELEA (ours) at each radius, and OpenCV's TELEA and NS at the same radii."""
+    import cv2
+
+    import tacswitch as ts
+
+    methods: dict[tuple[str, str], Inpaint] = {}
+    for r in radii:
+        methods[("TELEA (tacswitch)", f"r={r}")] = lambda img, m, r=r: ts.inpaint_telea(img, m, r)
+    if opencv:
+        for r in radii:
+            methods[("TELEA (OpenCV)", f"r={r}")] = (
+                lambda img, m, r=r: cv2.inpaint(img, m, r, cv2.INPAINT_TELEA))
+            methods[("NS (OpenCV)", f"r={r}")] = (
+                lambda img, m, r=r: cv2.inpaint(img, m, r, cv2.INPAINT_NS))
+    return methods
+
+
+def simulated_frames(n: int, preset: str = "gelsight", seed: int = 0) -> list[PairedFrame]:
+    """``n`` simulated contacts; the fill mask is the true marker mask dilated once, as in the
+    paper."""
+    from tacswitch.markers import dilate_mask
+    from tacswitch.sim.scene import render_sample
+
+    frames = []
+    for i in range(n):
+        s = render_sample(preset, (seed, i))
+        frames.append(PairedFrame(s.image_markers, s.image, dilate_mask(s.marker_mask),
+                                  s.contact_mask))
+    return frames
+
+
+def evaluate(frames: Sequence[PairedFrame], methods: dict[tuple[str, str], Inpaint],
+             rounds: int = 3) -> list[Row]:
+    """Runs every method on every frame ``rounds`` times (alternating), returns one row each."""
+    times: dict[tuple[str, str], list[float]] = {k: [] for k in methods}
+    outputs: dict[tuple[str, str], list[NDArray[np.uint8]]] = {k: [] for k in methods}
+    for rnd in range(rounds):
+        for f in frames:
+            m8 = f.mask.view(np.uint8) if f.mask.dtype == np.bool_ else f.mask
+            for key, fn in methods.items():
+                t0 = time.perf_counter()
+                out = fn(f.with_markers, m8)
+                times[key].append(time.perf_counter() - t0)
+                if rnd == 0:
+                    outputs[key].append(out)
+    rows = []
+    for key in methods:
+        outs = outputs[key]
+        mae = float(np.mean([masked_mae(o, f.truth, f.mask) for o, f in zip(outs, frames,
+                                                                           strict=True)]))
+        contact = [masked_mae(o, f.truth, f.mask & f.contact)
+                   for o, f in zip(outs, frames, strict=True) if (f.mask & f.contact).any()]
+        psnr = float(np.mean([masked_psnr(o, f.truth, f.mask) for o, f in zip(outs, frames,
+                                                                             strict=True)]))
+        rows.append(Row(key[0], key[1], 1e3 * float(np.median(times[key])), mae,
+                        float(np.mean(contact)) if contact else float("nan"), psnr))
+    return rows
+
+
+def markdown(rows: Sequence[Row]) -> str:
+    """The table, fastest first, with the Pareto-optimal settings marked."""
+    front = pareto(rows)
+    lines = ["| method | setting | ms / frame | masked MAE | MAE in contact | masked PSNR dB "
+             "| Pareto |", "|---|---|---|---|---|---|---|"]
+    for r in sorted(rows, key=lambda r: r.ms):
+        lines.append(f"| {r.method} | {r.knob} | {r.ms:.2f} | {r.mae:.3f} | {r.mae_contact:.3f} "
+                     f"| {r.psnr:.2f} | {'yes' if r in front else ''} |")
+    return "\n".join(lines)
+
+
+def pareto(rows: Sequence[Row]) -> list[Row]:
+    """Rows no other row beats on both time and masked MAE."""
+    return [r for r in rows
+            if not any(o.ms <= r.ms and o.mae <= r.mae and (o.ms < r.ms or o.mae < r.mae)
+                       for o in rows)]
+
+
+def plot(rows: Sequence[Row], size: tuple[int, int] = (480, 720)) -> NDArray[np.uint8]:
+    """Time (log scale) against masked MAE, one colour per method, the Pareto front joined."""
+    import cv2
+
+    h, w = size
+    img = np.full((h, w, 3), 255, np.uint8)
+    left, right, top, bottom = 70, 20, 40, 50
+    xs = np.log10([r.ms for r in rows])
+    ys = np.array([r.mae for r in rows])
+    x0, x1 = xs.min() - 0.1, xs.max() + 0.1
+    y0, y1 = ys.min() * 0.95, ys.max() * 1.05
+
+    def px(lx: float, y: float) -> tuple[int, int]:
+        return (round(left + (w - left - right) * (lx - x0) / (x1 - x0)),
+                round(h - bottom - (h - top - bottom) * (y - y0) / max(y1 - y0, 1e-9)))
+
+    cv2.rectangle(img, (left, top), (w - right, h - bottom), (0, 0, 0), 1)
+    for dec in range(int(np.floor(x0)), int(np.ceil(x1)) + 1):
+        for mult in (1, 2, 5):
+            lx = dec + np.log10(mult)
+            if x0 <= lx <= x1:
+                x, _ = px(lx, y0)
+                cv2.line(img, (x, h - bottom), (x, h - bottom + 4), (0, 0, 0), 1)
+                cv2.putText(img, f"{10 ** lx:g}", (x - 10, h - bottom + 18),
+                            cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1, cv2.LINE_AA)
+    for frac in np.linspace(0, 1, 5):
+        y = y0 + frac * (y1 - y0)
+        _, py = px(x0, y)
+        cv2.putText(img, f"{y:.2f}", (8, py + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1,
+                    cv2.LINE_AA)
+    cv2.putText(img, "ms per 640x480 frame (log)", (w // 2 - 100, h - 12),
+                cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+    cv2.putText(img, "masked MAE (grey levels), lower is better", (left, top - 14),
+                cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+    front = sorted(pareto(rows), key=lambda r: r.ms)
+    for a, b in itertools.pairwise(front):
+        cv2.line(img, px(np.log10(a.ms), a.mae), px(np.log10(b.ms), b.mae), (160, 160, 160), 1,
+                 cv2.LINE_AA)
+    palette = [(200, 80, 0), (0, 140, 0), (0, 0, 200), (140, 0, 140), (0, 140, 140)]
+    methods = list(dict.fromkeys(r.method for r in rows))
+    for r in rows:
+        colour = palette[methods.index(r.method) % len(palette)]
+        p = px(np.log10(r.ms), r.mae)
+        cv2.circle(img, p, 5, colour, -1, cv2.LINE_AA)
+        cv2.putText(img, r.knob, (p[0] + 7, p[1] - 5), cv2.FONT_HERSHEY_SIMPLEX, 0.35, colour, 1,
+                    cv2.LINE_AA)
+    for i, m in enumerate(methods):
+        colour = palette[i % len(palette)]
+        cv2.circle(img, (w - 190, top + 14 + 18 * i), 5, colour, -1, cv2.LINE_AA)
+        cv2.putText(img, m, (w - 178, top + 18 + 18 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.4, colour, 1,
+                    cv2.LINE_AA)
+    return img

@@ -6,7 +6,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from tacswitch.cli import bench, demo, markers, remove_markers, slip, track
+from tacswitch.cli import bench, demo, markers, remove_markers, simulate, slip, track
 
 COMMANDS = {
     "demo": demo,
@@ -14,6 +14,7 @@ COMMANDS = {
     "track": track,
     "slip": slip,
     "remove-markers": remove_markers,
+    "simulate": simulate,
     "bench": bench,
 }
 

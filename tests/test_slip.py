@@ -120,3 +120,17 @@ def test_bad_arguments_are_named() -> None:
         det.update(np.zeros((3, 2)), valid=np.ones(2, bool))
     with pytest.raises(ValueError, match="motion_or_img"):
         det.update(np.full((3, 2), np.inf))
+
+
+def test_rigid_auto_is_half_the_scaled_threshold() -> None:
+    pts = sim.marker_grid(240, 320, 9, 11, 28.5)
+    det = ts.SlipDetector(rigid_threshold_px="auto", points=pts, image_width=320)
+    det.update(np.zeros_like(pts))
+    assert det.rigid_threshold_px == pytest.approx(0.5 * 1.625)
+    only = ts.SlipDetector(rigid_threshold_px="auto", use_displacement=False, points=pts)
+    only.update(np.zeros_like(pts))
+    big_rigid = np.tile(np.float32([9.0, -4.0]), (len(pts), 1))
+    state = only.update(big_rigid)
+    assert not state.slip and only.threshold_px is None
+    with pytest.raises(ValueError, match="rigid_threshold_px"):
+        ts.SlipDetector(rigid_threshold_px="sometimes")

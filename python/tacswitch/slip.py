@@ -14,6 +14,8 @@ from tacswitch.tracking import MarkerTracker
 
 #: The paper's threshold (pixels) on 640-pixel-wide frames.
 PAPER_THRESHOLD_PX = 3.25
+#: ``rigid_threshold_px="auto"`` is this fraction of the displacement threshold.
+RIGID_FRACTION = 0.5
 PAPER_IMAGE_WIDTH = 640
 
 
@@ -73,7 +75,10 @@ class SlipDetector:
     Args:
         threshold_px: displacement threshold, pixels. Default: the paper's 3.25 px at 640-pixel
             width, scaled to ``image_width`` (or to the width of the first image fed).
-        rigid_threshold_px: enables the rigid criterion with this threshold (pixels).
+        rigid_threshold_px: enables the rigid criterion with this threshold (pixels), or
+            ``"auto"``: half the displacement threshold (``RIGID_FRACTION``). On simulated
+            grasps (``benches/bench_slip_accuracy.py``) it keeps every slip and drops most false
+            alarms of the displacement rule on vibrations, which move the contact rigidly.
         active_fraction: markers with at least this fraction of the largest displacement form the
             contact set fitted by the rigid criterion.
         points: reference marker centres ``N x 2`` (needed for the rigid criterion on motion input;
@@ -87,7 +92,7 @@ class SlipDetector:
         self,
         threshold_px: float | None = None,
         *,
-        rigid_threshold_px: float | None = None,
+        rigid_threshold_px: float | str | None = None,
         active_fraction: float = 0.5,
         points: Any = None,
         image_width: int | None = None,
@@ -95,7 +100,12 @@ class SlipDetector:
         **tracker_opts: Any,
     ):
         self._threshold = positive_or_none(threshold_px, "threshold_px")
-        self._rigid = positive_or_none(rigid_threshold_px, "rigid_threshold_px")
+        self._rigid_auto = isinstance(rigid_threshold_px, str)
+        if self._rigid_auto and rigid_threshold_px != "auto":
+            raise ValueError(f"rigid_threshold_px: a number of pixels or 'auto'; "
+                             f"got {rigid_threshold_px!r}")
+        self._rigid = None if self._rigid_auto else positive_or_none(
+            rigid_threshold_px, "rigid_threshold_px")
         if not (0.0 < float(active_fraction) <= 1.0):
             raise ValueError(f"active_fraction: must be in (0, 1]; got {active_fraction!r}")
         self._active_fraction = float(active_fraction)
@@ -104,7 +114,7 @@ class SlipDetector:
             raise ValueError(f"image_width: must be a positive integer; got {image_width!r}")
         self._image_width = image_width
         self._use_displacement = bool(use_displacement)
-        if not self._use_displacement and self._rigid is None:
+        if not self._use_displacement and self._rigid is None and not self._rigid_auto:
             raise ValueError("use_displacement: False needs rigid_threshold_px, or nothing is "
                              "checked")
         self._tracker_opts = tracker_opts
@@ -136,13 +146,24 @@ class SlipDetector:
         if self._native is not None:
             return
         threshold = self.threshold_px
-        if self._use_displacement and threshold is None:
-            threshold = PAPER_THRESHOLD_PX
+        if threshold is None:
+            threshold = (self._threshold if self._threshold is not None else
+                         scaled_threshold(self._image_width) if self._image_width is not None
+                         else PAPER_THRESHOLD_PX)
             self._threshold = threshold
+        if self._rigid_auto:
+            self._rigid = RIGID_FRACTION * threshold
+        if not self._use_displacement:
+            threshold = None
         self._native = _native.SlipDetector(
             threshold, self._rigid, self._active_fraction,
             points if self._rigid is not None else None,
         )
+
+    @property
+    def rigid_threshold_px(self) -> float | None:
+        """Rigid-criterion threshold in force (pixels), once known; None when disabled."""
+        return self._rigid
 
     def update(self, motion_or_img: Any, valid: Any = None) -> SlipState:
         """Feeds one frame and returns its :class:`SlipState`.
@@ -166,7 +187,7 @@ class SlipDetector:
             else:
                 valid_arr = as_valid(valid, motion.shape[0])
             points = self._points
-            if self._rigid is not None and points is None:
+            if (self._rigid is not None or self._rigid_auto) and points is None:
                 raise ValueError("points: the rigid criterion on motion input needs the reference "
                                  "marker centres (SlipDetector(points=...))")
         self._ensure_native(points)

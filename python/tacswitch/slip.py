@@ -6,7 +6,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from tacswitch import _native
 from tacswitch._checks import as_motion, as_points, as_valid, positive_or_none
@@ -121,16 +120,19 @@ class SlipDetector:
         self.tracker: MarkerTracker | None = None
         self._native: Any = None
 
-    @property
-    def threshold_px(self) -> float | None:
-        """Displacement threshold in force (pixels), once known."""
-        if not self._use_displacement:
-            return None
+    def _epsilon(self) -> float:
+        """The displacement threshold ε: given, else the paper's scaled to the image width (the
+        paper's own 3.25 px while no width is known)."""
         if self._threshold is not None:
             return self._threshold
         if self._image_width is not None:
             return scaled_threshold(self._image_width)
-        return None
+        return PAPER_THRESHOLD_PX
+
+    @property
+    def threshold_px(self) -> float | None:
+        """Displacement threshold in force (pixels); None when that criterion is off."""
+        return self._epsilon() if self._use_displacement else None
 
     @property
     def first_slip(self) -> int | None:
@@ -145,24 +147,19 @@ class SlipDetector:
     def _ensure_native(self, points: Any) -> None:
         if self._native is not None:
             return
-        threshold = self.threshold_px
-        if threshold is None:
-            threshold = (self._threshold if self._threshold is not None else
-                         scaled_threshold(self._image_width) if self._image_width is not None
-                         else PAPER_THRESHOLD_PX)
-            self._threshold = threshold
+        # Fixed for the detector's life from the first frame on (its width is known by then).
+        epsilon = self._threshold = self._epsilon()
         if self._rigid_auto:
-            self._rigid = RIGID_FRACTION * threshold
-        if not self._use_displacement:
-            threshold = None
+            self._rigid = RIGID_FRACTION * epsilon
         self._native = _native.SlipDetector(
-            threshold, self._rigid, self._active_fraction,
+            epsilon if self._use_displacement else None, self._rigid, self._active_fraction,
             points if self._rigid is not None else None,
         )
 
     @property
     def rigid_threshold_px(self) -> float | None:
-        """Rigid-criterion threshold in force (pixels), once known; None when disabled."""
+        """Rigid-criterion threshold in force (pixels); None when disabled (or, for ``"auto"``,
+        before the first frame)."""
         return self._rigid
 
     def update(self, motion_or_img: Any, valid: Any = None) -> SlipState:
@@ -194,9 +191,3 @@ class SlipDetector:
         st = self._native.update(motion, valid_arr)
         return SlipState(**st)
 
-
-def max_displacement(motion: NDArray[np.float32], valid: NDArray[np.bool_]) -> float:
-    """Largest displacement magnitude among valid markers (pixels), 0 when none is valid."""
-    if not valid.any():
-        return 0.0
-    return float(np.hypot(motion[valid, 0], motion[valid, 1]).max())

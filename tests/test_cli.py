@@ -75,6 +75,17 @@ def test_slip_on_a_folder_detects_the_slip(tmp_path: Path, frame_folder: Path, g
     assert onset <= first <= onset + 3
 
 
+def test_slip_rigid_only_still_detects_the_slip(tmp_path: Path, frame_folder: Path) -> None:
+    log = tmp_path / "log.csv"
+    args = ["slip", str(frame_folder), "--log", str(log), "-q", "--rigid-threshold-px", "auto",
+            "--rigid-only"]
+    assert main(args) == 0
+    with open(log) as fh:
+        rows = list(csv.DictReader(fh))
+    assert any(r["slip"] == "1" and r["criterion"] == "rigid" for r in rows)
+    assert main(["slip", str(frame_folder), "--log", str(log), "-q", "--rigid-only"]) == 1
+
+
 def test_slip_survives_corrupt_frames(tmp_path: Path, frame_folder: Path) -> None:
     (frame_folder / "0005.png").write_bytes(b"not a png")
     log = tmp_path / "log.csv"

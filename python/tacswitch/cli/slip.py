@@ -26,12 +26,25 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--log", default="slip-log.csv", help="CSV log (default: %(default)s)")
     p.add_argument("--threshold-px", type=float, default=None,
                    help="displacement threshold (default: 3.25 px scaled to the frame width)")
-    p.add_argument("--rigid-threshold-px", type=float, default=None,
-                   help="also flag deviation from a rigid contact motion above this")
+    p.add_argument("--rigid-threshold-px", type=_px_or_auto, default=None, metavar="PX|auto",
+                   help="also flag deviation from a rigid contact motion above this (pixels, or "
+                   "'auto': half the displacement threshold)")
+    p.add_argument("--rigid-only", action="store_true",
+                   help="use only the rigid criterion (ignores rigid vibration; needs "
+                   "--rigid-threshold-px)")
     p.add_argument("--max-frames", type=int, default=None, help="stop after this many frames")
     p.add_argument("--show", action="store_true", help="show an overlay window (needs a display)")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(run=run)
+
+
+def _px_or_auto(text: str) -> float | str:
+    if text == "auto":
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected pixels or 'auto', got {text!r}") from None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -57,7 +70,8 @@ def run(args: argparse.Namespace) -> int:
                     continue
                 if detector is None:
                     detector = ts.SlipDetector(args.threshold_px,
-                                               rigid_threshold_px=args.rigid_threshold_px)
+                                               rigid_threshold_px=args.rigid_threshold_px,
+                                               use_displacement=not args.rigid_only)
                     shape = frame.shape
                 elif frame.shape != shape:
                     skipped += 1

@@ -1,0 +1,72 @@
+"""``tacswitch motion``: marker motion predicted from markerless frames (arrows overlay + CSV)."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+from pathlib import Path
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("motion", help="predict marker motion from markerless images",
+                       description="Predicts the (dx, dy) each marker would have had from "
+                                   "markerless frames; writes a CSV and an arrow overlay per "
+                                   "image.")
+    p.add_argument("inputs", nargs="+", help="markerless image files or folders")
+    p.add_argument("--ref", default=None,
+                   help="markerless no-contact frame (needed by models trained with it)")
+    p.add_argument("--centres", default=None,
+                   help="CSV with x,y columns (e.g. from `tacswitch markers`); default: the "
+                        "model's grid scaled to the frame")
+    p.add_argument("--model", default=None, help="ONNX model (default: the shipped one)")
+    p.add_argument("-o", "--out", default="motion-out", help="output folder (default: %(default)s)")
+    p.add_argument("--scale", type=float, default=3.0, help="arrow length per px of motion")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(run=run)
+
+
+def _read_centres(path: str):  # type: ignore[no-untyped-def]
+    import numpy as np
+
+    with open(path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    if not rows or "x" not in rows[0] or "y" not in rows[0]:
+        raise ValueError(f"--centres: {path!r} needs a header with x and y columns")
+    return np.array([[float(r["x"]), float(r["y"])] for r in rows], np.float32)
+
+
+def run(args: argparse.Namespace) -> int:
+    import cv2
+    import numpy as np
+
+    from tacswitch._io import atomic_open, read_image, write_image
+    from tacswitch.cli.sources import collect_images
+    from tacswitch.motion.infer import load_model
+
+    model = load_model(args.model)
+    ref = read_image(args.ref) if args.ref else None
+    centres = _read_centres(args.centres) if args.centres else None
+    out = Path(args.out)
+    for path in collect_images(args.inputs):
+        img = read_image(path)
+        pts = model.centres_for(*img.shape[:2]) if centres is None else centres
+        motion = model(img, ref=ref, centres=pts)
+        buf = io.StringIO()
+        w = csv.writer(buf)
+        w.writerow(["x", "y", "dx", "dy"])
+        for (x, y), (dx, dy) in zip(pts, motion, strict=True):
+            w.writerow([f"{x:.3f}", f"{y:.3f}", f"{dx:.4f}", f"{dy:.4f}"])
+        with atomic_open(out / f"{path.stem}.csv") as fh:
+            fh.write(buf.getvalue())
+        vis = img.copy()
+        for (x, y), (dx, dy) in zip(pts, motion, strict=True):
+            tip = (round(float(x + args.scale * dx)), round(float(y + args.scale * dy)))
+            cv2.arrowedLine(vis, (round(float(x)), round(float(y))), tip, (0, 0, 255), 1,
+                            cv2.LINE_AA, tipLength=0.3)
+        write_image(out / f"{path.stem}_motion.png", vis)
+        if not args.quiet:
+            mx = float(np.hypot(motion[:, 0], motion[:, 1]).max()) if len(motion) else 0.0
+            print(f"{path}: {len(motion)} markers, largest motion {mx:.2f} px -> "
+                  f"{out / (path.stem + '.csv')}")
+    return 0

@@ -1,0 +1,81 @@
+"""``tacswitch train motion``: train the markerless -> marker motion regressor (needs torch).
+
+Data: synthetic pairs rendered into ``--data`` (``--simulate N``; resumable shards), or a user's
+own marker sensor (``--frames DIR --reference IMG``): ground-truth motions from the marker
+tracker, markerless inputs from TELEA (``tacswitch.remove_markers``).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("train", help="train a learned model (needs tacswitch[train])",
+                       description="Trains a model; resumable: rerun the same command to continue.")
+    what = p.add_subparsers(dest="what", required=True, metavar="MODEL")
+    m = what.add_parser("motion", help="markerless -> marker motion regressor",
+                        description=__doc__)
+    m.add_argument("--out", required=True, help="run folder (checkpoint, log.jsonl, model.onnx)")
+    m.add_argument("--data", default=None, help="folder of synthetic shards (train_*.npz)")
+    m.add_argument("--simulate", type=int, default=0, metavar="N",
+                   help="render N synthetic training samples into --data first (resumable)")
+    m.add_argument("--preset", default="gelsight_mini",
+                   help="simulator preset (default: %(default)s)")
+    m.add_argument("--frames", default=None,
+                   help="folder of frames from your marker sensor (instead of --data)")
+    m.add_argument("--reference", default=None,
+                   help="no-contact frame of your marker sensor (with --frames)")
+    m.add_argument("--arch", choices=("unet", "lraspp", "deeplabv3"), default="unet",
+                   help="unet: the light default; deeplabv3: the paper's reference")
+    m.add_argument("--use-ref", action="store_true",
+                   help="also feed the markerless no-contact reference frame to the network")
+    m.add_argument("--epochs", type=int, default=8)
+    m.add_argument("--batch", type=int, default=16)
+    m.add_argument("--lr", type=float, default=2e-3)
+    m.add_argument("--seed", type=int, default=0)
+    m.add_argument("--max-steps", type=int, default=0,
+                   help="cap on steps per epoch (0: whole data set)")
+    m.add_argument("-q", "--quiet", action="store_true")
+    m.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        raise ValueError('training needs torch: pip install "tacswitch[train]"') from None
+    from tacswitch.motion import data as mdata
+    from tacswitch.motion.export import export_onnx
+    from tacswitch.motion.train import TrainConfig, train
+
+    if args.frames is not None:
+        if args.reference is None:
+            raise ValueError("--reference: needed with --frames (the no-contact frame)")
+        arrays = mdata.pairs_from_marker_frames(args.frames, args.reference,
+                                                progress=not args.quiet)
+        source = {"frames": str(args.frames), "reference": str(args.reference)}
+    else:
+        if args.data is None:
+            raise ValueError("--data: give a data folder (or --frames for your own sensor)")
+        if args.simulate:
+            mdata.generate_split(args.data, "train", args.simulate, preset=args.preset,
+                                 seed=args.seed, progress=not args.quiet)
+        arrays = mdata.load_split(args.data, "train")
+        source = {"data": str(args.data), "preset": args.preset,
+                  "n": len(arrays["image"])}
+    cfg = TrainConfig(arch=args.arch, use_ref=bool(args.use_ref), epochs=args.epochs,
+                      batch=args.batch, lr=args.lr, seed=args.seed,
+                      max_steps_per_epoch=args.max_steps)
+    net = train(arrays, args.out, cfg, progress=not args.quiet)
+    h, w = arrays["image"].shape[1:3]
+    # Default read-out grid of predict_motion: the preset's ideal grid (sim) or the user's markers.
+    rest = arrays["rest"][0] if args.frames is not None else mdata.preset_grid(args.preset)
+    meta = {"work_width": int(w), "work_height": int(h), "seed": args.seed,
+            "default_centres": [[round(float(x), 3), round(float(y), 3)] for x, y in rest],
+            "trained_on": source, "epochs": args.epochs}
+    path = export_onnx(net, Path(args.out) / "model.onnx", metadata=meta, height=h, width=w)
+    if not args.quiet:
+        print(f"exported {path}")
+    return 0

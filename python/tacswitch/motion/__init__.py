@@ -1,0 +1,17 @@
+"""Markerless -> marker: the 2D motion each marker would have had, from a markerless image.
+
+- :mod:`tacswitch.motion.infer`: :func:`predict_motion` with onnxruntime (numpy only, no torch);
+- :mod:`tacswitch.motion.data`: synthetic training/evaluation pairs from :mod:`tacswitch.sim`;
+- :mod:`tacswitch.motion.model`, :mod:`~tacswitch.motion.train`, :mod:`~tacswitch.motion.export`:
+  the networks, training and ONNX export (need torch, ``pip install "tacswitch[train]"``);
+- :mod:`tacswitch.motion.evaluate`: the paper's metrics, the baselines and slip on markerless
+  streams.
+
+Importing this package imports neither torch nor onnxruntime.
+"""
+
+from __future__ import annotations
+
+from tacswitch.motion.infer import MotionModel, default_model_path, predict_motion
+
+__all__ = ["MotionModel", "default_model_path", "predict_motion"]

@@ -1,0 +1,180 @@
+"""Synthetic training/evaluation data for the motion regressor (numpy + the simulator, no torch).
+
+A sample is a markerless contact frame ``I_wo``, the markerless no-contact reference of the same
+scene, the marker centres at rest and their true motion ``(dx, dy)`` px. Samples come from
+:class:`tacswitch.sim.Scene` under the load distribution of :func:`tacswitch.sim.render_sample`
+(stuck-zone shear up to 0.9 pitch, partial slip, twist), with two controls the paper's held-out
+splits need: the object classes allowed and the fraction of each class's depth range drawn from.
+
+Splits (as in the paper: unseen depth, unseen indenter):
+
+- ``train``: classes other than :data:`HELDOUT_CLASSES`, depth in the lower 80 % of the range;
+- ``test_depth``: the same classes, depth in the top 20 % (deeper presses than any in training);
+- ``test_indenter``: :data:`HELDOUT_CLASSES` only, any depth;
+- ``test_press``: seen classes, any depth, pure presses (no shear, no twist) — a diagnostic: the
+  simulator renders the markerless image from the gel's height alone, so the stuck-zone shear and
+  twist leave no trace in it and no markerless predictor can recover them; what it can recover is
+  the press (dilation) field, measured here.
+
+Shards are ``.npz`` files written atomically, one per block of samples, so generation resumes.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+#: Object classes never seen in training (one shape, one texture).
+HELDOUT_CLASSES = ("star", "knit")
+#: Depth fraction (of the class's range) that separates training from the unseen-depth split.
+DEPTH_SPLIT = 0.8
+SPLITS = ("train", "test_depth", "test_indenter", "test_press")
+
+
+def split_spec(split: str) -> tuple[tuple[str, ...], tuple[float, float]]:
+    """``(classes, depth_fraction_range)`` of a split."""
+    from tacswitch.sim.indenters import CLASSES
+
+    seen = tuple(c for c in CLASSES if c not in HELDOUT_CLASSES)
+    if split == "train":
+        return seen, (0.0, DEPTH_SPLIT)
+    if split == "test_depth":
+        return tuple(c for c in seen if c != "none"), (DEPTH_SPLIT, 1.0)
+    if split == "test_indenter":
+        return HELDOUT_CLASSES, (0.0, 1.0)
+    if split == "test_press":
+        return tuple(c for c in seen if c != "none"), (0.0, 1.0)
+    raise ValueError(f"split: must be one of {SPLITS}; got {split!r}")
+
+
+def render_motion_sample(preset: str, seed: Any, *, classes: tuple[str, ...],
+                         depth_frac: tuple[float, float] = (0.0, 1.0),
+                         markers: bool = False, shear: bool = True) -> dict[str, Any]:
+    """One sample (see the module docstring); deterministic given ``seed``. ``shear=False``:
+    a pure press (no shear, no twist, load ratio 0).
+
+    Returns a dict: ``image`` / ``reference`` (markerless, uint8 BGR), ``rest``, ``displacement``
+    (``N x 2`` float32 px), ``present`` (``N`` bool), ``depth_mm``, ``label``; with
+    ``markers=True`` also ``image_markers`` / ``reference_markers`` (the same frames with markers,
+    for the tracking baseline).
+    """
+    from tacswitch.sim.indenters import depth_range
+    from tacswitch.sim.scene import Scene
+
+    rng = np.random.default_rng(seed)
+    label = classes[int(rng.integers(len(classes)))]
+    scene = Scene(preset, rng, label=label)
+    lo, hi = depth_range(label)
+    scene.depth = float(lo + (hi - lo) * rng.uniform(*depth_frac))
+    # Load as in sim.render_sample.
+    mag = scene.pitch * rng.uniform(0.0, 0.9) ** 1.5
+    ang = rng.uniform(0, 2 * np.pi)
+    shear = (float(mag * np.cos(ang)), float(mag * np.sin(ang)))
+    load = float(rng.uniform(0.0, 0.95))
+    twist = float(rng.uniform(-0.08, 0.08))
+    if not shear:
+        shear, load, twist = (0.0, 0.0), 0.0, 0.0
+    ref = scene.render(rng, depth=0.0)
+    f = scene.render(rng, shear_px=shear, load_ratio=load, twist_rad=twist)
+    out: dict[str, Any] = {
+        "image": f.image, "reference": ref.image, "rest": scene.rest,
+        "displacement": f.displacement.astype(np.float32), "present": scene.present.copy(),
+        "depth_mm": scene.depth, "label": label,
+    }
+    if markers:
+        out["image_markers"] = f.image_markers
+        out["reference_markers"] = ref.image_markers
+    return out
+
+
+def generate_split(out: str | Path, split: str, n: int, *, preset: str = "gelsight_mini",
+                   seed: int = 0, shard: int = 250, markers: bool = False,
+                   progress: bool = True) -> list[Path]:
+    """Writes ``n`` samples of ``split`` as shards ``out/{split}_{k:03d}.npz``; skips finished
+    shards (resume). Sample ``i`` uses ``SeedSequence([seed, SPLITS.index(split), i])``."""
+    from tacswitch._io import atomic_open
+
+    classes, frac = split_spec(split)
+    root = Path(out)
+    root.mkdir(parents=True, exist_ok=True)
+    paths = []
+    t0 = time.perf_counter()
+    for k, start in enumerate(range(0, n, shard)):
+        path = root / f"{split}_{k:03d}.npz"
+        paths.append(path)
+        if path.is_file():
+            continue
+        items = [render_motion_sample(
+            preset, np.random.SeedSequence([seed, SPLITS.index(split), i]), classes=classes,
+            depth_frac=frac, markers=markers, shear=split != "test_press")
+            for i in range(start, min(n, start + shard))]
+        arrays = {key: np.stack([it[key] for it in items])
+                  for key in items[0] if key not in ("label",)}
+        arrays["label"] = np.array([it["label"] for it in items])
+        with atomic_open(path, "wb") as fh:
+            np.savez(fh, **arrays)
+        if progress:
+            print(f"{path.name}: {min(n, start + shard)}/{n} samples, "
+                  f"{time.perf_counter() - t0:.0f} s", flush=True)
+    return paths
+
+
+def load_split(root: str | Path, split: str) -> dict[str, NDArray[Any]]:
+    """Concatenates the shards of ``split`` in ``root`` (arrays keyed as in the shards)."""
+    paths = sorted(Path(root).glob(f"{split}_*.npz"))
+    if not paths:
+        raise ValueError(f"root: no {split}_*.npz shards in {str(root)!r}")
+    parts = [dict(np.load(p)) for p in paths]
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
+def preset_grid(preset: str) -> NDArray[np.float32]:
+    """Ideal rest grid of a simulator preset, ``N x 2`` (x, y) px, row-major from the top left."""
+    from tacswitch.sim.presets import get_preset
+
+    p = get_preset(preset)
+    xs = (p.width - 1) / 2 + (np.arange(p.cols) - (p.cols - 1) / 2) * p.pitch
+    ys = (p.height - 1) / 2 + (np.arange(p.rows) - (p.rows - 1) / 2) * p.pitch
+    gx, gy = np.meshgrid(xs, ys)
+    return np.stack([gx.ravel(), gy.ravel()], 1).astype(np.float32)
+
+
+def pairs_from_marker_frames(frames: str | Path, reference: str | Path, *, radius: int = 3,
+                             progress: bool = True) -> dict[str, NDArray[Any]]:
+    """Training pairs from a user's own marker sensor (no simulator, no ground truth needed).
+
+    The reference image's markers are the rest centres; every frame is tracked with
+    :class:`tacswitch.MarkerTracker` (frames in name order, so a recorded press is followed
+    through), lost markers get NaN motion (left out of the loss), and the markerless inputs are
+    the frames with their markers removed by TELEA (``radius`` px). Arrays as :func:`load_split`.
+    """
+    import tacswitch as ts
+    from tacswitch._io import read_image
+    from tacswitch.cli.sources import collect_images
+
+    ref = read_image(reference)
+    tracker = ts.MarkerTracker(ref)
+    rest = tracker.reference.astype(np.float32)
+    ref_clean = ts.remove_markers(ref, radius=radius)
+    images, motions = [], []
+    paths = collect_images([str(frames)])
+    for k, path in enumerate(paths):
+        img = read_image(path)
+        if img.shape != ref.shape:
+            raise ValueError(f"frames: {path} has shape {img.shape}, the reference {ref.shape}")
+        motion, valid = tracker.update(img)
+        motion = np.where(valid[:, None], motion, np.nan).astype(np.float32)
+        images.append(ts.remove_markers(img, radius=radius))
+        motions.append(motion)
+        if progress and (k + 1) % 100 == 0:
+            print(f"{k + 1}/{len(paths)} frames tracked and inpainted", flush=True)
+    if not images:
+        raise ValueError(f"frames: no images in {str(frames)!r}")
+    n = len(images)
+    return {"image": np.stack(images), "reference": np.repeat(ref_clean[None], n, 0),
+            "rest": np.repeat(rest[None], n, 0), "displacement": np.stack(motions),
+            "present": np.ones((n, len(rest)), bool)}

@@ -1,0 +1,156 @@
+"""Evaluation of marker-motion predictors with the paper's metrics (numpy; no torch).
+
+Metrics over the markers of every sample (px, in the frames' own pixels):
+
+- ``e_rmse``: per-marker Euclidean error ``|pred - true|``, mean and median (the paper names it
+  e_rmse; it is the mean per-marker Euclidean error, not a root mean square);
+- ``e_mag``: magnitude error ``| |pred| - |true| |``, mean and median;
+- ``nan_pct``: share of markers without a prediction (a tracker's lost markers; 0 for the
+  regressor by construction); the errors are over the markers that have one;
+- ``orient``: angle between predicted and true motion, degrees, on markers moving >= 3 px.
+
+Methods compared on the same markers (the painted ones): the regressor, a zero-motion baseline,
+and the marker tracker on the true marker images (the upper reference a markerless sensor gives
+up). Slip: the paper's rule (:class:`tacswitch.SlipDetector`) fed predicted motion on markerless
+grasp sequences vs tracked motion on the marker images: accuracy, false alarms on hold and
+vibration sequences, detection delay in frames after the slip onset.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+#: Markers moving at least this much (px) enter the orientation error.
+ORIENT_MIN_PX = 3.0
+
+
+def motion_metrics(pred: NDArray[Any], true: NDArray[Any]) -> dict[str, float]:
+    """The paper's metrics for stacked ``M x 2`` predictions and truths (NaN rows = missing)."""
+    pred = np.asarray(pred, np.float64).reshape(-1, 2)
+    true = np.asarray(true, np.float64).reshape(-1, 2)
+    have = np.isfinite(pred).all(1)
+    p, t = pred[have], true[have]
+    e = np.linalg.norm(p - t, axis=1)
+    mag = np.abs(np.linalg.norm(p, axis=1) - np.linalg.norm(t, axis=1))
+    tn = np.linalg.norm(t, axis=1)
+    big = tn >= ORIENT_MIN_PX
+    cos = np.sum(p[big] * t[big], 1) / np.maximum(np.linalg.norm(p[big], axis=1) * tn[big],
+                                                   1e-12)
+    ang = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+    def stat(x: NDArray[Any], f: Callable[[NDArray[Any]], Any]) -> float:
+        return float(f(x)) if x.size else float("nan")
+
+    return {"e_rmse_mean": stat(e, np.mean), "e_rmse_median": stat(e, np.median),
+            "e_mag_mean": stat(mag, np.mean), "e_mag_median": stat(mag, np.median),
+            "nan_pct": 100.0 * float((~have).mean()) if have.size else 0.0,
+            "orient_mean_deg": stat(ang, np.mean), "orient_median_deg": stat(ang, np.median),
+            "n_markers": int(have.size), "n_orient": int(big.sum())}
+
+
+def track_true_markers(reference_markers: NDArray[np.uint8], image_markers: NDArray[np.uint8],
+                       rest: NDArray[np.float32], pitch: float) -> NDArray[np.float32]:
+    """Motion of the ``rest`` markers by the tracker on the true marker images (NaN = lost)."""
+    import tacswitch as ts
+
+    tracker = ts.MarkerTracker(reference_markers)
+    motion, valid = tracker.update(image_markers)
+    ref = tracker.reference
+    out = np.full((len(rest), 2), np.nan, np.float32)
+    if len(ref) == 0:
+        return out
+    d = np.linalg.norm(rest[:, None, :] - ref[None, :, :], axis=2)
+    j = d.argmin(1)
+    ok = (d[np.arange(len(rest)), j] < 0.5 * pitch) & valid[j]
+    out[ok] = motion[j[ok]]
+    return out
+
+
+def evaluate_split(data: dict[str, NDArray[Any]], predict: Callable[..., NDArray[np.float32]],
+                   *, use_ref: bool = False, pitch: float = 28.5,
+                   tracking: bool = True) -> dict[str, dict[str, float]]:
+    """Metrics of the regressor (``predict(img, ref, centres)``), the zero baseline and (when the
+    data hold marker images) tracking, on the painted markers of every sample."""
+    preds, trues, tracks = [], [], []
+    t_pred = 0.0
+    for i in range(len(data["image"])):
+        sel = data["present"][i]
+        rest = data["rest"][i]
+        t0 = time.perf_counter()
+        m = predict(data["image"][i], data["reference"][i] if use_ref else None, rest)
+        t_pred += time.perf_counter() - t0
+        preds.append(m[sel])
+        trues.append(data["displacement"][i][sel])
+        if tracking and "image_markers" in data:
+            tr = track_true_markers(data["reference_markers"][i], data["image_markers"][i],
+                                    rest, pitch)
+            tracks.append(tr[sel])
+    true = np.concatenate(trues)
+    out = {"regressor": motion_metrics(np.concatenate(preds), true),
+           "zero": motion_metrics(np.zeros_like(true), true)}
+    out["regressor"]["ms_per_frame"] = 1e3 * t_pred / max(len(data["image"]), 1)
+    if tracks:
+        out["tracking"] = motion_metrics(np.concatenate(tracks), true)
+    return out
+
+
+def evaluate_slip(predict: Callable[..., NDArray[np.float32]], *, preset: str = "gelsight_mini",
+                  n_per_kind: int = 6, n_frames: int = 30, seed: int = 100,
+                  use_ref: bool = False) -> dict[str, dict[str, Any]]:
+    """Slip detection on rendered grasps (hold / slip / vibration), the paper's rule with its
+    threshold scaled to the frame width, fed from the grasp start (the frame where the shear ramp
+    ends). Returns per source (``predicted`` on markerless frames, ``tracked`` on marker frames):
+    accuracy, false alarms per kind, detections and the delay (frames after onset) of each."""
+    import tacswitch as ts
+    from tacswitch.sim.grasp import render_grasp
+
+    res: dict[str, dict[str, Any]] = {
+        s: {"correct": 0, "n": 0, "false_alarms": {"hold": 0, "vibration": 0},
+            "missed": 0, "delays": []} for s in ("predicted", "tracked")}
+    for kind in ("slip", "hold", "vibration"):
+        for k in range(n_per_kind):
+            seq = render_grasp(preset, kind, n_frames=n_frames,
+                               seed=np.random.SeedSequence([seed, ("slip", "hold",
+                                                                   "vibration").index(kind), k]))
+            rest = seq.scene.rest
+            w = seq.reference.shape[1]
+            ref_clean = seq.scene.render(np.random.default_rng(0), depth=0.0).image
+            tracker = ts.MarkerTracker(seq.reference)
+            onset = int(seq.params["onset"])
+            for source in ("predicted", "tracked"):
+                det = ts.SlipDetector(image_width=w)
+                first = None
+                # The tracker follows every frame (frame-to-frame tracking); the detector starts
+                # at the grasp start, as in the paper.
+                for t in range(0 if source == "tracked" else seq.grasp_start, len(seq)):
+                    f = seq.frames[t]
+                    if source == "predicted":
+                        st = det.update(predict(f.image, ref_clean if use_ref else None, rest))
+                    else:
+                        motion, valid = tracker.update(f.image_markers)
+                        if t < seq.grasp_start:
+                            continue
+                        st = det.update(motion, valid)
+                    if st.slip and first is None:
+                        first = t
+                r = res[source]
+                r["n"] += 1
+                detected = first is not None
+                if kind == "slip":
+                    r["correct"] += int(detected)
+                    r["missed"] += int(not detected)
+                    if detected:
+                        r["delays"].append(int(first) - onset)
+                else:
+                    r["correct"] += int(not detected)
+                    r["false_alarms"][kind] += int(detected)
+    for r in res.values():
+        r["accuracy"] = r["correct"] / max(r["n"], 1)
+        d = r["delays"]
+        r["delay_mean"] = float(np.mean(d)) if d else float("nan")
+    return res

@@ -1,0 +1,176 @@
+"""Marker motion from a markerless frame with onnxruntime (numpy only; never imports torch).
+
+The ONNX graph holds the normalisation and the bilinear read-out at the marker centres (see
+:mod:`tacswitch.motion.export`), so this module only validates arguments, brings frames to the
+model's working scale and runs the session.
+
+Working scale: the shipped model was trained on GelSight-Mini-like frames, 320 x 240 at
+0.059 mm/px. A frame at least 1.5 times wider than the model's working width is area-downsampled
+by the integer factor ``round(W / work_width)`` (640 x 480 -> 320 x 240), centres are divided by
+it and the motion multiplied by it, so inputs and outputs stay in the caller's pixels.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import threading
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tacswitch._checks import as_image_u8, as_points
+
+#: File name of the shipped default model under ``tacswitch/models``.
+DEFAULT_MODEL = "motion_unet.onnx"
+
+_SESSIONS: dict[tuple[str, int], MotionModel] = {}
+_LOCK = threading.Lock()
+
+
+def default_model_path() -> Path:
+    """Path of the shipped default model."""
+    return Path(__file__).resolve().parent.parent / "models" / DEFAULT_MODEL
+
+
+def session_options(threads: int | None = None) -> Any:
+    """onnxruntime options tuned for small CPU models: ``threads`` intra-op threads (default
+    ``os.cpu_count()``), one inter-op thread, sequential execution, no spin-waiting (spinning
+    threads would steal the cores the camera and control loops run on between frames)."""
+    import onnxruntime as ort
+
+    so = ort.SessionOptions()
+    so.intra_op_num_threads = int(threads or os.cpu_count() or 1)
+    so.inter_op_num_threads = 1
+    so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+    so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
+    so.add_session_config_entry("session.intra_op.allow_spinning", "0")
+    so.add_session_config_entry("session.inter_op.allow_spinning", "0")
+    return so
+
+
+class MotionModel:
+    """One loaded motion model (an onnxruntime session and its metadata).
+
+    Args:
+        path: ONNX file written by :func:`tacswitch.motion.export.export_onnx`; default: the
+            shipped model.
+        threads: intra-op threads (default ``os.cpu_count()``).
+
+    Attributes:
+        arch: architecture name; ``use_ref``: whether the model needs the reference frame;
+        work_width, work_height: the frame size it was trained at (px);
+        default_centres: ``N x 2`` float32 (x, y) grid at the working size.
+    """
+
+    def __init__(self, path: str | os.PathLike[str] | None = None, *,
+                 threads: int | None = None) -> None:
+        import onnxruntime as ort
+
+        self.path = Path(path) if path is not None else default_model_path()
+        if not self.path.is_file():
+            raise FileNotFoundError(f"model: no ONNX file at {str(self.path)!r}")
+        self.session = ort.InferenceSession(str(self.path), session_options(threads),
+                                            providers=["CPUExecutionProvider"])
+        meta = self.session.get_modelmeta().custom_metadata_map
+        self.metadata = dict(meta)
+        self.arch = meta.get("tacswitch.arch", "?")
+        self.use_ref = json.loads(meta.get("tacswitch.use_ref", "false"))
+        self.work_width = int(json.loads(meta.get("tacswitch.work_width", "320")))
+        self.work_height = int(json.loads(meta.get("tacswitch.work_height", "240")))
+        grid = json.loads(meta.get("tacswitch.default_centres", "[]"))
+        self.default_centres = np.asarray(grid, np.float32).reshape(-1, 2)
+        self._inputs = {i.name for i in self.session.get_inputs()}
+
+    def scale_for(self, width: int) -> int:
+        """Integer downsampling factor applied to a frame ``width`` px wide (1 = none)."""
+        if width < 1.5 * self.work_width:
+            return 1
+        return max(1, round(width / self.work_width))
+
+    def centres_for(self, height: int, width: int) -> NDArray[np.float32]:
+        """The default centres (the training preset's grid) scaled to a ``height x width``
+        frame: the right grid for the same sensor at any resolution, only a guess for others."""
+        sx, sy = width / self.work_width, height / self.work_height
+        # Pixel centres at integers: scale about the image's outer edge (x + 0.5).
+        c = (self.default_centres + 0.5) * np.array([sx, sy], np.float32) - 0.5
+        return c.astype(np.float32)
+
+    def __call__(self, img: Any, ref: Any = None, centres: Any = None) -> NDArray[np.float32]:
+        """See :func:`predict_motion`."""
+        frame = _bgr(img, "img")
+        h, w = frame.shape[:2]
+        if ref is not None:
+            ref_arr = _bgr(ref, "ref")
+            if ref_arr.shape != frame.shape:
+                raise ValueError(f"ref: shape {ref_arr.shape} does not match img {frame.shape}")
+        elif self.use_ref:
+            raise ValueError("ref: this model needs the markerless no-contact reference frame")
+        else:
+            ref_arr = None
+        pts = self.centres_for(h, w) if centres is None else as_points(centres, "centres")
+        if pts.shape[0] == 0:
+            return np.zeros((0, 2), np.float32)
+        k = self.scale_for(w)
+        if k > 1:
+            frame = _downsample(frame, k)
+            ref_arr = None if ref_arr is None else _downsample(ref_arr, k)
+            # Pixel centres at integers: x_small = (x + 0.5) / k - 0.5.
+            pts = ((pts + 0.5) / k - 0.5).astype(np.float32)
+        feed: dict[str, Any] = {"image": frame[None], "centres": np.ascontiguousarray(pts)}
+        if "reference" in self._inputs:
+            feed["reference"] = (ref_arr if ref_arr is not None else frame)[None]
+        out = self.session.run(None, feed)[0]
+        if k > 1:
+            out = out * np.float32(k)
+        return np.nan_to_num(out.astype(np.float32, copy=False), nan=0.0, posinf=0.0,
+                             neginf=0.0)
+
+
+def _bgr(img: Any, name: str) -> NDArray[np.uint8]:
+    arr = as_image_u8(img, name)
+    if arr.ndim != 3 or arr.shape[2] != 3:
+        raise ValueError(f"{name}: expected a BGR H x W x 3 uint8 image (the model was trained on "
+                         f"colour frames); got shape {arr.shape}")
+    return arr
+
+
+def _downsample(img: NDArray[np.uint8], k: int) -> NDArray[np.uint8]:
+    import cv2
+
+    h, w = img.shape[:2]
+    return cv2.resize(img, (w // k, h // k), interpolation=cv2.INTER_AREA)
+
+
+def load_model(path: str | os.PathLike[str] | None = None) -> MotionModel:
+    """The cached :class:`MotionModel` of ``path`` (one onnxruntime session per model file)."""
+    p = Path(path) if path is not None else default_model_path()
+    key = (str(p.resolve()), os.getpid())
+    with _LOCK:
+        model = _SESSIONS.get(key)
+        if model is None:
+            model = _SESSIONS[key] = MotionModel(p)
+        return model
+
+
+def predict_motion(img: Any, ref: Any = None, centres: Any = None, *,
+                   model: str | os.PathLike[str] | None = None) -> NDArray[np.float32]:
+    """The 2D motion each marker would have had, from a markerless frame.
+
+    Args:
+        img: markerless frame, ``H x W x 3`` uint8 **BGR** (OpenCV order).
+        ref: the markerless no-contact frame of the same sensor (same shape), for models trained
+            with it (``MotionModel.use_ref``); ignored by models without it.
+        centres: ``N x 2`` float32 marker rest centres ``(x, y)`` px in ``img``'s pixels (pixel
+            centres at integers). Default: the model's training grid (the GelSight Mini preset's
+            9 x 11 grid, pitch 28.5 px at 320 x 240) scaled to the frame; pass your sensor's own
+            centres (e.g. ``tacswitch.extract_markers(ref_with_markers).centres``) otherwise.
+        model: ONNX model path (default: the shipped model); sessions are cached per path.
+
+    Returns:
+        ``N x 2`` float32 ``(dx, dy)`` px in ``img``'s pixels, one row per centre, never NaN
+        (a centre outside the frame gets the motion at the nearest border).
+    """
+    return load_model(model)(img, ref=ref, centres=centres)

@@ -1,0 +1,173 @@
+"""Motion regressors (torch; imported only by training and export code).
+
+Every network here maps uint8 BGR frames to a dense ``(dx, dy)`` field in input pixels and is
+read out at marker centres by bilinear sampling (:func:`sample_at`), never at truncated integer
+pixels. The conversion of the uint8 BGR frame to network input lives once, in :class:`Normalise`,
+the first layer of every model, so training, the exported ONNX graph and every caller see the same
+colour order and scaling: there is no separate preprocessing step to get wrong (the paper's slip
+scripts fed BGR frames to an RGB-trained model).
+
+Architectures (:data:`ARCHS`):
+
+- ``"deeplabv3"``: the paper's reference, torchvision DeepLabV3 with a MobileNetV3-Large backbone,
+  output stride 16, upsampled to full size (built with ``weights=None, weights_backbone=None``);
+- ``"lraspp"``: torchvision LR-ASPP MobileNetV3-Large (lighter head);
+- ``"unet"``: a small depthwise-separable U-Net whose field is read out at stride 4 (the field is
+  smooth at the scale of a marker pitch, so the bilinear read-out replaces a full-size decoder).
+
+With ``use_ref=True`` the network also receives the markerless no-contact reference frame; it sees
+``[img, img - ref]`` (the difference is what carries the contact).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+ARCHS = ("unet", "lraspp", "deeplabv3")
+#: uint8 -> network input: ``(x - PIXEL_MEAN) / PIXEL_SCALE``, same for B, G and R.
+PIXEL_MEAN = 128.0
+PIXEL_SCALE = 64.0
+#: The heads regress ``motion / MOTION_SCALE`` (px): keeps the outputs near unit range.
+MOTION_SCALE = 8.0
+
+
+class Normalise(nn.Module):
+    """``B x H x W x 3`` uint8 BGR (numpy's layout, as is) -> ``B x C x H x W`` float32.
+
+    ``C = 3`` (the frame) or ``6`` (frame and frame minus reference).
+    """
+
+    def forward(self, img: torch.Tensor, ref: torch.Tensor | None = None) -> torch.Tensor:
+        x = (img.permute(0, 3, 1, 2).float() - PIXEL_MEAN) / PIXEL_SCALE
+        if ref is None:
+            return x
+        r = (ref.permute(0, 3, 1, 2).float() - PIXEL_MEAN) / PIXEL_SCALE
+        return torch.cat([x, x - r], dim=1)
+
+
+def sample_at(field: torch.Tensor, centres: torch.Tensor, height: int, width: int
+              ) -> torch.Tensor:
+    """Bilinear read-out of ``field`` (``B x 2 x h x w`` covering an ``height x width`` image)
+    at ``centres`` (``B x N x 2`` (x, y) input pixels, pixel centres at integers) -> ``B x N x 2``.
+
+    With ``align_corners=False`` the grid maps the image's outer edges, so the same formula holds
+    for a full-size field and for one at any stride that tiles the image. Outside the image the
+    border value is used (a marker pushed off the frame keeps its edge's motion, never NaN).
+    """
+    gx = (2.0 * centres[..., 0] + 1.0) / width - 1.0
+    gy = (2.0 * centres[..., 1] + 1.0) / height - 1.0
+    grid = torch.stack([gx, gy], dim=-1).unsqueeze(1)  # B x 1 x N x 2
+    out = F.grid_sample(field, grid, mode="bilinear", padding_mode="border", align_corners=False)
+    return out[:, :, 0, :].permute(0, 2, 1)
+
+
+def _cbr(ci: int, co: int, k: int = 3, s: int = 1, groups: int = 1) -> nn.Sequential:
+    return nn.Sequential(nn.Conv2d(ci, co, k, s, (k - 1) // 2, groups=groups, bias=False),
+                         nn.BatchNorm2d(co), nn.ReLU(inplace=True))
+
+
+class _DS(nn.Sequential):
+    """Depthwise 3x3 (stride ``s``) then pointwise 1x1, each with BN and ReLU."""
+
+    def __init__(self, ci: int, co: int, s: int = 1) -> None:
+        super().__init__(_cbr(ci, ci, 3, s, groups=ci), _cbr(ci, co, 1))
+
+
+class SmallUNet(nn.Module):
+    """Encoder to stride 32, decoder back to stride 4 with skips; ``widths`` at strides 4..32.
+
+    The stem is a 4x4 stride-4 patch convolution: a full-resolution stage would cost most of the
+    time and the field is only read out at stride 4.
+    """
+
+    def __init__(self, in_ch: int = 3, widths: tuple[int, ...] = (32, 64, 96, 128)) -> None:
+        super().__init__()
+        w1, w2, w3, w4 = widths
+        self.stem = _cbr(in_ch, w1, 4, 4)                       # /4
+        self.e1 = _DS(w1, w1)
+        self.e2 = nn.Sequential(_DS(w1, w2, 2), _DS(w2, w2))    # /8
+        self.e3 = nn.Sequential(_DS(w2, w3, 2), _DS(w3, w3))    # /16
+        self.e4 = nn.Sequential(_DS(w3, w4, 2), _DS(w4, w4))    # /32: context of a whole contact
+        self.l3 = _cbr(w3, w4, 1)
+        self.d3 = _DS(w4, w3)
+        self.l2 = _cbr(w2, w3, 1)
+        self.d2 = _DS(w3, w2)
+        self.l1 = _cbr(w1, w2, 1)
+        self.d1 = _DS(w2, w2)
+        self.head = nn.Conv2d(w2, 2, 1)
+
+    @staticmethod
+    def _up(x: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
+        return F.interpolate(x, size=like.shape[-2:], mode="bilinear", align_corners=False)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        s1 = self.e1(self.stem(x))
+        s2 = self.e2(s1)
+        s3 = self.e3(s2)
+        s4 = self.e4(s3)
+        y = self.d3(self._up(s4, s3) + self.l3(s3))
+        y = self.d2(self._up(y, s2) + self.l2(s2))
+        y = self.d1(self._up(y, s1) + self.l1(s1))
+        return self.head(y)  # stride 4
+
+
+class _TorchvisionSeg(nn.Module):
+    """A torchvision segmentation model with 2 outputs, its first conv widened for ``in_ch``."""
+
+    def __init__(self, arch: str, in_ch: int) -> None:
+        super().__init__()
+        from torchvision.models import segmentation as seg
+
+        if arch == "deeplabv3":
+            net = seg.deeplabv3_mobilenet_v3_large(weights=None, weights_backbone=None,
+                                                   num_classes=2, aux_loss=False)
+        else:
+            net = seg.lraspp_mobilenet_v3_large(weights=None, weights_backbone=None,
+                                                num_classes=2)
+        if in_ch != 3:
+            first = net.backbone["0"][0]
+            net.backbone["0"][0] = nn.Conv2d(in_ch, first.out_channels, first.kernel_size,
+                                             first.stride, first.padding, bias=False)
+        self.net = net
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.net(x)["out"]  # full size
+
+
+class MotionNet(nn.Module):
+    """uint8 BGR frame (+ optional reference) -> motion ``(dx, dy)`` px at given centres.
+
+    ``forward(img, centres, ref=None)``: ``img``/``ref`` ``B x H x W x 3`` uint8 BGR, ``centres``
+    ``B x N x 2`` (x, y) px -> ``B x N x 2`` (dx, dy) px. :meth:`field` gives the dense field.
+    """
+
+    def __init__(self, arch: str = "unet", use_ref: bool = False, **kw: Any) -> None:
+        super().__init__()
+        if arch not in ARCHS:
+            raise ValueError(f"arch: must be one of {ARCHS}; got {arch!r}")
+        self.arch, self.use_ref = arch, use_ref
+        self.norm = Normalise()
+        in_ch = 6 if use_ref else 3
+        self.body: nn.Module = SmallUNet(in_ch, **kw) if arch == "unet" else \
+            _TorchvisionSeg(arch, in_ch)
+
+    def field(self, img: torch.Tensor, ref: torch.Tensor | None = None) -> torch.Tensor:
+        """Dense ``B x 2 x h x w`` motion (px) covering the frame (h, w: the net's stride)."""
+        if self.use_ref and ref is None:
+            raise ValueError("ref: this model was trained with the reference frame; pass it")
+        x = self.norm(img, ref if self.use_ref else None)
+        return self.body(x) * MOTION_SCALE
+
+    def forward(self, img: torch.Tensor, centres: torch.Tensor,
+                ref: torch.Tensor | None = None) -> torch.Tensor:
+        f = self.field(img, ref)
+        return sample_at(f, centres, img.shape[1], img.shape[2])
+
+
+def count_params(model: nn.Module) -> int:
+    """Number of parameters."""
+    return sum(p.numel() for p in model.parameters())

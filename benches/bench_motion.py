@@ -56,8 +56,10 @@ def main() -> None:
     default = MotionModel(default_model_path())
     for h, w in SIZES:
         img = rng.integers(0, 255, (h, w, 3), dtype=np.uint8)
+        ref = rng.integers(0, 255, (h, w, 3), dtype=np.uint8)
         cen = default.centres_for(h, w)
-        t = measure(lambda img=img, cen=cen: default(img, centres=cen), repeat=100, warmup=10)
+        t = measure(lambda img=img, ref=ref, cen=cen: default(img, ref, cen), repeat=100,
+                    warmup=10)
         hz = 1.0 / t.median
         rows.append([f"default ({default.arch}, predict_motion)", f"{w}x{h}",
                      f"{_params(default.path) / 1e6:.2f}", t.fmt("ms"), f"{hz:.0f}",
@@ -78,6 +80,8 @@ def main() -> None:
         for h, w in SIZES:
             feed = {"image": rng.integers(0, 255, (1, h, w, 3), dtype=np.uint8),
                     "centres": (rng.random((99, 2)) * [w - 1, h - 1]).astype(np.float32)}
+            if "reference" in {i.name for i in sess.get_inputs()}:
+                feed["reference"] = feed["image"][:, ::-1].copy()
             t = measure(lambda feed=feed, s=sess: s.run(None, feed), repeat=30, warmup=3)
             hz = 1.0 / t.median
             rows.append([f"{arch} at full size ({note})", f"{w}x{h}",

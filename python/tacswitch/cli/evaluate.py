@@ -52,15 +52,24 @@ def run(args: argparse.Namespace) -> int:
         arrays = mdata.load_split(args.data, split)
         results[split] = evaluate_split(arrays, lambda i, r, c: model(i, ref=r, centres=c),
                                         use_ref=model.use_ref, pitch=pitch)
+    pair = "pair_train" in model.metadata.get("tacswitch.trained_on", "")
+    if pair:
+        # Motion since an earlier contact frame (what the model was trained for).
+        mdata.generate_split(args.data, "pair_test_indenter", args.n // 2, preset=args.preset,
+                             seed=args.seed, progress=not args.quiet, shard=150)
+        arrays = mdata.load_split(args.data, "pair_test_indenter")
+        results["pair_test_indenter"] = evaluate_split(
+            arrays, lambda i, r, c: model(i, ref=r, centres=c), use_ref=True, pitch=pitch)
     if args.slip:
+        ref_frame = "grasp_start" if pair else "no_contact" if model.use_ref else "none"
         results["slip"] = evaluate_slip(lambda i, r, c: model(i, ref=r, centres=c),
                                         preset=args.preset, n_per_kind=args.slip,
-                                        use_ref=model.use_ref)
+                                        ref_frame=ref_frame)
     if not args.quiet:
         print("| split | method | e_rmse mean | e_rmse median | e_mag mean | e_mag median | "
               "NaN % | orient mean (deg, >=3 px) |")
         print("|---|---|---|---|---|---|---|---|")
-        for split in SPLITS:
+        for split in [s for s in (*SPLITS, "pair_test_indenter") if s in results]:
             for meth, r in results[split].items():
                 print(f"| {split} | {meth} | {_fmt(r['e_rmse_mean'])} | "
                       f"{_fmt(r['e_rmse_median'])} | {_fmt(r['e_mag_mean'])} | "

@@ -19,6 +19,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         description=__doc__)
     m.add_argument("--out", required=True, help="run folder (checkpoint, log.jsonl, model.onnx)")
     m.add_argument("--data", default=None, help="folder of synthetic shards (train_*.npz)")
+    m.add_argument("--split", default="train", choices=("train", "pair_train"),
+                   help="train: frame vs the no-contact reference; pair_train: frame vs an "
+                        "earlier frame of the same contact (motion since then; needs --use-ref)")
     m.add_argument("--simulate", type=int, default=0, metavar="N",
                    help="render N synthetic training samples into --data first (resumable)")
     m.add_argument("--preset", default="gelsight_mini",
@@ -31,6 +34,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="unet: the light default; deeplabv3: the paper's reference")
     m.add_argument("--use-ref", action="store_true",
                    help="also feed the markerless no-contact reference frame to the network")
+    m.add_argument("--loss", choices=("mse", "euclid"), default="euclid",
+                   help="mse: the paper's; euclid: mean per-marker Euclidean error, the metric "
+                        "itself (default)")
     m.add_argument("--epochs", type=int, default=8)
     m.add_argument("--batch", type=int, default=16)
     m.add_argument("--lr", type=float, default=2e-3)
@@ -60,12 +66,13 @@ def run(args: argparse.Namespace) -> int:
         if args.data is None:
             raise ValueError("--data: give a data folder (or --frames for your own sensor)")
         if args.simulate:
-            mdata.generate_split(args.data, "train", args.simulate, preset=args.preset,
+            mdata.generate_split(args.data, args.split, args.simulate, preset=args.preset,
                                  seed=args.seed, progress=not args.quiet)
-        arrays = mdata.load_split(args.data, "train")
-        source = {"data": str(args.data), "preset": args.preset,
+        arrays = mdata.load_split(args.data, args.split)
+        source = {"data": str(args.data), "split": args.split, "preset": args.preset,
                   "n": len(arrays["image"])}
-    cfg = TrainConfig(arch=args.arch, use_ref=bool(args.use_ref), epochs=args.epochs,
+    cfg = TrainConfig(arch=args.arch, use_ref=bool(args.use_ref), loss=args.loss,
+                      epochs=args.epochs,
                       batch=args.batch, lr=args.lr, seed=args.seed,
                       max_steps_per_epoch=args.max_steps)
     net = train(arrays, args.out, cfg, progress=not args.quiet)
@@ -74,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
     rest = arrays["rest"][0] if args.frames is not None else mdata.preset_grid(args.preset)
     meta = {"work_width": int(w), "work_height": int(h), "seed": args.seed,
             "default_centres": [[round(float(x), 3), round(float(y), 3)] for x, y in rest],
-            "trained_on": source, "epochs": args.epochs}
+            "trained_on": source, "epochs": args.epochs, "loss": args.loss}
     path = export_onnx(net, Path(args.out) / "model.onnx", metadata=meta, height=h, width=w)
     if not args.quiet:
         print(f"exported {path}")

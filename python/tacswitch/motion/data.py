@@ -73,13 +73,13 @@ def render_motion_sample(preset: str, seed: Any, *, classes: tuple[str, ...],
     # Load as in sim.render_sample.
     mag = scene.pitch * rng.uniform(0.0, 0.9) ** 1.5
     ang = rng.uniform(0, 2 * np.pi)
-    shear = (float(mag * np.cos(ang)), float(mag * np.sin(ang)))
+    shear_px = (float(mag * np.cos(ang)), float(mag * np.sin(ang)))
     load = float(rng.uniform(0.0, 0.95))
     twist = float(rng.uniform(-0.08, 0.08))
     if not shear:
-        shear, load, twist = (0.0, 0.0), 0.0, 0.0
+        shear_px, load, twist = (0.0, 0.0), 0.0, 0.0
     ref = scene.render(rng, depth=0.0)
-    f = scene.render(rng, shear_px=shear, load_ratio=load, twist_rad=twist)
+    f = scene.render(rng, shear_px=shear_px, load_ratio=load, twist_rad=twist)
     out: dict[str, Any] = {
         "image": f.image, "reference": ref.image, "rest": scene.rest,
         "displacement": f.displacement.astype(np.float32), "present": scene.present.copy(),
@@ -91,6 +91,49 @@ def render_motion_sample(preset: str, seed: Any, *, classes: tuple[str, ...],
     return out
 
 
+def render_pair_sample(preset: str, seed: Any, *, classes: tuple[str, ...],
+                       depth_frac: tuple[float, float] = (0.0, 1.0),
+                       no_contact_fraction: float = 0.1,
+                       slide_fraction: float = 0.0) -> dict[str, Any]:
+    """Two loads of one contact: ``reference`` (markerless, the contact at a first load, or the
+    no-contact frame in ``no_contact_fraction`` of the samples) and ``image`` (a second load,
+    sliding in ``slide_fraction`` of the samples), with ``displacement`` = the markers' motion
+    from the first frame to the second.
+
+    Motion since an earlier frame is what shear and slip control use (the slip rule measures it
+    from the grasp start), and unlike the absolute motion it is visible in markerless frames: a
+    stuck contact carries its imprint with the gel. Arrays as :func:`render_motion_sample`.
+    """
+    from tacswitch.sim.indenters import depth_range
+    from tacswitch.sim.scene import Scene
+
+    rng = np.random.default_rng(seed)
+    label = classes[int(rng.integers(len(classes)))]
+    scene = Scene(preset, rng, label=label)
+    lo, hi = depth_range(label)
+    scene.depth = float(lo + (hi - lo) * rng.uniform(*depth_frac))
+
+    def load() -> dict[str, Any]:
+        mag = scene.pitch * rng.uniform(0.0, 0.5) ** 1.5
+        ang = rng.uniform(0, 2 * np.pi)
+        return {"shear_px": (float(mag * np.cos(ang)), float(mag * np.sin(ang))),
+                "load_ratio": float(rng.uniform(0.0, 0.95)),
+                "twist_rad": float(rng.uniform(-0.05, 0.05))}
+
+    first = scene.render(rng, depth=0.0) if rng.random() < no_contact_fraction else \
+        scene.render(rng, **load())
+    second = load()
+    # A sliding object moves on while the gel stays saturated: its imprint's motion is then not
+    # the markers' (training on it teaches the net to doubt the imprint; off by default).
+    if rng.random() < slide_fraction:
+        second["load_ratio"] = 1.0
+        second["offset"] = tuple(np.add(second["shear_px"], rng.normal(0, 0.15 * scene.pitch, 2)))
+    f = scene.render(rng, **second)
+    return {"image": f.image, "reference": first.image, "rest": scene.rest,
+            "displacement": (f.displacement - first.displacement).astype(np.float32),
+            "present": scene.present.copy(), "depth_mm": scene.depth, "label": label}
+
+
 def generate_split(out: str | Path, split: str, n: int, *, preset: str = "gelsight_mini",
                    seed: int = 0, shard: int = 250, markers: bool = False,
                    progress: bool = True) -> list[Path]:
@@ -98,7 +141,8 @@ def generate_split(out: str | Path, split: str, n: int, *, preset: str = "gelsig
     shards (resume). Sample ``i`` uses ``SeedSequence([seed, SPLITS.index(split), i])``."""
     from tacswitch._io import atomic_open
 
-    classes, frac = split_spec(split)
+    pair = split.startswith("pair_")
+    classes, frac = split_spec(split.removeprefix("pair_"))
     root = Path(out)
     root.mkdir(parents=True, exist_ok=True)
     paths = []
@@ -108,10 +152,13 @@ def generate_split(out: str | Path, split: str, n: int, *, preset: str = "gelsig
         paths.append(path)
         if path.is_file():
             continue
-        items = [render_motion_sample(
-            preset, np.random.SeedSequence([seed, SPLITS.index(split), i]), classes=classes,
-            depth_frac=frac, markers=markers, shear=split != "test_press")
-            for i in range(start, min(n, start + shard))]
+        sid = SPLITS.index(split.removeprefix("pair_")) + (100 if pair else 0)
+        items = [render_pair_sample(preset, np.random.SeedSequence([seed, sid, i]),
+                                    classes=classes, depth_frac=frac) if pair else
+                 render_motion_sample(preset, np.random.SeedSequence([seed, sid, i]),
+                                      classes=classes, depth_frac=frac, markers=markers,
+                                      shear=split != "test_press")
+                 for i in range(start, min(n, start + shard))]
         arrays = {key: np.stack([it[key] for it in items])
                   for key in items[0] if key not in ("label",)}
         arrays["label"] = np.array([it["label"] for it in items])

@@ -101,10 +101,13 @@ def evaluate_split(data: dict[str, NDArray[Any]], predict: Callable[..., NDArray
 
 def evaluate_slip(predict: Callable[..., NDArray[np.float32]], *, preset: str = "gelsight_mini",
                   n_per_kind: int = 6, n_frames: int = 30, seed: int = 100,
-                  use_ref: bool = False) -> dict[str, dict[str, Any]]:
+                  ref_frame: str = "none") -> dict[str, dict[str, Any]]:
     """Slip detection on rendered grasps (hold / slip / vibration), the paper's rule with its
     threshold scaled to the frame width, fed from the grasp start (the frame where the shear ramp
-    ends). Returns per source (``predicted`` on markerless frames, ``tracked`` on marker frames):
+    ends). ``ref_frame``: what the regressor gets as ``ref``: ``"none"``, ``"no_contact"`` (the
+    markerless no-contact frame) or ``"grasp_start"`` (the markerless frame at the grasp start:
+    the regressor then predicts motion since the grasp start, as the slip rule measures it).
+    Returns per source (``predicted`` on markerless frames, ``tracked`` on marker frames):
     accuracy, false alarms per kind, detections and the delay (frames after onset) of each."""
     import tacswitch as ts
     from tacswitch.sim.grasp import render_grasp
@@ -119,7 +122,13 @@ def evaluate_slip(predict: Callable[..., NDArray[np.float32]], *, preset: str = 
                                                                    "vibration").index(kind), k]))
             rest = seq.scene.rest
             w = seq.reference.shape[1]
-            ref_clean = seq.scene.render(np.random.default_rng(0), depth=0.0).image
+            if ref_frame not in ("none", "no_contact", "grasp_start"):
+                raise ValueError(f"ref_frame: unknown {ref_frame!r}")
+            ref_img = None
+            if ref_frame == "no_contact":
+                ref_img = seq.scene.render(np.random.default_rng(0), depth=0.0).image
+            elif ref_frame == "grasp_start":
+                ref_img = seq.frames[seq.grasp_start].image
             tracker = ts.MarkerTracker(seq.reference)
             onset = int(seq.params["onset"])
             for source in ("predicted", "tracked"):
@@ -130,7 +139,7 @@ def evaluate_slip(predict: Callable[..., NDArray[np.float32]], *, preset: str = 
                 for t in range(0 if source == "tracked" else seq.grasp_start, len(seq)):
                     f = seq.frames[t]
                     if source == "predicted":
-                        st = det.update(predict(f.image, ref_clean if use_ref else None, rest))
+                        st = det.update(predict(f.image, ref_img, rest))
                     else:
                         motion, valid = tracker.update(f.image_markers)
                         if t < seq.grasp_start:

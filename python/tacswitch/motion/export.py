@@ -43,8 +43,10 @@ def export_onnx(net: MotionNet, path: str | Path, *, metadata: dict[str, Any] | 
 
     from tacswitch._io import atomic_open
 
-    net = net.eval()
-    g = _Graph(net)
+    was_training = net.training
+    # The wrapper must be in eval mode too: the exporter restores the wrapper's mode afterwards,
+    # which would otherwise switch the caller's network to training mode (batch-stat BN).
+    g = _Graph(net).eval()
     img = torch.zeros(1, height, width, 3, dtype=torch.uint8)
     cen = torch.tensor([[width / 2, height / 2], [10.0, 10.0], [width - 5.0, 3.0]])
     args: tuple[torch.Tensor, ...] = (img, cen, img.clone()) if net.use_ref else (img, cen)
@@ -58,6 +60,7 @@ def export_onnx(net: MotionNet, path: str | Path, *, metadata: dict[str, Any] | 
     with torch.no_grad():
         torch.onnx.export(g, args, str(tmp), input_names=names, output_names=["motion"],
                           dynamic_axes=axes, opset_version=OPSET, dynamo=False)
+    net.train(was_training)
     model = onnx.load(str(tmp))
     tmp.unlink()
     meta = {"tacswitch.arch": net.arch, "tacswitch.use_ref": json.dumps(net.use_ref)}

@@ -4,6 +4,12 @@ The ONNX graph holds the normalisation and the bilinear read-out at the marker c
 :mod:`tacswitch.motion.export`), so this module only validates arguments, brings frames to the
 model's working scale and runs the session.
 
+Why a reference frame: a single markerless frame shows the gel's shape, not how far a stuck
+contact has been dragged sideways — in the simulator the stuck-zone shear leaves no trace in the
+image at all, so a single-frame regressor can only guess it (measured: no better than predicting
+zero). Against an earlier frame of the same contact, the imprint's own displacement shows it. The
+shipped model therefore predicts the motion from ``ref`` to ``img``.
+
 Working scale: the shipped model was trained on GelSight-Mini-like frames, 320 x 240 at
 0.059 mm/px. A frame at least 1.5 times wider than the model's working width is area-downsampled
 by the integer factor ``round(W / work_width)`` (640 x 480 -> 320 x 240), centres are divided by
@@ -107,7 +113,9 @@ class MotionModel:
             if ref_arr.shape != frame.shape:
                 raise ValueError(f"ref: shape {ref_arr.shape} does not match img {frame.shape}")
         elif self.use_ref:
-            raise ValueError("ref: this model needs the markerless no-contact reference frame")
+            raise ValueError("ref: this model predicts the motion since a reference frame; pass "
+                             "the markerless frame at the start of the grasp (or the "
+                             "no-contact frame)")
         else:
             ref_arr = None
         pts = self.centres_for(h, w) if centres is None else as_points(centres, "centres")
@@ -161,8 +169,11 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *,
 
     Args:
         img: markerless frame, ``H x W x 3`` uint8 **BGR** (OpenCV order).
-        ref: the markerless no-contact frame of the same sensor (same shape), for models trained
-            with it (``MotionModel.use_ref``); ignored by models without it.
+        ref: a markerless reference frame of the same sensor (same shape): the motion returned
+            is the markers' motion from ``ref`` to ``img``. The shipped model needs it
+            (``MotionModel.use_ref``) and was trained with two kinds of reference: an earlier
+            frame of the same contact (e.g. the grasp start, what slip and shear control measure
+            from) and the no-contact frame. Models trained without it ignore it.
         centres: ``N x 2`` float32 marker rest centres ``(x, y)`` px in ``img``'s pixels (pixel
             centres at integers). Default: the model's training grid (the GelSight Mini preset's
             9 x 11 grid, pitch 28.5 px at 320 x 240) scaled to the frame; pass your sensor's own

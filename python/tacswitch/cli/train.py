@@ -61,7 +61,8 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("--reference: needed with --frames (the no-contact frame)")
         arrays = mdata.pairs_from_marker_frames(args.frames, args.reference,
                                                 progress=not args.quiet)
-        source = {"frames": str(args.frames), "reference": str(args.reference)}
+        source: dict[str, object] = {"frames": str(args.frames),
+                                     "reference": str(args.reference)}
     else:
         if args.data is None:
             raise ValueError("--data: give a data folder (or --frames for your own sensor)")

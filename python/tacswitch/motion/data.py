@@ -163,7 +163,7 @@ def generate_split(out: str | Path, split: str, n: int, *, preset: str = "gelsig
                   for key in items[0] if key not in ("label",)}
         arrays["label"] = np.array([it["label"] for it in items])
         with atomic_open(path, "wb") as fh:
-            np.savez(fh, **arrays)
+            np.savez(fh, **arrays)  # type: ignore[arg-type]
         if progress:
             print(f"{path.name}: {min(n, start + shard)}/{n} samples, "
                   f"{time.perf_counter() - t0:.0f} s", flush=True)

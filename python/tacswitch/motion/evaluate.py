@@ -153,8 +153,8 @@ def evaluate_slip(predict: Callable[..., NDArray[np.float32]], *, preset: str = 
                 if kind == "slip":
                     r["correct"] += int(detected)
                     r["missed"] += int(not detected)
-                    if detected:
-                        r["delays"].append(int(first) - onset)
+                    if first is not None:
+                        r["delays"].append(first - onset)
                 else:
                     r["correct"] += int(not detected)
                     r["false_alarms"][kind] += int(detected)

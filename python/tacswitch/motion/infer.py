@@ -149,7 +149,8 @@ def _downsample(img: NDArray[np.uint8], k: int) -> NDArray[np.uint8]:
     import cv2
 
     h, w = img.shape[:2]
-    return cv2.resize(img, (w // k, h // k), interpolation=cv2.INTER_AREA)
+    out = np.asarray(cv2.resize(img, (w // k, h // k), interpolation=cv2.INTER_AREA), np.uint8)
+    return out
 
 
 def load_model(path: str | os.PathLike[str] | None = None) -> MotionModel:

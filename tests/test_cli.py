@@ -148,3 +148,99 @@ def test_bench_writes_table_and_plot(tmp_path: Path) -> None:
     assert table.count("TELEA (tacswitch)") == 2 and "NS (OpenCV)" in table
     assert "yes" in table  # a Pareto-optimal setting is marked
     assert cv2.imread(str(tmp_path / "b" / "bench.png")) is not None
+
+
+def test_train_and_evaluate_subcommands_have_help() -> None:
+    for cmd in (["train", "motion"], ["evaluate", "motion"]):
+        out = subprocess.run([sys.executable, "-m", "tacswitch", *cmd, "--help"],
+                             capture_output=True, text=True)
+        assert out.returncode == 0 and "usage" in out.stdout and "--data" in out.stdout
+
+
+@pytest.fixture(scope="module")
+def motion_pair() -> dict:
+    """A contact under two loads, an indenter never seen in training: markerless frames."""
+    from tacswitch.motion import data as mdata
+
+    classes, _ = mdata.split_spec("test_indenter")
+    return mdata.render_pair_sample("gelsight_mini", np.random.SeedSequence([5, 1]),
+                                    classes=classes)
+
+
+def _read_motion_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    with open(path) as fh:
+        rows = list(csv.DictReader(fh))
+    pts = np.array([[float(r["x"]), float(r["y"])] for r in rows], np.float32)
+    return pts, np.array([[float(r["dx"]), float(r["dy"])] for r in rows], np.float32)
+
+
+def test_motion_command_matches_predict_motion(tmp_path: Path, motion_pair: dict) -> None:
+    import tacswitch as ts
+    from tacswitch.motion.infer import load_model
+
+    img, ref, rest = motion_pair["image"], motion_pair["reference"], motion_pair["rest"]
+    cv2.imwrite(str(tmp_path / "img.png"), img)
+    cv2.imwrite(str(tmp_path / "ref.png"), ref)
+    centres = tmp_path / "centres.csv"
+    centres.write_text("x,y\n" + "".join(f"{x},{y}\n" for x, y in rest))
+    out = tmp_path / "o"
+    assert main(["motion", str(tmp_path / "img.png"), "--ref", str(tmp_path / "ref.png"),
+                 "--centres", str(centres), "-o", str(out), "-q"]) == 0
+    pts, motion = _read_motion_csv(out / "img.csv")
+    np.testing.assert_allclose(pts, rest, atol=1e-3)
+    np.testing.assert_allclose(motion, ts.predict_motion(img, ref, rest), atol=1e-3)
+    assert np.abs(motion).max() > 0.5  # a loaded contact: the markers moved
+    assert cv2.imread(str(out / "img_motion.png")).shape == img.shape
+    # Without --centres: the model's grid scaled to the frame.
+    assert main(["motion", str(tmp_path / "img.png"), "--ref", str(tmp_path / "ref.png"),
+                 "-o", str(tmp_path / "g"), "-q"]) == 0
+    pts, _ = _read_motion_csv(tmp_path / "g" / "img.csv")
+    np.testing.assert_allclose(pts, load_model().centres_for(*img.shape[:2]), atol=1e-3)
+    # The shipped model measures motion since a reference frame: no --ref is a user error.
+    assert main(["motion", str(tmp_path / "img.png"), "-o", str(tmp_path / "n"), "-q"]) == 1
+    centres.write_bytes(b"\x93NUMPY")
+    assert main(["motion", str(tmp_path / "img.png"), "--ref", str(tmp_path / "ref.png"),
+                 "--centres", str(centres), "-o", str(out), "-q"]) == 1
+
+
+def test_train_motion_tiny_run_exports_a_usable_model(tmp_path: Path,
+                                                      motion_pair: dict) -> None:
+    pytest.importorskip("torch")
+    pytest.importorskip("onnx")
+    from tacswitch.motion.infer import MotionModel
+
+    run = tmp_path / "run"
+    args = ["train", "motion", "--data", str(tmp_path / "d"), "--simulate", "4", "--split",
+            "pair_train", "--use-ref", "--epochs", "1", "--max-steps", "1", "--batch", "2",
+            "--out", str(run), "-q"]
+    assert main(args) == 0
+    assert sorted(p.name for p in (tmp_path / "d").iterdir()) == ["pair_train_000.npz"]
+    log = [json.loads(line) for line in (run / "log.jsonl").read_text().splitlines()]
+    assert [e["epoch"] for e in log] == [1]
+    model = MotionModel(run / "model.onnx", threads=1)
+    assert model.use_ref and model.arch == "unet" and model.default_centres.shape == (99, 2)
+    assert json.loads(model.metadata["tacswitch.trained_on"])["split"] == "pair_train"
+    got = model(motion_pair["image"], motion_pair["reference"], motion_pair["rest"])
+    assert got.shape == (99, 2) and np.isfinite(got).all()
+    # Rerunning a finished run resumes: no further epoch.
+    assert main(args) == 0
+    assert len((run / "log.jsonl").read_text().splitlines()) == 1
+    # Pair targets without the reference frame as input cannot be learned: refused.
+    assert main([a for a in args if a != "--use-ref"]) == 1
+
+
+def test_evaluate_motion_tiny_run(tmp_path: Path) -> None:
+    report = tmp_path / "eval.json"
+    assert main(["evaluate", "motion", "--data", str(tmp_path / "d"), "--n", "4", "--slip", "1",
+                 "--json", str(report), "-q"]) == 0
+    res = json.loads(report.read_text())
+    # The shipped model is a pair model: the pair split is evaluated too.
+    for split in ("test_depth", "test_indenter", "test_press", "pair_test_indenter"):
+        r = res[split]
+        assert r["regressor"]["nan_pct"] == 0.0
+        assert r["zero"]["e_rmse_mean"] == pytest.approx(r["zero"]["e_mag_mean"])
+        assert r["zero"]["e_rmse_mean"] > 0.1  # the held-out contacts moved the markers
+        if "tracking" in r:  # tracking on the true marker images: near exact
+            assert r["tracking"]["e_rmse_median"] < 0.2
+    assert res["slip"]["predicted"]["n"] == 3 and res["slip"]["tracked"]["n"] == 3
+    assert main(["evaluate", "motion", "--data", str(tmp_path / "d"), "--n", "1", "-q"]) == 1

@@ -29,6 +29,9 @@ def test_shipped_model_loads_with_metadata():
     assert m.arch == "unet" and m.use_ref and m.work_width == 320
     assert m.default_centres.shape == (99, 2)
     assert load_model() is m  # one session per model path
+    # The top-level API (DESIGN.md) is this function and class.
+    assert ts.predict_motion is predict_motion and isinstance(m, ts.MotionModel)
+    assert {"predict_motion", "MotionModel"} <= set(ts.__all__)
 
 
 def test_output_shape_dtype_no_nan(press_samples):

@@ -4,6 +4,9 @@ One sensor, both modes, in software:
 
 - marker -> markerless: remove painted markers from an image (:func:`remove_markers`,
   :func:`inpaint_telea`), with patch :func:`tile` / :func:`merge_patches` for patch models;
+- markerless -> marker: :func:`predict_motion` (a learned regressor run with onnxruntime,
+  :class:`MotionModel`) gives the motion each marker would have had, so :class:`SlipDetector`
+  and shear code run on a markerless sensor;
 - the fast paths around it: :func:`extract_markers`, :func:`match_markers`,
   :class:`MarkerTracker`, :class:`SlipDetector`.
 
@@ -21,12 +24,14 @@ from __future__ import annotations
 from tacswitch._native import __version__
 from tacswitch.inpaint import inpaint_telea, merge_patches, remove_markers, tile
 from tacswitch.markers import Markers, dilate_mask, extract_markers
+from tacswitch.motion.infer import MotionModel, predict_motion
 from tacswitch.slip import SlipDetector, SlipState
 from tacswitch.tracking import MarkerTracker, estimate_pitch, match_markers
 
 __all__ = [
     "MarkerTracker",
     "Markers",
+    "MotionModel",
     "SlipDetector",
     "SlipState",
     "__version__",
@@ -36,6 +41,7 @@ __all__ = [
     "inpaint_telea",
     "match_markers",
     "merge_patches",
+    "predict_motion",
     "remove_markers",
     "tile",
 ]

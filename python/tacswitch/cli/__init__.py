@@ -6,7 +6,18 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from tacswitch.cli import bench, demo, markers, remove_markers, simulate, slip, track
+from tacswitch.cli import (
+    bench,
+    demo,
+    evaluate,
+    markers,
+    motion,
+    remove_markers,
+    simulate,
+    slip,
+    track,
+    train,
+)
 
 COMMANDS = {
     "demo": demo,
@@ -16,6 +27,9 @@ COMMANDS = {
     "remove-markers": remove_markers,
     "simulate": simulate,
     "bench": bench,
+    "motion": motion,
+    "train": train,
+    "evaluate": evaluate,
 }
 
 #: Exit codes scripts can rely on.
@@ -29,7 +43,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="tacswitch",
         description="Mode-switchable optical tactile sensing: markers, tracking, slip, "
-        "marker removal.",
+        "marker removal, marker motion from markerless images.",
     )
     parser.add_argument("--version", action="version", version=f"tacswitch {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")

@@ -27,13 +27,20 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _read_centres(path: str):  # type: ignore[no-untyped-def]
+    """Marker centres ``N x 2`` float32 (x, y) px from a CSV with ``x`` and ``y`` columns."""
     import numpy as np
 
-    with open(path, newline="") as fh:
-        rows = list(csv.DictReader(fh))
+    try:
+        with open(path, newline="") as fh:
+            rows = list(csv.DictReader(fh))
+    except UnicodeDecodeError:
+        raise ValueError(f"--centres: {path!r} is not a text CSV file") from None
     if not rows or "x" not in rows[0] or "y" not in rows[0]:
         raise ValueError(f"--centres: {path!r} needs a header with x and y columns")
-    return np.array([[float(r["x"]), float(r["y"])] for r in rows], np.float32)
+    try:
+        return np.array([[float(r["x"]), float(r["y"])] for r in rows], np.float32)
+    except (TypeError, ValueError):
+        raise ValueError(f"--centres: {path!r} has a row whose x or y is not a number") from None
 
 
 def run(args: argparse.Namespace) -> int:

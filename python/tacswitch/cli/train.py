@@ -52,6 +52,9 @@ def run(args: argparse.Namespace) -> int:
         import torch  # noqa: F401
     except ImportError:
         raise ValueError('training needs torch: pip install "tacswitch[train]"') from None
+    if args.split == "pair_train" and not args.use_ref:
+        raise ValueError("--split pair_train: the targets are motions since an earlier frame, "
+                         "which the network only sees with --use-ref")
     from tacswitch.motion import data as mdata
     from tacswitch.motion.export import export_onnx
     from tacswitch.motion.train import TrainConfig, train

@@ -29,6 +29,7 @@ use rayon::prelude::*;
 
 use crate::error::{CoreError, Result};
 use crate::image::ImageView;
+use crate::simd::multiversion;
 
 /// Largest accepted `radius` (OpenCV clamps to the same bound).
 pub const MAX_RADIUS: usize = 100;
@@ -393,6 +394,9 @@ struct Disk {
     rx: Vec<f32>,
     ry: Vec<f32>,
     geometric: Vec<f32>,
+    /// The unpadded entries as chunks of [`DISK_CHUNK`] entries contiguous in the window (the
+    /// last of each row running past it): `(window offset, first entry)`, in entry order.
+    chunks: Vec<(isize, usize)>,
 }
 
 /// Vector width the disk is padded to.
@@ -541,38 +545,23 @@ impl<T: Sample> Ctx<'_, '_, T> {
         // Inward front: each pixel is filled when first reached.
         let disk = disk_offsets(r, ww);
         let n_disk = disk.lin.len();
+        // Slack of one chunk for the chunked gather (the weights cover the padded disk only).
         let mut scratch = Scratch {
-            usable: vec![0.0; n_disk],
-            t: vec![0.0; n_disk],
+            usable: vec![0.0; n_disk + DISK_CHUNK],
+            t: vec![0.0; n_disk + DISK_CHUNK],
             w: vec![0.0; n_disk],
         };
         heap.extend(band.iter().map(|&wi| key(0.0, wi)));
-        while let Some(Reverse(k)) = heap.pop() {
-            let wi = key_index(k);
-            flag[wi] = KNOWN;
-            for nb in neighbours(wi) {
-                if flag[nb] != INSIDE {
-                    continue;
-                }
-                let tp = arrival(&t, nb, ww);
-                t[nb] = tp;
-                val[nb] = fill(
-                    nb,
-                    wi,
-                    tp,
-                    &disk,
-                    &flag,
-                    &usable,
-                    &t,
-                    &val,
-                    ww,
-                    &mut scratch,
-                );
-                flag[nb] = BAND;
-                usable[nb] = 1.0;
-                heap.push(key(tp, nb));
-            }
-        }
+        march_inward(
+            &mut heap,
+            &mut flag,
+            &mut t,
+            &mut usable,
+            &mut val,
+            &disk,
+            ww,
+            &mut scratch,
+        );
 
         targets
             .iter()
@@ -585,13 +574,45 @@ impl<T: Sample> Ctx<'_, '_, T> {
     }
 }
 
+multiversion! {
+    /// Inward front: pops the front in `(T, index)` order and fills each `INSIDE` 4-neighbour
+    /// when first reached, which then joins the front.
+    #[allow(clippy::too_many_arguments)]
+    fn march_inward(
+        heap: &mut BinaryHeap<Key>,
+        flag: &mut [u8],
+        t: &mut [f32],
+        usable: &mut [f32],
+        val: &mut [[f32; MAX_CHANNELS]],
+        disk: &Disk,
+        ww: usize,
+        scratch: &mut Scratch,
+    ) {
+        while let Some(Reverse(k)) = heap.pop() {
+            let wi = key_index(k);
+            flag[wi] = KNOWN;
+            for nb in [wi - ww, wi - 1, wi + ww, wi + 1] {
+                if flag[nb] != INSIDE {
+                    continue;
+                }
+                let tp = arrival(t, nb, ww);
+                t[nb] = tp;
+                val[nb] = fill(nb, wi, tp, disk, flag, usable, t, val, ww, scratch);
+                flag[nb] = BAND;
+                usable[nb] = 1.0;
+                heap.push(key(tp, nb));
+            }
+        }
+    }
+}
+
 /// Telea's weighted mean at window pixel `p` (arrival time `tp`) over the known disk pixels,
 /// taken relative to `src`, the known pixel whose front reached `p`: equal neighbours give
 /// exactly their value. Weights are `direction * level-set * geometric`, the direction term
 /// floored so that no neighbour drops out; unusable pixels get weight 0 and hold finite values,
 /// so they add exactly 0.
 #[allow(clippy::too_many_arguments)]
-#[inline]
+#[inline(always)]
 fn fill(
     p: usize,
     src: usize,
@@ -605,12 +626,18 @@ fn fill(
     scratch: &mut Scratch,
 ) -> [f32; MAX_CHANNELS] {
     let (gx, gy) = grad_t(flag, t, p, ww);
-    // Gather, then compute the weights in straight vectorisable passes.
-    // In bounds: p lies `radius + 2` inside the window and the disk reaches `radius`.
-    for ((&off, u), tq) in disk.lin.iter().zip(&mut scratch.usable).zip(&mut scratch.t) {
+    // Gather by contiguous runs, then compute the weights in straight vectorisable passes.
+    // In bounds: p lies `radius + 2` inside the window and the disk reaches `radius`. Padding
+    // entries of the scratch stay 0 (unusable), as for the centre they stand for.
+    // Whole chunks of [`DISK_CHUNK`] values are copied (a fixed-size copy is a vector move, a
+    // short variable one a call): the tail of a chunk past its run is overwritten by the next
+    // run, or lands in padding entries, whose weight is 0 whatever they hold (finite values
+    // of the window), or in the scratch's slack.
+    for &(off, start) in &disk.chunks {
         let q = (p as isize + off) as usize;
-        *u = usable[q];
-        *tq = t[q];
+        let (s, d) = (q..q + DISK_CHUNK, start..start + DISK_CHUNK);
+        scratch.usable[d.clone()].copy_from_slice(&usable[s.clone()]);
+        scratch.t[d].copy_from_slice(&t[s]);
     }
     let terms = disk.rx.iter().zip(&disk.ry).zip(&disk.geometric);
     let known = scratch.usable.iter().zip(&scratch.t);
@@ -624,16 +651,22 @@ fn fill(
         };
         *w = u * (g * level * dir).abs();
     }
-    // Two independent sums so that consecutive additions do not wait on each other.
+    // Two independent sums (even and odd entries) so that consecutive additions do not wait on
+    // each other; held side by side in 8 lanes, so one wide multiply-add serves both.
     let reference = val[src];
-    let (mut acc0, mut acc1) = ([0.0f32; MAX_CHANNELS], [0.0f32; MAX_CHANNELS]);
+    let mut acc = [0.0f32; 2 * MAX_CHANNELS];
     let (mut sum0, mut sum1) = (0.0f32, 0.0f32);
+    let mut refs = [0.0f32; 2 * MAX_CHANNELS];
+    refs[..MAX_CHANNELS].copy_from_slice(&reference);
+    refs[MAX_CHANNELS..].copy_from_slice(&reference);
     for (offs, ws) in disk.lin.chunks_exact(2).zip(scratch.w.chunks_exact(2)) {
-        let v0 = val[(p as isize + offs[0]) as usize];
-        let v1 = val[(p as isize + offs[1]) as usize];
-        for ch in 0..MAX_CHANNELS {
-            acc0[ch] += ws[0] * (v0[ch] - reference[ch]);
-            acc1[ch] += ws[1] * (v1[ch] - reference[ch]);
+        let mut v = [0.0f32; 2 * MAX_CHANNELS];
+        v[..MAX_CHANNELS].copy_from_slice(&val[(p as isize + offs[0]) as usize]);
+        v[MAX_CHANNELS..].copy_from_slice(&val[(p as isize + offs[1]) as usize]);
+        let mut wv = [ws[0]; 2 * MAX_CHANNELS];
+        wv[MAX_CHANNELS..].fill(ws[1]);
+        for l in 0..2 * MAX_CHANNELS {
+            acc[l] += wv[l] * (v[l] - refs[l]);
         }
         sum0 += ws[0];
         sum1 += ws[1];
@@ -642,7 +675,7 @@ fn fill(
     let sum_w = sum0 + sum1;
     let mut out = reference;
     for ch in 0..MAX_CHANNELS {
-        out[ch] += (acc0[ch] + acc1[ch]) / sum_w;
+        out[ch] += (acc[ch] + acc[MAX_CHANNELS + ch]) / sum_w;
     }
     out
 }
@@ -655,7 +688,10 @@ fn disk_offsets(r: usize, ww: usize) -> Disk {
         rx: Vec::new(),
         ry: Vec::new(),
         geometric: Vec::new(),
+        chunks: Vec::new(),
     };
+    // Runs of entries contiguous in the window: (offset of the first, first entry, length).
+    let mut runs: Vec<(isize, usize, usize)> = Vec::new();
     for dy in -r..=r {
         for dx in -r..=r {
             let d2 = dx * dx + dy * dy;
@@ -663,10 +699,20 @@ fn disk_offsets(r: usize, ww: usize) -> Disk {
                 continue;
             }
             let len2 = d2 as f64;
-            disk.lin.push(dy * ww as isize + dx);
+            let off = dy * ww as isize + dx;
+            match runs.last_mut() {
+                Some((first, _, len)) if *first + *len as isize == off => *len += 1,
+                _ => runs.push((off, disk.lin.len(), 1)),
+            }
+            disk.lin.push(off);
             disk.rx.push(-dx as f32);
             disk.ry.push(-dy as f32);
             disk.geometric.push((1.0 / (len2 * len2.sqrt())) as f32);
+        }
+    }
+    for (off, start, len) in runs {
+        for c in (0..len).step_by(DISK_CHUNK) {
+            disk.chunks.push((off + c as isize, start + c));
         }
     }
     while disk.lin.len() % DISK_CHUNK != 0 {
@@ -679,6 +725,7 @@ fn disk_offsets(r: usize, ww: usize) -> Disk {
 }
 
 /// Gradient of `T` at `p` from its known 4-neighbours (central, one-sided, or 0).
+#[inline(always)]
 fn grad_t(flag: &[u8], t: &[f32], p: usize, ww: usize) -> (f32, f32) {
     let axis = |lo: usize, hi: usize| -> f32 {
         match (flag[lo] <= BAND, flag[hi] <= BAND) {
@@ -694,12 +741,14 @@ fn grad_t(flag: &[u8], t: &[f32], p: usize, ww: usize) -> (f32, f32) {
 /// First-order upwind arrival time at `p` from its 4-neighbours (unreached ones hold `FAR_T`).
 /// OpenCV takes the least of the four (vertical, horizontal) pairings; [`solve_pair`] is
 /// nondecreasing in both arguments, so that least is the pairing of the two smaller neighbours.
+#[inline(always)]
 fn arrival(t: &[f32], p: usize, ww: usize) -> f32 {
     solve_pair(t[p - ww].min(t[p + ww]), t[p - 1].min(t[p + 1]))
 }
 
 /// Solution of `|grad T| = 1` from one vertical and one horizontal neighbour (in `f32`: OpenCV
 /// uses `f64` here, which changes arrival times by about 1e-7 relative and costs latency).
+#[inline(always)]
 fn solve_pair(a: f32, b: f32) -> f32 {
     let d = a - b;
     if d.abs() >= 1.0 {
@@ -988,11 +1037,19 @@ mod profile {
             }
         }
         let view = ImageView::new(&img, h, w, 3, "img").unwrap();
+        // `TELEA_PROFILE=global` profiles the one-window reference solve; by default the
+        // per-group solve the library runs (pin `RAYON_NUM_THREADS=1` for one thread).
+        let global = std::env::var("TELEA_PROFILE").is_ok_and(|v| v == "global");
         for r in [3usize, 5] {
             let reps = 60;
             let t = Instant::now();
             for _ in 0..reps {
-                std::hint::black_box(inpaint_telea_global(&view, &mask, r).unwrap());
+                let out = if global {
+                    inpaint_telea_global(&view, &mask, r)
+                } else {
+                    inpaint_telea(&view, &mask, r)
+                };
+                std::hint::black_box(out.unwrap());
             }
             println!(
                 "r={r}: {:.2} ms",

@@ -7,6 +7,7 @@ Conventions: images are numpy ``H x W x C`` (C in 1, 3, 4; colour order **BGR**,
 
 from __future__ import annotations
 
+import os
 from typing import Any, Literal
 
 import numpy as np
@@ -22,7 +23,7 @@ MergeMode = Literal["average", "feather"]
 NATIVE_DTYPES = (np.dtype(np.uint8), np.dtype(np.uint16), np.dtype(np.float32))
 #: Largest TELEA radius (OpenCV clamps to the same bound).
 MAX_RADIUS = 100
-#: Methods that need the learned model, added by another module.
+#: Methods that need the learned model (tacswitch.tacdiff, onnxruntime).
 _MODEL_METHODS = ("tacdiff", "hybrid")
 
 
@@ -191,6 +192,11 @@ def remove_markers(
     method: InpaintMethod = "telea",
     radius: float = 3,
     dilate: int = 1,
+    *,
+    steps: int | None = None,
+    ref: NDArray[Any] | None = None,
+    seed: int | None = 0,
+    model: str | os.PathLike[str] | None = None,
     **extract_opts: Any,
 ) -> NDArray[Any]:
     """Removes the painted markers of a tactile image (marker -> markerless).
@@ -202,12 +208,19 @@ def remove_markers(
             :func:`tacswitch.extract_markers` (``dilate`` dilations by a 3x3 cross, which is
             OpenCV's 3x3 ellipse: the paper dilates the mask once before inpainting), keeping
             markers cut by the frame border (``exclude_border=False`` unless given).
-        method: ``"telea"`` (:func:`inpaint_telea`, the Rust core) or ``"ns"``
+        method: ``"telea"`` (:func:`inpaint_telea`, the Rust core), ``"ns"``
             (``cv2.inpaint(img, mask, radius, cv2.INPAINT_NS)``, uint8/uint16/float32 grey or
-            3-channel, as OpenCV allows). ``"tacdiff"`` / ``"hybrid"`` need the learned model,
-            which is not available yet.
-        radius: inpainting radius in pixels.
+            3-channel, as OpenCV allows), ``"tacdiff"`` (the diffusion model, onnxruntime;
+            uint8 BGR only, :func:`tacswitch.tacdiff.inpaint_tacdiff`) or ``"hybrid"`` (TacDiff
+            on the markers in or near the contact, TELEA elsewhere,
+            :func:`tacswitch.tacdiff.inpaint_hybrid`).
+        radius: inpainting radius in pixels (TELEA, NS, and the TELEA part of ``"hybrid"``).
         dilate: dilations applied to the extracted mask (ignored when ``mask`` is given).
+        steps: TacDiff sampler steps, 1..1000 (default: the model's default, 2).
+        ref: ``"hybrid"`` only: a no-contact frame of the same sensor to find the contact
+            against (default: found from local texture).
+        seed: TacDiff noise seed (None: fresh randomness each call).
+        model: TacDiff ONNX file (default: the shipped model).
         **extract_opts: passed to :func:`tacswitch.extract_markers` when ``mask`` is None.
 
     Returns:
@@ -217,12 +230,7 @@ def remove_markers(
         TypeError / ValueError: bad arguments (the message names the argument), or a method that
             is not available.
     """
-    if method in _MODEL_METHODS:
-        raise ValueError(
-            f"method: {method!r} needs the TacDiff model, which is not available yet; "
-            f"use 'telea' or 'ns'"
-        )
-    if method not in ("telea", "ns"):
+    if method not in ("telea", "ns", *_MODEL_METHODS):
         raise ValueError(f"method: must be 'telea', 'ns', 'tacdiff' or 'hybrid'; got {method!r}")
     arr = _as_image(img)
     if mask is None:
@@ -236,6 +244,16 @@ def remove_markers(
         m = _as_mask(mask, arr.shape)
     if method == "telea":
         return inpaint_telea(arr, m, radius)
+    if method == "tacdiff":
+        from tacswitch.tacdiff import DEFAULT_STEPS, inpaint_tacdiff
+
+        k = DEFAULT_STEPS if steps is None else steps
+        return inpaint_tacdiff(arr, m, k, seed=seed, model=model)
+    if method == "hybrid":
+        from tacswitch.tacdiff import inpaint_hybrid
+
+        return inpaint_hybrid(arr, m, ref, steps=steps, radius=radius, seed=seed,
+                              model=model)[0]
     r = _as_radius(radius)
     if not m.any():
         return arr.copy()

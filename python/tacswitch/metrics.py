@@ -57,3 +57,29 @@ def masked_psnr(pred: Any, true: Any, mask: Any, data_range: float = 255.0) -> f
         return float("nan")
     e = float(np.mean((p[m] - t[m]) ** 2))
     return float("inf") if e == 0 else float(10 * np.log10(data_range**2 / e))
+
+
+def paper_metrics(pred: Any, true: Any) -> dict[str, float]:
+    """The paper's full-frame metrics: MSE, PSNR (dB) and SSIM with scikit-image on greyscale
+    images (``cv2.COLOR_BGR2GRAY``), ``data_range=255``. Needs scikit-image
+    (``pip install scikit-image``)."""
+    import cv2
+
+    try:
+        from skimage.metrics import (
+            mean_squared_error,
+            peak_signal_noise_ratio,
+            structural_similarity,
+        )
+    except ImportError:
+        raise ValueError("paper metrics need scikit-image: pip install scikit-image") from None
+    p, t = np.asarray(pred), np.asarray(true)
+    if p.shape != t.shape:
+        raise ValueError(f"pred: shape {p.shape} does not match true {t.shape}")
+    if p.ndim == 3:
+        p, t = cv2.cvtColor(p, cv2.COLOR_BGR2GRAY), cv2.cvtColor(t, cv2.COLOR_BGR2GRAY)
+    e = float(mean_squared_error(t, p))
+    return {"mse": e,
+            "psnr": float("inf") if e == 0 else float(peak_signal_noise_ratio(t, p,
+                                                                             data_range=255)),
+            "ssim": float(structural_similarity(t, p, data_range=255))}

@@ -12,13 +12,16 @@ import itertools
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch.metrics import masked_mae, masked_psnr
 
-Inpaint = Callable[[NDArray[np.uint8], NDArray[np.uint8]], NDArray[np.uint8]]
+#: A method under test: (frame with markers, uint8 mask, the paired frame) -> markerless frame.
+#: The paired frame is passed for methods that use more than the image (hybrid's reference).
+Inpaint = Callable[[NDArray[np.uint8], NDArray[np.uint8], "PairedFrame"], NDArray[Any]]
 
 
 @dataclass(frozen=True)
@@ -29,6 +32,7 @@ class PairedFrame:
     truth: NDArray[np.uint8]
     mask: NDArray[np.bool_]
     contact: NDArray[np.bool_]
+    reference: NDArray[np.uint8] | None = None  # no-contact frame of the same scene
 
 
 @dataclass(frozen=True)
@@ -50,15 +54,41 @@ def default_methods(radii: Sequence[int] = (3, 5, 8, 12), opencv: bool = True
 
     import tacswitch as ts
 
+    def ours(r: int) -> Inpaint:
+        return lambda img, m, f: ts.inpaint_telea(img, m, r)
+
+    def opencv_inpaint(r: int, flag: int) -> Inpaint:
+        return lambda img, m, f: np.asarray(cv2.inpaint(img, m, r, flag))
+
     methods: dict[tuple[str, str], Inpaint] = {}
     for r in radii:
-        methods[("TELEA (tacswitch)", f"r={r}")] = lambda img, m, r=r: ts.inpaint_telea(img, m, r)
+        methods[("TELEA (tacswitch)", f"r={r}")] = ours(r)
     if opencv:
         for r in radii:
-            methods[("TELEA (OpenCV)", f"r={r}")] = (
-                lambda img, m, r=r: cv2.inpaint(img, m, r, cv2.INPAINT_TELEA))
-            methods[("NS (OpenCV)", f"r={r}")] = (
-                lambda img, m, r=r: cv2.inpaint(img, m, r, cv2.INPAINT_NS))
+            methods[("TELEA (OpenCV)", f"r={r}")] = opencv_inpaint(r, cv2.INPAINT_TELEA)
+            methods[("NS (OpenCV)", f"r={r}")] = opencv_inpaint(r, cv2.INPAINT_NS)
+    return methods
+
+
+def tacdiff_methods(steps: Sequence[int] = (1, 2, 4, 8, 20), hybrid_steps: Sequence[int] = (2,),
+                    model: str | None = None) -> dict[tuple[str, str], Inpaint]:
+    """TacDiff (onnxruntime, all cores) at each step count K, and the hybrid mode (TacDiff near
+    the contact, found against the reference frame or from texture; TELEA r=3 elsewhere)."""
+    from tacswitch.tacdiff import inpaint_hybrid, inpaint_tacdiff
+
+    def diffusion(k: int) -> Inpaint:
+        return lambda img, m, f: inpaint_tacdiff(img, m, k, model=model)
+
+    def hybrid(k: int, use_ref: bool) -> Inpaint:
+        return lambda img, m, f: inpaint_hybrid(img, m, f.reference if use_ref else None,
+                                                steps=k, model=model)[0]
+
+    methods: dict[tuple[str, str], Inpaint] = {}
+    for k in steps:
+        methods[("TacDiff", f"K={k}")] = diffusion(k)
+    for k in hybrid_steps:
+        methods[("Hybrid (reference)", f"K={k}")] = hybrid(k, True)
+        methods[("Hybrid (texture)", f"K={k}")] = hybrid(k, False)
     return methods
 
 
@@ -72,7 +102,7 @@ def simulated_frames(n: int, preset: str = "gelsight", seed: int = 0) -> list[Pa
     for i in range(n):
         s = render_sample(preset, (seed, i))
         frames.append(PairedFrame(s.image_markers, s.image, dilate_mask(s.marker_mask),
-                                  s.contact_mask))
+                                  s.contact_mask, s.reference))
     return frames
 
 
@@ -83,10 +113,10 @@ def evaluate(frames: Sequence[PairedFrame], methods: dict[tuple[str, str], Inpai
     outputs: dict[tuple[str, str], list[NDArray[np.uint8]]] = {k: [] for k in methods}
     for rnd in range(rounds):
         for f in frames:
-            m8 = f.mask.view(np.uint8) if f.mask.dtype == np.bool_ else f.mask
+            m8 = f.mask.view(np.uint8)
             for key, fn in methods.items():
                 t0 = time.perf_counter()
-                out = fn(f.with_markers, m8)
+                out = fn(f.with_markers, m8, f)
                 times[key].append(time.perf_counter() - t0)
                 if rnd == 0:
                     outputs[key].append(out)

@@ -10,6 +10,7 @@ from tacswitch.cli import (
     bench,
     demo,
     evaluate,
+    finetune,
     markers,
     motion,
     remove_markers,
@@ -29,6 +30,7 @@ COMMANDS = {
     "bench": bench,
     "motion": motion,
     "train": train,
+    "finetune": finetune,
     "evaluate": evaluate,
 }
 

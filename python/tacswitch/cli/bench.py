@@ -11,14 +11,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "bench",
         help="speed/accuracy table and plot of every marker-removal method and knob",
         description="Renders simulated contacts whose markerless truth is known, runs every "
-        "marker-removal method at every setting (TELEA radius 3-12, ours and OpenCV's; "
-        "OpenCV NS) on one thread, and writes bench.md and bench.png.",
+        "marker-removal method at every setting (TELEA radius 3-12, ours and OpenCV's, on one "
+        "thread; OpenCV NS; TacDiff at K sampler steps and the hybrid mode, onnxruntime on all "
+        "cores) and writes bench.md and bench.png.",
     )
     p.add_argument("-o", "--out", default="tacswitch-bench", help="output folder")
     p.add_argument("--frames", type=int, default=6, help="simulated frames (default: 6)")
     p.add_argument("--preset", default="gelsight", help="sensor preset (default: gelsight)")
     p.add_argument("--radii", default="3,5,8,12", help="inpainting radii (default: 3,5,8,12)")
     p.add_argument("--rounds", type=int, default=3, help="timing rounds (default: 3)")
+    p.add_argument("--steps", default="1,2,4,8,20",
+                   help="TacDiff sampler steps K (default: 1,2,4,8,20; empty: no TacDiff rows)")
+    p.add_argument("--model", default=None, help="TacDiff ONNX model (default: the shipped one)")
     p.add_argument("--quick", action="store_true", help="2 frames, radii 3 and 5, 1 round")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(run=run)
@@ -40,19 +44,29 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--radii: expected integers like 3,5,8; got {args.radii!r}") from None
     frames, rounds = args.frames, args.rounds
     if args.quick:
-        frames, rounds, radii = 2, 1, [3, 5]
-    if frames < 1 or rounds < 1 or not radii or min(radii) < 1:
-        raise ValueError("--frames, --rounds and --radii must be positive")
+        frames, rounds, radii, args.steps = 2, 1, [3, 5], "1,2"
+    try:
+        steps = [int(k) for k in args.steps.split(",") if k.strip()]
+    except ValueError:
+        raise ValueError(f"--steps: expected integers like 1,2,4; got {args.steps!r}") from None
+    if frames < 1 or rounds < 1 or not radii or min(radii) < 1 or min(steps, default=1) < 1:
+        raise ValueError("--frames, --rounds, --radii and --steps must be positive")
     data = tradeoff.simulated_frames(frames, args.preset)
-    rows = tradeoff.evaluate(data, tradeoff.default_methods(radii), rounds=rounds)
+    methods = tradeoff.default_methods(radii)
+    if steps:
+        methods |= tradeoff.tacdiff_methods(steps, hybrid_steps=steps[1:2] or steps[:1],
+                                            model=args.model)
+    rows = tradeoff.evaluate(data, methods, rounds=rounds)
     out = Path(args.out)
     h, w = data[0].truth.shape[:2]
     table = tradeoff.markdown(rows)
     with atomic_open(out / "bench.md") as fh:
         fh.write(f"# Marker removal: speed vs accuracy\n\n{frames} simulated {args.preset} "
-                 f"contacts ({w}x{h}), mask = true markers dilated once; one thread.\n\n"
+                 f"contacts ({w}x{h}), mask = true markers dilated once; TELEA and NS on one "
+                 f"thread, TacDiff on all cores (onnxruntime).\n\n"
                  f"{table}\n\nCommand: `tacswitch bench --frames {frames} --preset "
-                 f"{args.preset} --radii {','.join(map(str, radii))} --rounds {rounds}`\n")
+                 f"{args.preset} --radii {','.join(map(str, radii))} --rounds {rounds} "
+                 f"--steps {','.join(map(str, steps))}`\n")
     write_image(out / "bench.png", tradeoff.plot(rows))
     if not args.quiet:
         print(table)

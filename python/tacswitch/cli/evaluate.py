@@ -7,6 +7,8 @@ import argparse
 import json
 from pathlib import Path
 
+from tacswitch.cli import tacdiff_cmds
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("evaluate", help="evaluate a learned model on held-out synthetic data")
@@ -25,6 +27,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     m.add_argument("--json", default=None, help="also write the results to this JSON file")
     m.add_argument("-q", "--quiet", action="store_true")
     m.set_defaults(run=run)
+    tacdiff_cmds.add_evaluate_parser(what)
 
 
 #: Held-out splits (see tacswitch.motion.data): unseen depth, unseen indenter, pure presses.

@@ -18,8 +18,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("inputs", nargs="+", help="image files or folders")
     p.add_argument("-o", "--out", required=True, help="output folder")
-    p.add_argument("--method", choices=("telea", "ns"), default="telea")
+    p.add_argument("--method", choices=("telea", "ns", "tacdiff", "hybrid"), default="telea",
+                   help="telea (fast, default), ns (OpenCV), tacdiff (diffusion model), hybrid "
+                        "(tacdiff near the contact, telea elsewhere)")
     p.add_argument("--radius", type=int, default=3, help="inpainting radius, px (default: 3)")
+    p.add_argument("--steps", type=int, default=None,
+                   help="tacdiff/hybrid sampler steps K (default: the model's, 2)")
+    p.add_argument("--ref", default=None,
+                   help="hybrid: no-contact frame of the sensor to find the contact against")
+    p.add_argument("--model", default=None, help="tacdiff/hybrid ONNX model (default: shipped)")
     p.add_argument("--overwrite", action="store_true", help="redo existing outputs")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(run=run)
@@ -31,6 +38,9 @@ def run(args: argparse.Namespace) -> int:
 
     files = collect_images(args.inputs)
     out = Path(args.out)
+    ref = read_image(args.ref) if args.ref is not None else None
+    opts = {"steps": args.steps, "ref": ref, "model": args.model} \
+        if args.method in ("tacdiff", "hybrid") else {}
     done = skipped = 0
     for path in files:
         target = out / f"{path.stem}.png"
@@ -38,7 +48,8 @@ def run(args: argparse.Namespace) -> int:
             skipped += 1
             continue
         img = read_image(path)
-        write_image(target, ts.remove_markers(img, method=args.method, radius=args.radius))
+        write_image(target, ts.remove_markers(img, method=args.method, radius=args.radius,
+                                              **opts))
         done += 1
         if not args.quiet:
             print(f"{path} -> {target}")

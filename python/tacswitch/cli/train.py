@@ -10,6 +10,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from tacswitch.cli import tacdiff_cmds
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("train", help="train a learned model (needs tacswitch[train])",
@@ -45,6 +47,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="cap on steps per epoch (0: whole data set)")
     m.add_argument("-q", "--quiet", action="store_true")
     m.set_defaults(run=run)
+    tacdiff_cmds.add_train_parser(what)
 
 
 def run(args: argparse.Namespace) -> int:

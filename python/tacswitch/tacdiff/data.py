@@ -1,0 +1,233 @@
+"""Training data of the TacDiff inpainter: paired frames and random crops (numpy; no torch).
+
+Two sources, one format: a shard holds ``cond`` (``B x H x W x 3`` uint8 BGR, the frame the
+network sees, markers included), ``target`` (the same frame's true pixels), ``mask`` (``B x H x W``
+bool: pixels to fill at inference, i.e. markers dilated as the paper does) and ``loss_mask``
+(pixels whose ``target`` is real and may carry a loss).
+
+- Simulated pairs (:func:`render_pairs`): ``cond`` = I_w, ``target`` = I_wo, ``loss_mask`` = mask.
+  Presets are mixed (GelSight 640x480, GelSight Mini, DIGIT, a dense grid; grids varied) so the
+  model meets 8-25 px dots of different darkness on both Taxim-calibrated and Phong optics.
+- A user's sensor with markers only (:func:`marker_offset_pairs`, the paper's marker-offset
+  strategy): ``target`` = the frame with its markers removed by our TELEA (a pseudo ground truth,
+  only ever used *outside* the loss), ``mask`` = the marker mask shifted by about half the pitch,
+  ``cond`` = the TELEA frame (markers gone) so the network sees real pixels around the shifted
+  holes, ``loss_mask`` = shifted pixels that land on real (not TELEA-filled) gel and inside the
+  frame. The loss is thus computed on real pixels only.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+#: Default mix of simulator presets (name, share of samples).
+PRESET_MIX: tuple[tuple[str, float], ...] = (
+    ("gelsight", 0.3), ("gelsight_mini", 0.4), ("digit", 0.15), ("dense", 0.15))
+#: Mask dilations before inpainting (the paper dilates once with a 3x3 ellipse).
+MASK_DILATE = 1
+
+
+def render_pair(preset: str, seed: Any) -> dict[str, Any]:
+    """One simulated contact as a training pair (see the module docstring)."""
+    from tacswitch.markers import dilate_mask
+    from tacswitch.sim.scene import render_sample
+
+    rng = np.random.default_rng(seed)
+    s = render_sample(preset, rng, vary_grid=bool(rng.random() < 0.5),
+                      jpeg_quality=int(rng.integers(80, 96)) if rng.random() < 0.15 else None)
+    mask = dilate_mask(s.marker_mask, MASK_DILATE)
+    return {"cond": s.image_markers, "target": s.image, "mask": mask, "loss_mask": mask,
+            "contact": s.contact_mask}
+
+
+def render_pairs(out: str | Path, n: int, *, seed: int = 0,
+                 mix: Sequence[tuple[str, float]] = PRESET_MIX, shard: int = 64,
+                 progress: bool = True) -> list[Path]:
+    """Renders ``n`` simulated pairs into ``out/pairs_{preset}_{k:03d}.npz`` (resumable: finished
+    shards are skipped; writes are atomic). Sample ``i`` of a preset is seeded by
+    ``SeedSequence([seed, preset_index, i])``, so a rerun renders the same pairs."""
+    from tacswitch._io import atomic_open
+
+    root = Path(out)
+    root.mkdir(parents=True, exist_ok=True)
+    total = sum(w for _, w in mix)
+    paths: list[Path] = []
+    t0 = time.perf_counter()
+    for pi, (preset, share) in enumerate(mix):
+        count = round(n * share / total)
+        for k, start in enumerate(range(0, count, shard)):
+            path = root / f"pairs_{preset}_{k:03d}.npz"
+            paths.append(path)
+            if path.is_file():
+                continue
+            items = [render_pair(preset, np.random.SeedSequence([seed, pi, i]))
+                     for i in range(start, min(count, start + shard))]
+            arrays = {key: np.stack([it[key] for it in items]) for key in items[0]}
+            with atomic_open(path, "wb") as fh:
+                np.savez(fh, **arrays)  # type: ignore[arg-type]
+            if progress:
+                print(f"{path.name}: {min(count, start + shard)}/{count} pairs, "
+                      f"{time.perf_counter() - t0:.0f} s", flush=True)
+    return paths
+
+
+def load_pairs(root: str | Path) -> list[dict[str, NDArray[Any]]]:
+    """Every shard under ``root`` (``pairs_*.npz``), one dict of arrays per shard (shards of
+    different presets have different frame sizes, so they are not concatenated)."""
+    paths = sorted(Path(root).glob("pairs_*.npz"))
+    if not paths:
+        raise ValueError(f"data: no pairs_*.npz shards in {str(root)!r}")
+    return [dict(np.load(p)) for p in paths]
+
+
+def marker_offset_pairs(frames: Sequence[NDArray[np.uint8]], *, offset: tuple[int, int] | None
+                        = None, radius: int = 3, **extract_opts: Any
+                        ) -> dict[str, NDArray[Any]]:
+    """Training pairs from a sensor with markers only (the paper's marker-offset strategy).
+
+    Args:
+        frames: ``H x W x 3`` uint8 BGR frames with markers, all the same size.
+        offset: mask shift ``(dx, dy)`` px; default: half the marker pitch estimated from the
+            first frame, on both axes (the paper: (+36, +36) px on its 83 px-pitch GelSight).
+        radius: TELEA radius of the pseudo-markerless frames.
+        **extract_opts: passed to :func:`tacswitch.extract_markers`.
+
+    Returns:
+        arrays ``cond``, ``target``, ``mask``, ``loss_mask`` (``B x H x W [x 3]``) as in the
+        module docstring.
+    """
+    from tacswitch.inpaint import inpaint_telea
+    from tacswitch.markers import extract_markers
+    from tacswitch.tracking import estimate_pitch
+
+    if len(frames) == 0:
+        raise ValueError("frames: need at least one frame")
+    shape = frames[0].shape
+    extract_opts.setdefault("exclude_border", False)
+    conds, masks, losses = [], [], []
+    shift = offset
+    for i, f in enumerate(frames):
+        if f.shape != shape or f.dtype != np.uint8 or f.ndim != 3 or f.shape[2] != 3:
+            raise ValueError(f"frames[{i}]: expected {shape} uint8 BGR like frames[0]; got "
+                             f"{f.shape} {f.dtype}")
+        m = extract_markers(f, dilate=MASK_DILATE, **extract_opts)
+        if shift is None:
+            pitch = estimate_pitch(m.centres)
+            if pitch is None:
+                raise ValueError("frames: too few markers found to estimate the pitch; pass "
+                                 "offset=(dx, dy)")
+            half = round(pitch / 2)
+            shift = (half, half)
+        pseudo = inpaint_telea(f, m.mask, radius)
+        moved = _shift(m.mask, shift)
+        conds.append(pseudo)
+        masks.append(moved)
+        # Real pixels only: the shifted hole must not land on an original (TELEA-filled) marker.
+        losses.append(moved & ~m.mask)
+    cond = np.stack(conds)
+    return {"cond": cond, "target": cond.copy(), "mask": np.stack(masks),
+            "loss_mask": np.stack(losses)}
+
+
+def _shift(mask: NDArray[np.bool_], offset: tuple[int, int]) -> NDArray[np.bool_]:
+    """``mask`` moved by ``(dx, dy)`` px; pixels shifted out of the frame are dropped."""
+    dx, dy = int(offset[0]), int(offset[1])
+    h, w = mask.shape
+    out = np.zeros_like(mask)
+    ys, yd = (slice(0, max(0, h - dy)), slice(dy, h)) if dy >= 0 else \
+        (slice(-dy, h), slice(0, h + dy))
+    xs, xd = (slice(0, max(0, w - dx)), slice(dx, w)) if dx >= 0 else \
+        (slice(-dx, w), slice(0, w + dx))
+    out[yd, xd] = mask[ys, xs]
+    return out
+
+
+class CropSampler:
+    """Random ``size x size`` training crops from shards (numpy only, deterministic by seed).
+
+    Half the crops are centred (with jitter) on a masked pixel, so crops of sparse grids are not
+    mostly empty; the rest are uniform. Augmentation: flips, 90-degree turns (square crops), and a
+    per-crop colour gain/offset applied identically to ``cond`` and ``target`` so the model does not
+    learn one sensor's lighting.
+    """
+
+    def __init__(self, shards: Sequence[dict[str, NDArray[Any]]], size: int = 64,
+                 augment: bool = True) -> None:
+        self.shards = [s for s in shards if len(s["cond"]) > 0]
+        if not self.shards:
+            raise ValueError("shards: no samples")
+        for s in self.shards:
+            h, w = s["cond"].shape[1:3]
+            if h < size or w < size:
+                raise ValueError(f"size: crop {size} larger than a {h}x{w} frame")
+        self.size = size
+        self.augment = augment
+        for sh in self.shards:
+            if "prior" not in sh:
+                sh["prior"] = telea_prior(sh["cond"], sh["mask"])
+        weights = np.array([len(s["cond"]) for s in self.shards], np.float64)
+        self.shard_p = weights / weights.sum()
+        # Masked pixels per sample, for centred crops (computed once).
+        self._hits = [[np.argwhere(m) for m in s["loss_mask"]] for s in self.shards]
+
+    def batch(self, n: int, rng: np.random.Generator) -> dict[str, NDArray[Any]]:
+        """``n`` crops: ``cond``/``target``/``prior`` ``n x 3 x S x S`` float32 in [-1, 1]
+        (BGR), ``mask``/``loss_mask`` ``n x 1 x S x S`` float32 in {0, 1}."""
+        s = self.size
+        cond = np.empty((n, s, s, 3), np.float32)
+        target = np.empty((n, s, s, 3), np.float32)
+        prior = np.empty((n, s, s, 3), np.float32)
+        mask = np.empty((n, s, s), np.float32)
+        loss = np.empty((n, s, s), np.float32)
+        for b in range(n):
+            k = int(rng.choice(len(self.shards), p=self.shard_p))
+            shard = self.shards[k]
+            i = int(rng.integers(len(shard["cond"])))
+            h, w = shard["cond"].shape[1:3]
+            hits = self._hits[k][i]
+            if len(hits) and rng.random() < 0.5:
+                cy, cx = hits[int(rng.integers(len(hits)))]
+                y0 = int(np.clip(cy - s // 2 + rng.integers(-s // 4, s // 4 + 1), 0, h - s))
+                x0 = int(np.clip(cx - s // 2 + rng.integers(-s // 4, s // 4 + 1), 0, w - s))
+            else:
+                y0, x0 = int(rng.integers(h - s + 1)), int(rng.integers(w - s + 1))
+            win = (i, slice(y0, y0 + s), slice(x0, x0 + s))
+            c = shard["cond"][win].astype(np.float32)
+            t = shard["target"][win].astype(np.float32)
+            pr = shard["prior"][win].astype(np.float32)
+            m = shard["mask"][win].astype(np.float32)
+            lm = shard["loss_mask"][win].astype(np.float32)
+            if self.augment:
+                gain = rng.uniform(0.75, 1.25, 3).astype(np.float32)
+                bias = rng.uniform(-20, 20, 3).astype(np.float32)
+                c = np.clip(c * gain + bias, 0, 255)
+                t = np.clip(t * gain + bias, 0, 255)
+                pr = np.clip(pr * gain + bias, 0, 255)
+                turns, flip = int(rng.integers(4)), bool(rng.random() < 0.5)
+                c, t, pr, m, lm = (_orient(a, turns, flip) for a in (c, t, pr, m, lm))
+            cond[b], target[b], prior[b], mask[b], loss[b] = c, t, pr, m, lm
+        to_net = lambda a: np.ascontiguousarray(a.transpose(0, 3, 1, 2) / 127.5 - 1.0)  # noqa: E731
+        return {"cond": to_net(cond).astype(np.float32),
+                "target": to_net(target).astype(np.float32),
+                "prior": to_net(prior).astype(np.float32),
+                "mask": mask[:, None], "loss_mask": loss[:, None]}
+
+
+def telea_prior(frames: NDArray[np.uint8], masks: NDArray[np.bool_], radius: int = 3
+                ) -> NDArray[np.uint8]:
+    """``B x H x W x 3`` frames with their mask holes filled by our TELEA (the network's
+    prior; inference uses the same radius)."""
+    from tacswitch.inpaint import inpaint_telea
+
+    return np.stack([inpaint_telea(f, m, radius) for f, m in zip(frames, masks, strict=True)])
+
+
+def _orient(a: NDArray[Any], turns: int, flip: bool) -> NDArray[Any]:
+    a = np.rot90(a, turns, axes=(0, 1))
+    return a[:, ::-1] if flip else a

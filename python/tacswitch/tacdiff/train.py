@@ -1,0 +1,236 @@
+"""Training of the TacDiff denoiser (torch).
+
+Each step draws random crops (:class:`~tacswitch.tacdiff.data.CropSampler`), a time ``t`` per
+crop (uniform, with a share of exactly ``t = 1`` so the pure-noise first step of few-step
+sampling is trained directly), noises the target's residual over the TELEA prior (see
+:mod:`~tacswitch.tacdiff.model`), and regresses v on the pixels of
+``loss_mask`` only (Palette's masked loss; on a user's sensor these are real pixels, never
+TELEA's). Adam with a warm-up and cosine decay; the weights' exponential moving average (EMA) is
+kept and is what gets exported (the paper trained EMA weights and never used them).
+
+Resumable and deterministic by seed: ``out/checkpoint.pt`` (model, EMA, optimiser, step, log,
+config) is replaced atomically every ``save_every`` steps and at the end; rerunning the same
+command continues from it. ``out/log.jsonl`` has one line per logged interval;
+``out/model.safetensors`` holds the final EMA weights.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tacswitch.tacdiff.schedule import alpha_sigma
+
+
+@dataclass
+class TrainConfig:
+    """Hyper-parameters of one run (recorded in the checkpoint and the model's metadata)."""
+
+    base: int = 24
+    mults: tuple[int, ...] = (1, 2, 3, 4)
+    attention: bool = False
+    steps: int = 3000
+    batch: int = 12
+    crop: int = 96
+    lr: float = 5e-4
+    warmup: int = 200
+    ema: float = 0.999
+    terminal_fraction: float = 0.2  # share of crops trained at t = 1 exactly
+    seed: int = 0
+    threads: int = 0  # 0: os.cpu_count()
+    save_every: int = 250
+    log_every: int = 50
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def sample_times(n: int, rng: np.random.Generator, terminal_fraction: float) -> NDArray[np.float32]:
+    """``n`` training times in (0, 1]: uniform, a share set to exactly 1 (pure noise)."""
+    t = rng.uniform(1e-3, 1.0, n)
+    t[rng.random(n) < terminal_fraction] = 1.0
+    return t.astype(np.float32)
+
+
+def masked_v_loss(net: Any, batch: dict[str, NDArray[Any]], t: NDArray[np.float32],
+                  rng: np.random.Generator) -> Any:
+    """Mean squared v error over the ``loss_mask`` pixels of a batch (all channels); the
+    diffused quantity is the scaled residual of the target over the TELEA prior."""
+    import torch
+
+    from tacswitch.tacdiff.model import RESIDUAL_SCALE, network_input
+
+    cond, target = torch.from_numpy(batch["cond"]), torch.from_numpy(batch["target"])
+    prior = torch.from_numpy(batch["prior"])
+    mask, lmask = torch.from_numpy(batch["mask"]), torch.from_numpy(batch["loss_mask"])
+    a, s = (torch.from_numpy(u.astype(np.float32))[:, None, None, None] for u in alpha_sigma(t))
+    r0 = RESIDUAL_SCALE * (target - prior) * mask
+    eps = torch.from_numpy(rng.standard_normal(target.shape).astype(np.float32))
+    x_t = a * r0 + s * eps
+    v = a * eps - s * r0
+    pred = net(network_input(cond, mask, x_t, eps, prior), s.flatten())
+    denom = lmask.sum() * 3
+    if float(denom) == 0:
+        return pred.sum() * 0.0
+    return (((pred - v) ** 2) * lmask).sum() / denom
+
+
+def train(shards: list[dict[str, NDArray[Any]]], out: str | Path, cfg: TrainConfig,
+          *, progress: bool = True, init: str | Path | None = None) -> Any:
+    """Trains (or resumes) a denoiser on ``shards`` and returns the EMA network (eval mode).
+
+    Args:
+        shards: arrays as :mod:`tacswitch.tacdiff.data` describes (``cond``, ``target``, ``mask``,
+            ``loss_mask``).
+        out: run folder (checkpoint, log, weights).
+        cfg: hyper-parameters.
+        init: a checkpoint or ``.safetensors`` file to start from (fine-tuning); ignored when
+            resuming.
+    """
+    import torch
+
+    from tacswitch.tacdiff.data import CropSampler
+    from tacswitch.tacdiff.model import DenoiserUNet, UNetConfig, count_params
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    torch.manual_seed(cfg.seed)
+    torch.set_num_threads(cfg.threads or os.cpu_count() or 1)
+    ucfg = UNetConfig(base=cfg.base, mults=tuple(cfg.mults), attention=cfg.attention)
+    net = DenoiserUNet(ucfg)
+    ema = DenoiserUNet(ucfg)
+    sampler = CropSampler(shards, cfg.crop)
+    opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
+
+    def lr_at(step: int) -> float:
+        if step < cfg.warmup:
+            return cfg.lr * (step + 1) / cfg.warmup
+        frac = (step - cfg.warmup) / max(1, cfg.steps - cfg.warmup)
+        return cfg.lr * 0.5 * (1 + np.cos(np.pi * min(1.0, frac)))
+
+    ckpt_path = out / "checkpoint.pt"
+    start, log = 0, []
+    if ckpt_path.is_file():
+        ck = torch.load(ckpt_path, map_location="cpu", weights_only=False)
+        if ck["config"] != _cfg_dict(cfg):
+            raise ValueError(f"out: {str(out)!r} holds a run with another configuration; "
+                             "use another folder")
+        net.load_state_dict(ck["model"])
+        ema.load_state_dict(ck["ema"])
+        opt.load_state_dict(ck["optim"])
+        start, log = ck["step"], ck["log"]
+        if progress:
+            print(f"resuming after step {start}", flush=True)
+    else:
+        if init is not None:
+            net.load_state_dict(load_weights(init))
+        ema.load_state_dict(net.state_dict())
+        if progress:
+            print(f"TacDiff U-Net base {cfg.base}: {count_params(net)} parameters, "
+                  f"{sum(len(s['cond']) for s in shards)} frames, crops {cfg.crop}", flush=True)
+    ema.eval()
+    for p in ema.parameters():
+        p.requires_grad_(False)
+    losses: list[float] = []
+    t0 = time.perf_counter()
+    for step in range(start, cfg.steps):
+        net.train()
+        # Randomness from (seed, step): a resumed run draws what an uninterrupted one would.
+        rng = np.random.default_rng([cfg.seed, step])
+        batch = sampler.batch(cfg.batch, rng)
+        t = sample_times(cfg.batch, rng, cfg.terminal_fraction)
+        for g in opt.param_groups:
+            g["lr"] = lr_at(step)
+        loss = masked_v_loss(net, batch, t, rng)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
+        opt.step()
+        with torch.no_grad():
+            decay = min(cfg.ema, (1 + step) / (10 + step))
+            for pe, pn in zip(ema.parameters(), net.parameters(), strict=True):
+                pe.lerp_(pn, 1 - decay)
+        losses.append(float(loss.detach()))
+        done = step + 1
+        if done % cfg.log_every == 0 or done == cfg.steps:
+            entry = {"step": done, "loss": float(np.mean(losses)), "lr": lr_at(step),
+                     "seconds": round(time.perf_counter() - t0, 2)}
+            log.append(entry)
+            losses = []
+            with open(out / "log.jsonl", "a") as fh:
+                fh.write(json.dumps(entry) + "\n")
+            if progress:
+                print(json.dumps(entry), flush=True)
+        if done % cfg.save_every == 0 or done == cfg.steps:
+            _save(ckpt_path, {"model": net.state_dict(), "ema": ema.state_dict(),
+                              "optim": opt.state_dict(), "step": done, "log": log,
+                              "config": _cfg_dict(cfg)})
+    save_weights(ema, out / "model.safetensors", _cfg_dict(cfg))
+    return ema
+
+
+def _cfg_dict(cfg: TrainConfig) -> dict[str, Any]:
+    d = asdict(cfg)
+    d["mults"] = list(cfg.mults)
+    return d
+
+
+def _save(path: Path, state: dict[str, Any]) -> None:
+    import torch
+
+    tmp = path.with_name(f".{path.name}.tmp")
+    torch.save(state, tmp)
+    os.replace(tmp, path)
+
+
+def save_weights(net: Any, path: str | Path, config: dict[str, Any], *,
+                 half: bool = False) -> Path:
+    """Writes ``net``'s weights as safetensors (atomically) with its config as metadata;
+    ``half``: floating tensors in float16 (half the size; :func:`load_weights` restores
+    float32)."""
+    from safetensors.torch import save_file
+
+    target = Path(path)
+    tmp = target.with_name(f".{target.name}.tmp")
+    state = {k: (v.half() if half and v.is_floating_point() else v).contiguous()
+             for k, v in net.state_dict().items()}
+    save_file(state, str(tmp), metadata={"tacswitch.config": json.dumps(config)})
+    os.replace(tmp, target)
+    return target
+
+
+def load_weights(path: str | Path) -> dict[str, Any]:
+    """A state dict from a ``.safetensors`` file or a training checkpoint (its EMA weights)."""
+    import torch
+
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"init: no file at {str(p)!r}")
+    if p.suffix == ".safetensors":
+        from safetensors.torch import load_file
+
+        return {k: v.float() if v.is_floating_point() else v
+                for k, v in load_file(str(p)).items()}
+    ck = torch.load(p, map_location="cpu", weights_only=False)
+    return ck["ema"] if "ema" in ck else ck
+
+
+def load_network(path: str | Path) -> Any:
+    """A :class:`DenoiserUNet` (eval mode) from a ``model.safetensors`` written by :func:`train`
+    (architecture from its metadata)."""
+    from safetensors import safe_open
+
+    from tacswitch.tacdiff.model import DenoiserUNet, UNetConfig
+
+    with safe_open(str(path), "pt") as fh:
+        meta = fh.metadata() or {}
+    cfg = json.loads(meta.get("tacswitch.config", "{}"))
+    net = DenoiserUNet(UNetConfig(base=cfg.get("base", 24), mults=tuple(cfg.get("mults", (1, 2, 3,
+                                  4))), attention=cfg.get("attention", False)))
+    net.load_state_dict(load_weights(path))
+    return net.eval()

@@ -1,0 +1,285 @@
+"""TacDiff: schedule and samplers, the shipped model through onnxruntime, stability at the
+extremes, tiling, hybrid mode and the remove_markers entry point."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import tacswitch as ts
+from tacswitch.metrics import masked_mae
+from tacswitch.tacdiff import infer, schedule
+from tacswitch.tacdiff.hybrid import inpaint_hybrid, model_mask, reconstruct
+
+# ---- schedule and samplers (numpy, no model) -------------------------------------------------
+
+def test_schedule_endpoints_are_exact():
+    a, s = schedule.alpha_sigma(np.array([0.0, 0.5, 1.0]))
+    assert a[0] == 1.0 and s[0] == 0.0
+    assert a[2] == 0.0 and s[2] == 1.0  # zero terminal SNR: pure noise at t = 1
+    np.testing.assert_allclose(a**2 + s**2, 1.0, atol=1e-15)
+
+
+@pytest.mark.parametrize("bad", [0, 1001, -3])
+def test_timesteps_range(bad):
+    with pytest.raises(ValueError, match="steps"):
+        schedule.timesteps(bad)
+
+
+@pytest.mark.parametrize("bad", [2.0, True, "4"])
+def test_timesteps_type(bad):
+    with pytest.raises(TypeError, match="steps"):
+        schedule.timesteps(bad)
+
+
+def _oracle_run(x0_true, steps, kind, seed=0):
+    """Samples with a perfect denoiser: must land on x0 exactly, with no NaN on the way."""
+    rng = np.random.default_rng(seed)
+    x_t = rng.standard_normal(x0_true.shape).astype(np.float32)
+    solver = schedule.Solver(kind)
+    tt = schedule.timesteps(steps)
+    for t, t_next in itertools.pairwise(tt):
+        a, s = (float(u) for u in schedule.alpha_sigma(t))
+        eps = (x_t - a * x0_true) / s  # s > 0 for every t the sampler visits
+        v = a * eps - s * x0_true
+        x0, e = schedule.v_to_x0_eps(x_t, v.astype(np.float32), float(t))
+        assert np.isfinite(x0).all() and np.isfinite(e).all()
+        x_t = solver.step(x_t, x0, e, float(t), float(t_next))
+        assert np.isfinite(x_t).all()
+    return x_t
+
+
+@settings(max_examples=25, deadline=None)
+@given(steps=st.integers(1, 1000), kind=st.sampled_from(schedule.SAMPLERS))
+def test_sampler_with_perfect_denoiser_returns_x0(steps, kind):
+    x0 = np.random.default_rng(1).uniform(-1, 1, (3, 4, 5)).astype(np.float32)
+    np.testing.assert_allclose(_oracle_run(x0, steps, kind), x0, atol=1e-4)
+
+
+def test_sampler_rejects_unknown_kind():
+    with pytest.raises(ValueError, match="sampler"):
+        schedule.Solver("euler")  # type: ignore[arg-type]
+
+
+# ---- the shipped model ----------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def sample():
+    from tacswitch.markers import dilate_mask
+    from tacswitch.sim.scene import render_sample
+
+    s = render_sample("gelsight_mini", 11)
+    return s, dilate_mask(s.marker_mask)
+
+
+def test_shipped_model_loads_and_says_bgr():
+    m = infer.load_model()
+    assert m.metadata["tacswitch.colour_order"] == "BGR"
+    assert m.metadata["tacswitch.prediction"] == "v"
+
+
+def test_unmasked_pixels_are_untouched_and_seed_is_reproducible(sample):
+    s, mask = sample
+    a = ts.remove_markers(s.image_markers, mask, method="tacdiff", steps=2)
+    b = ts.remove_markers(s.image_markers, mask, method="tacdiff", steps=2)
+    np.testing.assert_array_equal(a[~mask], s.image_markers[~mask])
+    np.testing.assert_array_equal(a, b)
+    assert a.dtype == np.uint8 and a.shape == s.image_markers.shape
+
+
+def test_quality_close_to_telea_and_far_better_than_no_fill(sample):
+    """The shipped model must inpaint, not hallucinate: its masked error is within a small
+    margin of TELEA's and far below leaving the markers in."""
+    s, mask = sample
+    telea = ts.inpaint_telea(s.image_markers, mask, 3)
+    diff = ts.remove_markers(s.image_markers, mask, method="tacdiff")
+    e_telea = masked_mae(telea, s.image, mask)
+    e_diff = masked_mae(diff, s.image, mask)
+    e_none = masked_mae(s.image_markers, s.image, mask)
+    assert e_diff < 1.25 * e_telea, (e_diff, e_telea)
+    assert e_diff < 0.4 * e_none, (e_diff, e_none)
+
+
+@pytest.mark.parametrize("steps", [1, 2, 4, 20])
+@pytest.mark.parametrize("sampler", ["dpmpp2m", "ddim"])
+def test_steps_and_samplers_finite(sample, steps, sampler):
+    s, mask = sample
+    crop, m = s.image_markers[:64, :96], mask[:64, :96]
+    out = infer.inpaint_tacdiff(crop, m, steps, sampler=sampler)
+    assert out.dtype == np.uint8
+    assert 0 < masked_mae(out, s.image[:64, :96], m) < 40
+
+
+def test_thousand_steps_on_a_tiny_frame():
+    img = np.full((16, 16, 3), 120, np.uint8)
+    mask = np.zeros((16, 16), bool)
+    mask[6:10, 6:10] = True
+    out = infer.inpaint_tacdiff(img, mask, 1000)
+    assert np.abs(out.astype(int) - 120).max() <= 25
+
+
+@pytest.mark.parametrize("value", [0, 255, 128])
+def test_flat_black_white_grey_frames(value):
+    img = np.full((48, 64, 3), value, np.uint8)
+    mask = np.zeros((48, 64), bool)
+    mask[10:30, 20:44] = True
+    out = infer.inpaint_tacdiff(img, mask, 2)
+    assert np.abs(out[mask].astype(int) - value).mean() < 12
+
+
+def test_saturated_colour_frame():
+    img = np.zeros((48, 64, 3), np.uint8)
+    img[..., 2] = 255  # pure red in BGR, clipped sensor
+    mask = np.zeros((48, 64), bool)
+    mask[20:28, 30:38] = True
+    out = infer.inpaint_tacdiff(img, mask, 4)
+    assert np.abs(out[mask].astype(int) - img[mask].astype(int)).mean() < 25
+
+
+def test_empty_tiny_and_most_of_patch_masks(sample):
+    s, _ = sample
+    img = s.image_markers[:64, :64]
+    empty = np.zeros((64, 64), bool)
+    np.testing.assert_array_equal(infer.inpaint_tacdiff(img, empty), img)
+    tiny = empty.copy()
+    tiny[30, 30] = True
+    out = infer.inpaint_tacdiff(img, tiny)
+    np.testing.assert_array_equal(out[~tiny], img[~tiny])
+    most = np.ones((64, 64), bool)
+    most[:2] = False  # only the top two rows are known
+    out = infer.inpaint_tacdiff(img, most, 2)
+    assert out.dtype == np.uint8 and np.array_equal(out[:2], img[:2])
+
+
+def test_whole_mask_and_bad_inputs_are_refused(sample):
+    s, mask = sample
+    img = s.image_markers
+    with pytest.raises(ValueError, match="mask"):
+        infer.inpaint_tacdiff(img, np.ones(mask.shape, bool))
+    with pytest.raises(TypeError, match="img"):
+        ts.remove_markers(img.astype(np.float32), mask, method="tacdiff")
+    with pytest.raises(ValueError, match="img"):
+        ts.remove_markers(img[..., 0], mask, method="tacdiff")
+    with pytest.raises(ValueError, match="steps"):
+        ts.remove_markers(img, mask, method="tacdiff", steps=0)
+    with pytest.raises(ValueError, match="patch"):
+        infer.inpaint_tacdiff(img, mask, patch=100)
+    with pytest.raises(ValueError, match="mask"):
+        infer.inpaint_tacdiff(img, mask[:10])
+    with pytest.raises(FileNotFoundError, match="model"):
+        infer.inpaint_tacdiff(img, mask, model="/nonexistent/x.onnx")
+
+
+class _Counter:
+    """Wraps a model's ``v`` to count the pixels sent through the network."""
+
+    def __init__(self, monkeypatch):
+        self.pixels = 0
+        model = infer.load_model()
+        orig = model.v
+
+        def v(cond, *args, **kw):
+            self.pixels += cond.shape[0] * cond.shape[2] * cond.shape[3]
+            return orig(cond, *args, **kw)
+
+        monkeypatch.setattr(model, "v", v)
+
+
+def test_tiles_without_holes_are_not_run(sample, monkeypatch):
+    s, _ = sample
+    img = np.ascontiguousarray(np.concatenate([s.image_markers] * 2, axis=1))  # 240 x 640
+    mask = np.zeros(img.shape[:2], bool)
+    mask[20:30, 20:30] = True  # one hole in a corner
+    count = _Counter(monkeypatch)
+    out = infer.inpaint_tacdiff(img, mask, 1, patch=128, overlap=32)
+    assert count.pixels == 128 * 128  # one tile of 128, not the frame's 15 tiles
+    np.testing.assert_array_equal(out[~mask], img[~mask])
+    count.pixels = 0
+    infer.inpaint_tacdiff(img, mask, 1, patch="auto")
+    assert count.pixels == 128 * 128  # auto picks the tile over the 240 x 640 frame
+    count.pixels = 0
+    infer.inpaint_tacdiff(img, mask, 1, patch=None)
+    assert count.pixels == 240 * 640
+
+
+def test_tiled_result_close_to_whole_frame(sample):
+    s, mask = sample
+    whole = infer.inpaint_tacdiff(s.image_markers, mask, 2, patch=None)
+    tiled = infer.inpaint_tacdiff(s.image_markers, mask, 2, patch=128, overlap=32)
+    e_w = masked_mae(whole, s.image, mask)
+    e_t = masked_mae(tiled, s.image, mask)
+    assert abs(e_w - e_t) < 0.25 * e_w + 0.5
+
+
+# ---- hybrid ---------------------------------------------------------------------------------
+
+def test_reconstruct_takes_whole_holes_only():
+    mask = np.zeros((20, 20), bool)
+    mask[2:6, 2:6] = True
+    mask[6, 6] = True  # diagonal neighbour: same 8-connected hole
+    mask[12:16, 12:16] = True
+    seed = np.zeros_like(mask)
+    seed[3, 3] = True
+    got = reconstruct(seed, mask)
+    want = mask.copy()
+    want[12:16, 12:16] = False
+    np.testing.assert_array_equal(got, want)
+
+
+def test_hybrid_uses_the_network_only_near_contact(sample):
+    s, mask = sample
+    out, info = inpaint_hybrid(s.image_markers, mask, s.reference)
+    np.testing.assert_array_equal(out[~mask], s.image_markers[~mask])
+    assert 0 < info.holes_fraction < 1
+    net = model_mask(s.image_markers, mask, s.reference)
+    # Far from the contact the result is TELEA's, exactly.
+    telea = ts.inpaint_telea(s.image_markers, mask, 3)
+    far = mask & ~net
+    np.testing.assert_array_equal(out[far], telea[far])
+    # Every hole in contact goes to the network, and far from all of them do.
+    inc = mask & s.contact_mask
+    assert (net & inc).sum() >= 0.95 * inc.sum()
+    assert net.sum() <= 0.6 * mask.sum()
+
+
+def test_hybrid_on_untouched_gel_is_telea(sample):
+    s, _ = sample
+    from tacswitch.markers import extract_markers
+
+    ref = s.reference
+    m = extract_markers(ref, dilate=1, exclude_border=False).mask
+    out, info = inpaint_hybrid(ref, m, ref)
+    assert info.model_pixels == 0 and info.saved == 1.0
+    np.testing.assert_array_equal(out, ts.inpaint_telea(ref, m, 3))
+
+
+def test_hybrid_without_reference_runs(sample):
+    s, mask = sample
+    out = ts.remove_markers(s.image_markers, mask, method="hybrid")
+    np.testing.assert_array_equal(out[~mask], s.image_markers[~mask])
+
+
+def test_remove_markers_extracts_the_mask_for_tacdiff(sample):
+    s, _ = sample
+    out = ts.remove_markers(s.image_markers, method="tacdiff", steps=1)
+    grey = lambda a: a.astype(float).mean(axis=2)  # noqa: E731
+    # Markers are dark: removing them brightens the frame where they were.
+    assert grey(out)[s.marker_mask].mean() > grey(s.image_markers)[s.marker_mask].mean() + 10
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**31 - 1), frac=st.floats(0.0, 0.9))
+def test_random_masks_never_break(seed, frac):
+    rng = np.random.default_rng(seed)
+    h, w = int(rng.integers(1, 40)), int(rng.integers(1, 40))
+    img = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+    mask = rng.random((h, w)) < frac
+    if mask.all():
+        mask.flat[0] = False
+    out = infer.inpaint_tacdiff(img, mask, int(rng.integers(1, 4)))
+    assert out.shape == img.shape and out.dtype == np.uint8
+    np.testing.assert_array_equal(out[~mask], img[~mask])

@@ -1,0 +1,142 @@
+"""TacDiff training, export and the CLI commands around it (training parts skip without torch)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+import tacswitch as ts
+from tacswitch.cli import main
+from tacswitch.sim.scene import render_sample
+from tacswitch.tacdiff import data as tdata
+
+
+@pytest.fixture(scope="module")
+def marker_frames() -> list[np.ndarray]:
+    return [render_sample("gelsight_mini", 40 + i).image_markers for i in range(2)]
+
+
+def test_marker_offset_pairs_follow_the_paper(marker_frames):
+    pairs = tdata.marker_offset_pairs(marker_frames)
+    orig = ts.extract_markers(marker_frames[0], dilate=1, exclude_border=False).mask
+    mask, loss = pairs["mask"][0], pairs["loss_mask"][0]
+    # Shifted by half the pitch (28.5 px / 2 -> 14) on both axes; pixels shifted out are dropped.
+    shift = tdata._shift(orig, (14, 14))
+    np.testing.assert_array_equal(mask, shift)
+    # The loss only sees real gel: shifted pixels that land on an original marker are dropped.
+    assert not (loss & orig).any() and (loss <= mask).all() and loss.sum() > 0.5 * mask.sum()
+    # The condition is the TELEA pseudo-markerless frame (never the loss target on a hole).
+    np.testing.assert_array_equal(pairs["cond"][0], ts.inpaint_telea(marker_frames[0], orig, 3))
+
+
+def test_marker_offset_pairs_bad_input(marker_frames):
+    with pytest.raises(ValueError, match="frames"):
+        tdata.marker_offset_pairs([])
+    with pytest.raises(ValueError, match=r"frames\[1\]"):
+        tdata.marker_offset_pairs([marker_frames[0], marker_frames[1][:100]])
+    flat = np.full((64, 64, 3), 128, np.uint8)
+    with pytest.raises(ValueError, match="pitch"):
+        tdata.marker_offset_pairs([flat])
+
+
+def test_crop_sampler_shapes_and_ranges(marker_frames):
+    pairs = tdata.marker_offset_pairs(marker_frames, offset=(14, 14))
+    batch = tdata.CropSampler([pairs], 64).batch(3, np.random.default_rng(0))
+    for key in ("cond", "target", "prior"):
+        assert batch[key].shape == (3, 3, 64, 64) and batch[key].dtype == np.float32
+        assert batch[key].min() >= -1 and batch[key].max() <= 1
+    assert set(np.unique(batch["mask"])) <= {0.0, 1.0}
+    with pytest.raises(ValueError, match="size"):
+        tdata.CropSampler([pairs], 512)
+
+
+def test_remove_markers_cli_tacdiff_and_hybrid(tmp_path: Path):
+    s = render_sample("gelsight_mini", 5)
+    src = tmp_path / "in"
+    src.mkdir()
+    cv2.imwrite(str(src / "a.png"), s.image_markers)
+    cv2.imwrite(str(tmp_path / "ref.png"), s.reference)
+    for method in ("tacdiff", "hybrid"):
+        out = tmp_path / method
+        extra = ["--ref", str(tmp_path / "ref.png")] if method == "hybrid" else []
+        assert main(["remove-markers", str(src), "-o", str(out), "--method", method,
+                     "--steps", "1", *extra, "-q"]) == 0
+        got = cv2.imread(str(out / "a.png"))
+        mask = ts.extract_markers(s.image_markers, dilate=1, exclude_border=False).mask
+        np.testing.assert_array_equal(got[~mask], s.image_markers[~mask])
+
+
+def test_evaluate_tacdiff_tiny(tmp_path: Path):
+    pytest.importorskip("skimage")
+    report = tmp_path / "e.json"
+    assert main(["evaluate", "tacdiff", "--frames", "1", "--presets", "gelsight_mini",
+                 "--steps", "1", "--json", str(report), "-q"]) == 0
+    rows = json.loads(report.read_text())["gelsight_mini"]
+    names = {(r["method"], r["setting"]) for r in rows}
+    assert ("TacDiff", "K=1") in names and ("TELEA (OpenCV)", "r=3") in names
+    assert all(0 < r["ssim"] <= 1 and r["masked_mae"] > 0 for r in rows)
+
+
+def test_train_tacdiff_tiny_run_resumes_and_exports(tmp_path: Path):
+    torch = pytest.importorskip("torch")
+    pytest.importorskip("onnx")
+    from tacswitch.tacdiff.infer import TacDiffModel, inpaint_tacdiff
+    from tacswitch.tacdiff.model import network_input
+    from tacswitch.tacdiff.train import load_network
+
+    run = tmp_path / "run"
+    args = ["train", "tacdiff", "--data", str(tmp_path / "d"), "--simulate", "4", "--steps",
+            "2", "--batch", "2", "--crop", "64", "--base", "8", "--out", str(run), "-q"]
+    assert main(args) == 0
+    shards = sorted(p.name for p in (tmp_path / "d").iterdir())
+    assert shards and all(n.startswith("pairs_") for n in shards)
+    assert (run / "checkpoint.pt").is_file() and (run / "model.safetensors").is_file()
+    before = (run / "log.jsonl").read_text()
+    assert main(args) == 0  # finished run: resumes, trains no further
+    assert (run / "log.jsonl").read_text() == before
+    # onnxruntime matches torch.
+    net = load_network(run / "model.safetensors")
+    model = TacDiffModel(run / "model.onnx", threads=1)
+    rng = np.random.default_rng(0)
+    arrs = [rng.standard_normal((1, c, 32, 48)).astype(np.float32) for c in (3, 1, 3, 3, 3)]
+    arrs[1] = (arrs[1] > 0.5).astype(np.float32)
+    with torch.no_grad():
+        want = net(network_input(*[torch.from_numpy(a) for a in arrs]),
+                   torch.tensor([0.7])).numpy()
+    got = model.v(*arrs, 0.7)
+    np.testing.assert_allclose(got, want, rtol=1e-4, atol=1e-5 * np.abs(want).max())
+    img = render_sample("digit", 3).image_markers
+    mask = ts.extract_markers(img, dilate=1, exclude_border=False).mask
+    out = inpaint_tacdiff(img, mask, 2, model=run / "model.onnx")
+    np.testing.assert_array_equal(out[~mask], img[~mask])
+
+
+def test_fp16_export_is_refused(tmp_path: Path):
+    pytest.importorskip("torch")
+    pytest.importorskip("onnx")
+    from tacswitch.tacdiff.export import export_onnx
+    from tacswitch.tacdiff.model import DenoiserUNet, UNetConfig
+
+    with pytest.raises(ValueError, match="fp16"):
+        export_onnx(DenoiserUNet(UNetConfig(base=8)), tmp_path / "m.onnx", fp16=True)
+
+
+def test_finetune_on_marker_frames(tmp_path: Path, marker_frames):
+    pytest.importorskip("torch")
+    pytest.importorskip("onnx")
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, f in enumerate(marker_frames):
+        cv2.imwrite(str(src / f"{i}.png"), f)
+    run = tmp_path / "ft"
+    assert main(["finetune", "--images", str(src), "--out", str(run), "--steps", "2",
+                 "--batch", "2", "--crop", "64", "-q"]) == 0
+    out = ts.remove_markers(marker_frames[0], method="tacdiff", steps=1,
+                            model=run / "model.onnx")
+    assert out.shape == marker_frames[0].shape
+    assert main(["finetune", "--images", str(src), "--out", str(tmp_path / "x"), "--offset",
+                 "nope", "-q"]) == 1

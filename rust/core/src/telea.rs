@@ -181,7 +181,9 @@ fn inpaint_impl<T: Sample>(
     }
     let data = img.data();
     let n_pixels = h * w;
-    let n_masked = mask.iter().filter(|&&m| m != 0).count();
+    // The runs also count the masked pixels (no separate pass over the mask).
+    let runs = mask_runs(mask, h, w);
+    let n_masked: usize = runs.iter().map(|r| r.x1 + 1 - r.x0).sum();
     if n_masked == 0 {
         return Ok(data.to_vec());
     }
@@ -216,7 +218,6 @@ fn inpaint_impl<T: Sample>(
         ));
     }
 
-    let runs = mask_runs(mask, h, w);
     let (comp_of, boxes) = label_runs(&runs);
     let (group_of, groups) = if per_group {
         group_holes(&boxes, 2 * radius + 1)

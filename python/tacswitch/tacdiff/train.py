@@ -221,16 +221,30 @@ def load_weights(path: str | Path) -> dict[str, Any]:
 
 
 def load_network(path: str | Path) -> Any:
-    """A :class:`DenoiserUNet` (eval mode) from a ``model.safetensors`` written by :func:`train`
-    (architecture from its metadata)."""
-    from safetensors import safe_open
+    """A :class:`DenoiserUNet` (eval mode) from a ``.safetensors`` file written by :func:`train`
+    or :func:`save_weights`, or from a training checkpoint (its EMA weights); the architecture
+    comes from the file's recorded configuration."""
+    import torch
 
     from tacswitch.tacdiff.model import DenoiserUNet, UNetConfig
 
-    with safe_open(str(path), "pt") as fh:
-        meta = fh.metadata() or {}
-    cfg = json.loads(meta.get("tacswitch.config", "{}"))
-    net = DenoiserUNet(UNetConfig(base=cfg.get("base", 24), mults=tuple(cfg.get("mults", (1, 2, 3,
-                                  4))), attention=cfg.get("attention", False)))
-    net.load_state_dict(load_weights(path))
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"path: no file at {str(p)!r}")
+    if p.suffix == ".safetensors":
+        from safetensors import safe_open
+
+        with safe_open(str(p), "pt") as fh:
+            meta = fh.metadata() or {}
+        cfg = json.loads(meta.get("tacswitch.config", "{}"))
+    else:
+        ck = torch.load(p, map_location="cpu", weights_only=False)
+        if not isinstance(ck, dict) or "ema" not in ck or "config" not in ck:
+            raise ValueError(f"path: {str(p)!r} is not a TacDiff training checkpoint")
+        cfg = ck["config"]
+    defaults = UNetConfig()
+    net = DenoiserUNet(UNetConfig(base=cfg.get("base", defaults.base),
+                                  mults=tuple(cfg.get("mults", defaults.mults)),
+                                  attention=cfg.get("attention", defaults.attention)))
+    net.load_state_dict(load_weights(p))
     return net.eval()

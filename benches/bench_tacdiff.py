@@ -1,0 +1,70 @@
+"""TacDiff speed per frame on this CPU (onnxruntime, all cores) at each step count K, and the
+hybrid mode, against our TELEA r=3 on the same frames (one thread), median of repeated runs.
+
+    python benches/bench_tacdiff.py [--frames 3] [--rounds 3]
+
+Quality is reported by ``tacswitch evaluate tacdiff`` (held-out frames, the paper's metrics).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+import tacswitch as ts
+from tacswitch.sim.scene import render_sample
+from tacswitch.tacdiff import inpaint_hybrid, inpaint_tacdiff
+from tacswitch.tacdiff.evaluate import HELD_OUT_SEED
+
+BUDGET_MS = {"default (K=1)": 1000.0, "fastest (K=1)": 150.0}
+
+
+def _median_ms(fn, rounds: int) -> float:
+    fn()  # warm-up (session creation, first allocation)
+    times = []
+    for _ in range(rounds):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return 1e3 * float(np.median(times))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--frames", type=int, default=3)
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--steps", default="1,2,4,8,20")
+    args = ap.parse_args()
+    steps = [int(k) for k in args.steps.split(",")]
+    print("| preset | method | ms / frame (median over frames) | vs TELEA r=3 | share of holes "
+          "through the network |")
+    print("|---|---|---|---|---|")
+    for preset in ("gelsight", "gelsight_mini"):
+        samples = [render_sample(preset, (HELD_OUT_SEED, i)) for i in range(args.frames)]
+        masks = [ts.dilate_mask(s.marker_mask) for s in samples]
+        telea = float(np.median([_median_ms(lambda s=s, m=m: ts.inpaint_telea(
+            s.image_markers, m, 3), args.rounds) for s, m in zip(samples, masks, strict=True)]))
+        print(f"| {preset} | TELEA r=3 (1 thread) | {telea:.1f} | 1x | 0 |")
+        for k in steps:
+            ms = float(np.median([_median_ms(lambda s=s, m=m, k=k: inpaint_tacdiff(
+                s.image_markers, m, k), args.rounds) for s, m in zip(samples, masks, strict=True)]))
+            print(f"| {preset} | TacDiff K={k} | {ms:.0f} | {ms / telea:.0f}x | 1 |")
+        for use_ref in (True, False):
+            shares = [inpaint_hybrid(s.image_markers, m, s.reference if use_ref else None,
+                                     steps=1)[1].holes_fraction
+                      for s, m in zip(samples, masks, strict=True)]
+            ms = float(np.median([_median_ms(lambda s=s, m=m, u=use_ref: inpaint_hybrid(
+                s.image_markers, m, s.reference if u else None, steps=1), args.rounds)
+                for s, m in zip(samples, masks, strict=True)]))
+            name = "reference" if use_ref else "texture"
+            print(f"| {preset} | hybrid ({name}) K=1 | {ms:.0f} | {ms / telea:.0f}x | "
+                  f"{np.mean(shares):.2f} |")
+
+
+if __name__ == "__main__":
+    import os
+
+    os.environ.setdefault("RAYON_NUM_THREADS", "1")
+    main()

@@ -58,3 +58,26 @@ def read_image(path: str | os.PathLike[str]) -> NDArray[np.uint8]:
     if img is None:
         raise ValueError(f"path: cannot read an image from {str(path)!r}")
     return img
+
+
+def write_onnx(tmp: Path, target: str | os.PathLike[str], meta: dict[str, str],
+               extra: dict[str, object] | None = None) -> Path:
+    """Moves the ONNX file a ``torch.onnx.export`` wrote to ``tmp`` onto ``target``
+    (atomically), with ``meta`` and ``extra`` (keys prefixed ``tacswitch.``, non-strings as
+    JSON) as its only metadata. Needs the ``onnx`` package (export time only)."""
+    import json
+
+    import onnx
+
+    model = onnx.load(str(tmp))
+    tmp.unlink()
+    props = dict(meta)
+    for k, v in (extra or {}).items():
+        props[f"tacswitch.{k}"] = v if isinstance(v, str) else json.dumps(v)
+    del model.metadata_props[:]
+    for k, v in props.items():
+        entry = model.metadata_props.add()
+        entry.key, entry.value = k, v
+    with atomic_open(target, "wb") as fh:
+        fh.write(model.SerializeToString())
+    return Path(target)

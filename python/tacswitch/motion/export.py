@@ -39,9 +39,7 @@ class _Graph(nn.Module):
 def export_onnx(net: MotionNet, path: str | Path, *, metadata: dict[str, Any] | None = None,
                 height: int = 240, width: int = 320) -> Path:
     """Writes ``net`` (eval mode) as ONNX to ``path`` (atomically) and returns the path."""
-    import onnx
-
-    from tacswitch._io import atomic_open
+    from tacswitch._io import write_onnx
 
     was_training = net.training
     # The wrapper must be in eval mode too: the exporter restores the wrapper's mode afterwards,
@@ -61,15 +59,5 @@ def export_onnx(net: MotionNet, path: str | Path, *, metadata: dict[str, Any] | 
         torch.onnx.export(g, args, str(tmp), input_names=names, output_names=["motion"],
                           dynamic_axes=axes, opset_version=OPSET, dynamo=False)
     net.train(was_training)
-    model = onnx.load(str(tmp))
-    tmp.unlink()
     meta = {"tacswitch.arch": net.arch, "tacswitch.use_ref": json.dumps(net.use_ref)}
-    for k, v in (metadata or {}).items():
-        meta[f"tacswitch.{k}"] = v if isinstance(v, str) else json.dumps(v)
-    del model.metadata_props[:]
-    for k, v in meta.items():
-        entry = model.metadata_props.add()
-        entry.key, entry.value = k, v
-    with atomic_open(target, "wb") as fh:
-        fh.write(model.SerializeToString())
-    return target
+    return write_onnx(tmp, target, meta, metadata)

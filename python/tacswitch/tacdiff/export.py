@@ -50,9 +50,7 @@ def export_onnx(net: DenoiserUNet, path: str | Path, *, metadata: dict[str, Any]
     reaches radians), and onnxruntime's CPU provider runs float16 convolutions slower than
     float32 anyway.
     """
-    import onnx
-
-    from tacswitch._io import atomic_open
+    from tacswitch._io import write_onnx
 
     if fp16:
         raise ValueError("fp16: float16 export is not supported (the noise-level embedding and "
@@ -72,19 +70,9 @@ def export_onnx(net: DenoiserUNet, path: str | Path, *, metadata: dict[str, Any]
         torch.onnx.export(g, args, str(tmp), input_names=list(INPUTS), output_names=["v"],
                           dynamic_axes=axes, opset_version=OPSET, dynamo=False)
     net.train(was_training)
-    model = onnx.load(str(tmp))
-    tmp.unlink()
     meta = {"tacswitch.kind": "tacdiff", "tacswitch.prediction": "v",
             "tacswitch.target": "residual-over-telea",
             "tacswitch.residual_scale": str(RESIDUAL_SCALE),
             "tacswitch.schedule": "cosine-ztsnr", "tacswitch.colour_order": "BGR",
             "tacswitch.multiple": str(MULTIPLE), "tacswitch.unet": json.dumps(net.cfg.to_dict())}
-    for k, v in (metadata or {}).items():
-        meta[f"tacswitch.{k}"] = v if isinstance(v, str) else json.dumps(v)
-    del model.metadata_props[:]
-    for k, v in meta.items():
-        entry = model.metadata_props.add()
-        entry.key, entry.value = k, v
-    with atomic_open(target, "wb") as fh:
-        fh.write(model.SerializeToString())
-    return target
+    return write_onnx(tmp, target, meta, metadata)

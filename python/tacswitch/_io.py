@@ -81,3 +81,13 @@ def write_onnx(tmp: Path, target: str | os.PathLike[str], meta: dict[str, str],
     with atomic_open(target, "wb") as fh:
         fh.write(model.SerializeToString())
     return Path(target)
+
+
+def save_torch(path: Path, state: dict[str, object]) -> None:
+    """``torch.save(state)`` to ``path`` atomically (a resumable run's checkpoint is never left
+    half-written). Needs torch (training only)."""
+    import torch
+
+    tmp = path.with_name(f".{path.name}.tmp")
+    torch.save(state, tmp)
+    os.replace(tmp, path)

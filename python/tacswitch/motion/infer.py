@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import json
 import os
-import threading
 from pathlib import Path
 from typing import Any
 
@@ -28,33 +27,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch._checks import as_image_u8, as_points
+from tacswitch._ort import cached, open_session, session_options
+
+__all__ = ["MotionModel", "default_model_path", "load_model", "predict_motion",
+           "session_options"]
 
 #: File name of the shipped default model under ``tacswitch/models``.
 DEFAULT_MODEL = "motion_unet.onnx"
 
-_SESSIONS: dict[tuple[str, int], MotionModel] = {}
-_LOCK = threading.Lock()
-
-
 def default_model_path() -> Path:
     """Path of the shipped default model."""
     return Path(__file__).resolve().parent.parent / "models" / DEFAULT_MODEL
-
-
-def session_options(threads: int | None = None) -> Any:
-    """onnxruntime options tuned for small CPU models: ``threads`` intra-op threads (default
-    ``os.cpu_count()``), one inter-op thread, sequential execution, no spin-waiting (spinning
-    threads would steal the cores the camera and control loops run on between frames)."""
-    import onnxruntime as ort
-
-    so = ort.SessionOptions()
-    so.intra_op_num_threads = int(threads or os.cpu_count() or 1)
-    so.inter_op_num_threads = 1
-    so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
-    so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
-    so.add_session_config_entry("session.intra_op.allow_spinning", "0")
-    so.add_session_config_entry("session.inter_op.allow_spinning", "0")
-    return so
 
 
 class MotionModel:
@@ -73,14 +56,8 @@ class MotionModel:
 
     def __init__(self, path: str | os.PathLike[str] | None = None, *,
                  threads: int | None = None) -> None:
-        import onnxruntime as ort
-
         self.path = Path(path) if path is not None else default_model_path()
-        if not self.path.is_file():
-            raise FileNotFoundError(f"model: no ONNX file at {str(self.path)!r}")
-        self.session = ort.InferenceSession(str(self.path), session_options(threads),
-                                            providers=["CPUExecutionProvider"])
-        meta = self.session.get_modelmeta().custom_metadata_map
+        self.session, meta = open_session(self.path, threads)
         self.metadata = dict(meta)
         self.arch = meta.get("tacswitch.arch", "?")
         self.use_ref = json.loads(meta.get("tacswitch.use_ref", "false"))
@@ -155,13 +132,7 @@ def _downsample(img: NDArray[np.uint8], k: int) -> NDArray[np.uint8]:
 
 def load_model(path: str | os.PathLike[str] | None = None) -> MotionModel:
     """The cached :class:`MotionModel` of ``path`` (one onnxruntime session per model file)."""
-    p = Path(path) if path is not None else default_model_path()
-    key = (str(p.resolve()), os.getpid())
-    with _LOCK:
-        model = _SESSIONS.get(key)
-        if model is None:
-            model = _SESSIONS[key] = MotionModel(p)
-        return model
+    return cached(MotionModel, Path(path) if path is not None else default_model_path())
 
 
 def predict_motion(img: Any, ref: Any = None, centres: Any = None, *,

@@ -22,6 +22,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tacswitch._io import save_torch
+
 
 @dataclass
 class TrainConfig:
@@ -165,7 +167,7 @@ def train(data: dict[str, NDArray[Any]], out: str | Path, cfg: TrainConfig,
         entry = {"epoch": epoch + 1, f"train_{cfg.loss}": float(np.mean(losses)), **val,
                  "lr": float(sched.get_last_lr()[0]), "seconds": time.perf_counter() - t0}
         log.append(entry)
-        _save_checkpoint(ckpt_path, {"model": net.state_dict(), "optim": opt.state_dict(),
+        save_torch(ckpt_path, {"model": net.state_dict(), "optim": opt.state_dict(),
                                      "sched": sched.state_dict(), "epoch": epoch + 1,
                                      "log": log, "config": asdict(cfg)})
         with open(out / "log.jsonl", "a") as fh:
@@ -174,11 +176,3 @@ def train(data: dict[str, NDArray[Any]], out: str | Path, cfg: TrainConfig,
             print(json.dumps({k: round(v, 4) if isinstance(v, float) else v
                               for k, v in entry.items()}), flush=True)
     return net.eval()
-
-
-def _save_checkpoint(path: Path, state: dict[str, Any]) -> None:
-    import torch
-
-    tmp = path.with_name(f".{path.name}.tmp")
-    torch.save(state, tmp)
-    os.replace(tmp, path)

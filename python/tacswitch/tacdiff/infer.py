@@ -21,7 +21,6 @@ from __future__ import annotations
 import itertools
 import json
 import os
-import threading
 from pathlib import Path
 from typing import Any, Literal
 
@@ -29,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch._checks import as_image_u8
+from tacswitch._ort import cached, open_session
 from tacswitch.tacdiff.schedule import Sampler, Solver, alpha_sigma, timesteps, v_to_x0_eps
 
 #: File name of the shipped default model under ``tacswitch/models``.
@@ -43,9 +43,6 @@ PRIOR_RADIUS = 3
 MAX_BATCH = 16
 
 PatchArg = int | Literal["auto"] | None
-
-_MODELS: dict[tuple[str, int], TacDiffModel] = {}
-_LOCK = threading.Lock()
 
 
 def default_model_path() -> Path:
@@ -70,16 +67,8 @@ class TacDiffModel:
 
     def __init__(self, path: str | os.PathLike[str] | None = None, *,
                  threads: int | None = None) -> None:
-        import onnxruntime as ort
-
-        from tacswitch.motion.infer import session_options
-
         self.path = Path(path) if path is not None else default_model_path()
-        if not self.path.is_file():
-            raise FileNotFoundError(f"model: no ONNX file at {str(self.path)!r}")
-        self.session = ort.InferenceSession(str(self.path), session_options(threads),
-                                            providers=["CPUExecutionProvider"])
-        meta = dict(self.session.get_modelmeta().custom_metadata_map)
+        self.session, meta = open_session(self.path, threads)
         if meta.get("tacswitch.kind") != "tacdiff":
             raise ValueError(f"model: {str(self.path)!r} is not a TacDiff model")
         if meta.get("tacswitch.colour_order", "BGR") != "BGR":
@@ -106,13 +95,7 @@ class TacDiffModel:
 
 def load_model(path: str | os.PathLike[str] | None = None) -> TacDiffModel:
     """The cached :class:`TacDiffModel` of ``path`` (one session per file and process)."""
-    p = Path(path) if path is not None else default_model_path()
-    key = (str(p.resolve()), os.getpid())
-    with _LOCK:
-        model = _MODELS.get(key)
-        if model is None:
-            model = _MODELS[key] = TacDiffModel(p)
-        return model
+    return cached(TacDiffModel, Path(path) if path is not None else default_model_path())
 
 
 def _regions(stack: NDArray[np.float32], mask: NDArray[np.bool_], multiple: int,

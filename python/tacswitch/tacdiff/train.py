@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tacswitch._io import save_torch
 from tacswitch.tacdiff.schedule import alpha_sigma
 
 
@@ -167,7 +168,7 @@ def train(shards: list[dict[str, NDArray[Any]]], out: str | Path, cfg: TrainConf
             if progress:
                 print(json.dumps(entry), flush=True)
         if done % cfg.save_every == 0 or done == cfg.steps:
-            _save(ckpt_path, {"model": net.state_dict(), "ema": ema.state_dict(),
+            save_torch(ckpt_path, {"model": net.state_dict(), "ema": ema.state_dict(),
                               "optim": opt.state_dict(), "step": done, "log": log,
                               "config": _cfg_dict(cfg)})
     save_weights(ema, out / "model.safetensors", _cfg_dict(cfg))
@@ -178,14 +179,6 @@ def _cfg_dict(cfg: TrainConfig) -> dict[str, Any]:
     d = asdict(cfg)
     d["mults"] = list(cfg.mults)
     return d
-
-
-def _save(path: Path, state: dict[str, Any]) -> None:
-    import torch
-
-    tmp = path.with_name(f".{path.name}.tmp")
-    torch.save(state, tmp)
-    os.replace(tmp, path)
 
 
 def save_weights(net: Any, path: str | Path, config: dict[str, Any], *,

@@ -54,6 +54,35 @@ def test_crop_sampler_shapes_and_ranges(marker_frames):
         tdata.CropSampler([pairs], 512)
 
 
+def test_crop_sampler_contact_share_centres_crops_on_contact_holes():
+    pair = tdata.render_pair("gelsight_mini", 3)
+    assert (pair["mask"] & pair["contact"]).any()
+    shard = {k: v[None] for k, v in pair.items()}
+    size = 32
+
+    def contact_hole_share(**shares: float) -> float:
+        sampler = tdata.CropSampler([dict(shard)], size, augment=False, **shares)
+        rng = np.random.default_rng(1)
+        hits = 0
+        for _ in range(40):
+            b = sampler.batch(1, rng)
+            # The crop's pixels in contact are recovered from the (unaugmented) frame position
+            # of the crop: find it by matching the condition crop against the frame.
+            crop = ((b["cond"][0].transpose(1, 2, 0) + 1) * 127.5).round().astype(np.uint8)
+            ys, xs = np.nonzero((pair["cond"][:, :, 0] == crop[0, 0, 0]))
+            for y, x in zip(ys, xs, strict=True):
+                win = pair["cond"][y:y + size, x:x + size]
+                if win.shape[:2] == (size, size) and np.array_equal(win, crop):
+                    hits += bool((pair["mask"] & pair["contact"])[y:y + size, x:x + size].any())
+                    break
+        return hits / 40
+
+    assert contact_hole_share(contact_share=1.0, hole_share=0.0) == 1.0
+    assert contact_hole_share(contact_share=0.0, hole_share=0.0) < 0.8
+    with pytest.raises(ValueError, match="contact_share"):
+        tdata.CropSampler([shard], size, contact_share=0.8, hole_share=0.5)
+
+
 def test_remove_markers_cli_tacdiff_and_hybrid(tmp_path: Path):
     s = render_sample("gelsight_mini", 5)
     src = tmp_path / "in"

@@ -23,6 +23,15 @@ def add_train_parser(what: argparse._SubParsersAction) -> None:
     m.add_argument("--crop", type=int, default=96, help="crop side, multiple of 16")
     m.add_argument("--base", type=int, default=24, help="U-Net width (default: 24)")
     m.add_argument("--lr", type=float, default=5e-4)
+    m.add_argument("--contact-share", type=float, default=0.5,
+                   help="share of crops centred on a marker in contact, where TELEA is weakest "
+                        "(default: %(default)s)")
+    m.add_argument("--hole-share", type=float, default=0.3,
+                   help="share of crops centred on any marker; the rest are uniform "
+                        "(default: %(default)s)")
+    m.add_argument("--terminal-fraction", type=float, default=0.3,
+                   help="share of crops trained at pure noise, the first step of every sampler "
+                        "and all of K=1 (default: %(default)s)")
     m.add_argument("--seed", type=int, default=0)
     m.add_argument("-q", "--quiet", action="store_true")
     m.set_defaults(run=run_train)
@@ -42,11 +51,19 @@ def run_train(args: argparse.Namespace) -> int:
         raise ValueError(f"--crop: must be a positive multiple of {MULTIPLE}; got {args.crop}")
     if args.steps < 1 or args.batch < 1 or args.base < 4:
         raise ValueError("--steps and --batch must be >= 1, --base >= 4")
+    for name in ("contact_share", "hole_share", "terminal_fraction"):
+        if not 0 <= getattr(args, name) <= 1:
+            raise ValueError(f"--{name.replace('_', '-')}: must be in [0, 1]; got "
+                             f"{getattr(args, name)}")
+    if args.contact_share + args.hole_share > 1:
+        raise ValueError("--contact-share + --hole-share: must be <= 1; got "
+                         f"{args.contact_share + args.hole_share}")
     if args.simulate:
         render_pairs(args.data, args.simulate, seed=args.seed, progress=not args.quiet)
     shards = load_pairs(args.data)
     cfg = TrainConfig(base=args.base, steps=args.steps, batch=args.batch, crop=args.crop,
-                      lr=args.lr, seed=args.seed)
+                      lr=args.lr, seed=args.seed, contact_share=args.contact_share,
+                      hole_share=args.hole_share, terminal_fraction=args.terminal_fraction)
     net = train(shards, args.out, cfg, progress=not args.quiet)
     path = export_onnx(net, Path(args.out) / "model.onnx",
                        metadata={"steps": args.steps, "seed": args.seed,

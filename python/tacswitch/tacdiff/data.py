@@ -151,14 +151,21 @@ def _shift(mask: NDArray[np.bool_], offset: tuple[int, int]) -> NDArray[np.bool_
 class CropSampler:
     """Random ``size x size`` training crops from shards (numpy only, deterministic by seed).
 
-    Half the crops are centred (with jitter) on a masked pixel, so crops of sparse grids are not
-    mostly empty; the rest are uniform. Augmentation: flips, 90-degree turns (square crops), and a
-    per-crop colour gain/offset applied identically to ``cond`` and ``target`` so the model does not
-    learn one sensor's lighting.
+    Crops are centred (with jitter) on a loss pixel in contact with probability ``contact_share``
+    (where a shard has a ``contact`` mask and the sample has such a pixel: that is where TELEA
+    is weakest and the network has something to learn), on any loss pixel with probability
+    ``hole_share`` (so crops of sparse grids are not mostly empty), and uniformly otherwise.
+    Augmentation: flips, 90-degree turns (square crops), and a per-crop colour gain/offset applied
+    identically to ``cond`` and ``target`` so the model does not learn one sensor's lighting.
     """
 
     def __init__(self, shards: Sequence[dict[str, NDArray[Any]]], size: int = 64,
-                 augment: bool = True) -> None:
+                 augment: bool = True, *, contact_share: float = 0.0,
+                 hole_share: float = 0.5) -> None:
+        if not (0 <= contact_share and 0 <= hole_share and contact_share + hole_share <= 1):
+            raise ValueError("contact_share, hole_share: need shares >= 0 summing to <= 1; got "
+                             f"{contact_share}, {hole_share}")
+        self.contact_share, self.hole_share = contact_share, hole_share
         self.shards = [s for s in shards if len(s["cond"]) > 0]
         if not self.shards:
             raise ValueError("shards: no samples")
@@ -173,8 +180,12 @@ class CropSampler:
                 sh["prior"] = telea_prior(sh["cond"], sh["mask"])
         weights = np.array([len(s["cond"]) for s in self.shards], np.float64)
         self.shard_p = weights / weights.sum()
-        # Masked pixels per sample, for centred crops (computed once).
+        # Loss pixels per sample (all, and those in contact), for centred crops (computed once).
         self._hits = [[np.argwhere(m) for m in s["loss_mask"]] for s in self.shards]
+        self._contact_hits = [
+            [np.argwhere(m & c) for m, c in zip(s["loss_mask"], s["contact"], strict=True)]
+            if "contact" in s else [np.empty((0, 2), np.int64)] * len(s["loss_mask"])
+            for s in self.shards]
 
     def batch(self, n: int, rng: np.random.Generator) -> dict[str, NDArray[Any]]:
         """``n`` crops: ``cond``/``target``/``prior`` ``n x 3 x S x S`` float32 in [-1, 1]
@@ -190,8 +201,11 @@ class CropSampler:
             shard = self.shards[k]
             i = int(rng.integers(len(shard["cond"])))
             h, w = shard["cond"].shape[1:3]
-            hits = self._hits[k][i]
-            if len(hits) and rng.random() < 0.5:
+            u = rng.random()
+            hits = self._contact_hits[k][i]
+            if not (len(hits) and u < self.contact_share):
+                hits = self._hits[k][i] if u < self.contact_share + self.hole_share else hits[:0]
+            if len(hits):
                 cy, cx = hits[int(rng.integers(len(hits)))]
                 y0 = int(np.clip(cy - s // 2 + rng.integers(-s // 4, s // 4 + 1), 0, h - s))
                 x0 = int(np.clip(cx - s // 2 + rng.integers(-s // 4, s // 4 + 1), 0, w - s))

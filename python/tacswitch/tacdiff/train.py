@@ -44,6 +44,8 @@ class TrainConfig:
     warmup: int = 200
     ema: float = 0.999
     terminal_fraction: float = 0.2  # share of crops trained at t = 1 exactly
+    contact_share: float = 0.0  # share of crops centred on a hole in contact (CropSampler)
+    hole_share: float = 0.5  # share of crops centred on any hole
     seed: int = 0
     threads: int = 0  # 0: os.cpu_count()
     save_every: int = 250
@@ -105,7 +107,8 @@ def train(shards: list[dict[str, NDArray[Any]]], out: str | Path, cfg: TrainConf
     ucfg = UNetConfig(base=cfg.base, mults=tuple(cfg.mults), attention=cfg.attention)
     net = DenoiserUNet(ucfg)
     ema = DenoiserUNet(ucfg)
-    sampler = CropSampler(shards, cfg.crop)
+    sampler = CropSampler(shards, cfg.crop, contact_share=cfg.contact_share,
+                          hole_share=cfg.hole_share)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
 
     def lr_at(step: int) -> float:

@@ -69,7 +69,7 @@ def test_crop_sampler_contact_share_centres_crops_on_contact_holes():
             # The crop's pixels in contact are recovered from the (unaugmented) frame position
             # of the crop: find it by matching the condition crop against the frame.
             crop = ((b["cond"][0].transpose(1, 2, 0) + 1) * 127.5).round().astype(np.uint8)
-            ys, xs = np.nonzero((pair["cond"][:, :, 0] == crop[0, 0, 0]))
+            ys, xs = np.nonzero(pair["cond"][:, :, 0] == crop[0, 0, 0])
             for y, x in zip(ys, xs, strict=True):
                 win = pair["cond"][y:y + size, x:x + size]
                 if win.shape[:2] == (size, size) and np.array_equal(win, crop):

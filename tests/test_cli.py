@@ -123,6 +123,33 @@ def test_remove_markers_resumes(tmp_path: Path, grasp) -> None:
     assert clean.shape == grasp.frames[0].shape
 
 
+def test_progress_bars_go_to_stderr_and_quiet_silences_them(
+        tmp_path: Path, frame_folder: Path, video: Path, grasp,
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    from tacswitch.cli import progress
+
+    monkeypatch.setattr(progress, "DELAY_S", 0.0)  # draw at once (the real runs wait 1 s)
+    n_folder = len(list(frame_folder.iterdir()))
+    runs = {
+        "remove-markers": (["remove-markers", str(frame_folder), "-o", str(tmp_path / "rm"),
+                            "--overwrite"], n_folder),
+        "markers": (["markers", str(frame_folder), "-o", str(tmp_path / "mk")], n_folder),
+        "track": (["track", str(video), "-o", str(tmp_path / "t.csv")], len(grasp.frames) + 1),
+        "slip": (["slip", str(frame_folder), "--log", str(tmp_path / "s.csv")], n_folder),
+    }
+    for name, (args, n) in runs.items():
+        capsys.readouterr()
+        assert main(args) == 0, name
+        loud = capsys.readouterr()
+        assert "100%|" in loud.err and f"{n}/{n}" in loud.err, name
+        assert "%|" not in loud.out and "\r" not in loud.out, name  # stdout stays parseable
+        assert main([*args, "-q"]) == 0, name
+        quiet = capsys.readouterr()
+        assert quiet.err == "" and quiet.out == "", name
+    with open(tmp_path / "t.csv") as fh:
+        assert next(csv.reader(fh)) == ["frame", "marker", "x_ref", "y_ref", "dx", "dy", "valid"]
+
+
 def test_user_mistakes_are_one_line_errors(tmp_path: Path) -> None:
     cmd = [sys.executable, "-m", "tacswitch", "slip", str(tmp_path / "missing.mp4"),
            "--log", str(tmp_path / "l.csv")]

@@ -22,7 +22,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--model", default=None, help="ONNX model (default: the shipped one)")
     p.add_argument("-o", "--out", default="motion-out", help="output folder (default: %(default)s)")
     p.add_argument("--scale", type=float, default=3.0, help="arrow length per px of motion")
-    p.add_argument("-q", "--quiet", action="store_true")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")
     p.set_defaults(run=run)
 
 
@@ -48,6 +48,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from tacswitch._io import atomic_open, read_image, write_image
+    from tacswitch.cli.progress import progress, say
     from tacswitch.cli.sources import collect_images
     from tacswitch.motion.infer import load_model
 
@@ -55,25 +56,26 @@ def run(args: argparse.Namespace) -> int:
     ref = read_image(args.ref) if args.ref else None
     centres = _read_centres(args.centres) if args.centres else None
     out = Path(args.out)
-    for path in collect_images(args.inputs):
-        img = read_image(path)
-        pts = model.centres_for(*img.shape[:2]) if centres is None else centres
-        motion = model(img, ref=ref, centres=pts)
-        buf = io.StringIO()
-        w = csv.writer(buf)
-        w.writerow(["x", "y", "dx", "dy"])
-        for (x, y), (dx, dy) in zip(pts, motion, strict=True):
-            w.writerow([f"{x:.3f}", f"{y:.3f}", f"{dx:.4f}", f"{dy:.4f}"])
-        with atomic_open(out / f"{path.stem}.csv") as fh:
-            fh.write(buf.getvalue())
-        vis = img.copy()
-        for (x, y), (dx, dy) in zip(pts, motion, strict=True):
-            tip = (round(float(x + args.scale * dx)), round(float(y + args.scale * dy)))
-            cv2.arrowedLine(vis, (round(float(x)), round(float(y))), tip, (0, 0, 255), 1,
-                            cv2.LINE_AA, tipLength=0.3)
-        write_image(out / f"{path.stem}_motion.png", vis)
-        if not args.quiet:
+    files = collect_images(args.inputs)
+    with progress(files, desc="motion", unit="img", quiet=args.quiet) as bar:
+        for path in bar:
+            img = read_image(path)
+            pts = model.centres_for(*img.shape[:2]) if centres is None else centres
+            motion = model(img, ref=ref, centres=pts)
+            buf = io.StringIO()
+            w = csv.writer(buf)
+            w.writerow(["x", "y", "dx", "dy"])
+            for (x, y), (dx, dy) in zip(pts, motion, strict=True):
+                w.writerow([f"{x:.3f}", f"{y:.3f}", f"{dx:.4f}", f"{dy:.4f}"])
+            with atomic_open(out / f"{path.stem}.csv") as fh:
+                fh.write(buf.getvalue())
+            vis = img.copy()
+            for (x, y), (dx, dy) in zip(pts, motion, strict=True):
+                tip = (round(float(x + args.scale * dx)), round(float(y + args.scale * dy)))
+                cv2.arrowedLine(vis, (round(float(x)), round(float(y))), tip, (0, 0, 255), 1,
+                                cv2.LINE_AA, tipLength=0.3)
+            write_image(out / f"{path.stem}_motion.png", vis)
             mx = float(np.hypot(motion[:, 0], motion[:, 1]).max()) if len(motion) else 0.0
-            print(f"{path}: {len(motion)} markers, largest motion {mx:.2f} px -> "
-                  f"{out / (path.stem + '.csv')}")
+            say(f"{path}: {len(motion)} markers, largest motion {mx:.2f} px -> "
+                f"{out / (path.stem + '.csv')}", quiet=args.quiet)
     return 0

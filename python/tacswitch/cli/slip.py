@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tacswitch.cli.sources import frames
+from tacswitch.cli.sources import frame_count, frames
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -34,7 +34,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "--rigid-threshold-px)")
     p.add_argument("--max-frames", type=int, default=None, help="stop after this many frames")
     p.add_argument("--show", action="store_true", help="show an overlay window (needs a display)")
-    p.add_argument("-q", "--quiet", action="store_true")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(run=run)
 
 
@@ -49,6 +49,7 @@ def _px_or_auto(text: str) -> float | str:
 
 def run(args: argparse.Namespace) -> int:
     import tacswitch as ts
+    from tacswitch.cli.progress import progress
 
     show = args.show and (sys.platform == "win32" or bool(os.environ.get("DISPLAY")))
     detector: ts.SlipDetector | None = None
@@ -57,7 +58,10 @@ def run(args: argparse.Namespace) -> int:
     log_path = Path(args.log)
     log_path.parent.mkdir(parents=True, exist_ok=True)
     status = 0
-    with open(log_path, "w", newline="") as fh:
+    total = frame_count(args.source, args.max_frames)
+    # The window shows the state; the bar (frames/s) is for runs without it.
+    with open(log_path, "w", newline="") as fh, \
+            progress(total=total, desc="slip", unit="frame", quiet=args.quiet or show) as bar:
         writer = csv.writer(fh)
         writer.writerow(["frame", "slip", "criterion", "max_displacement_px", "marker",
                          "rigid_residual_px", "valid_markers", "time_s"])
@@ -65,6 +69,7 @@ def run(args: argparse.Namespace) -> int:
             for frame in frames(args.source):
                 if args.max_frames is not None and n >= args.max_frames:
                     break
+                bar.update()
                 if frame is None or frame.ndim != 3:
                     skipped += 1
                     continue
@@ -77,6 +82,8 @@ def run(args: argparse.Namespace) -> int:
                     skipped += 1
                     continue
                 state = detector.update(frame)
+                if state.slip and not slips:
+                    bar.set_postfix_str(f"slip at frame {n}", refresh=False)
                 slips += state.slip
                 writer.writerow([n, int(state.slip), state.criterion or "",
                                  f"{state.max_displacement:.3f}", state.marker,

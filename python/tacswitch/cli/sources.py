@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -12,6 +13,15 @@ VIDEO_SUFFIXES = {".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v"}
 
 #: Consecutive unreadable frames after which a camera counts as disconnected.
 MAX_FAILED_READS = 30
+
+
+def _quiet_decoder() -> None:
+    """Silences FFmpeg's own log (a damaged frame prints hundreds of lines on stderr; the
+    commands count and report skipped frames instead). Takes effect at the first capture of
+    the process; set ``OPENCV_FFMPEG_LOGLEVEL`` (e.g. 16: errors) to see the decoder's log."""
+    import os
+
+    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
 
 
 def collect_images(inputs: list[str]) -> list[Path]:
@@ -30,6 +40,102 @@ def collect_images(inputs: list[str]) -> list[Path]:
     return files
 
 
+def collect_inputs(inputs: list[str]) -> tuple[list[Path], list[Path]]:
+    """Images and videos named or found (sorted) in the named folders, told apart by suffix
+    (:data:`VIDEO_SUFFIXES`; any other named file counts as an image). ``FileNotFoundError``
+    naming the input if one does not exist, or if there is nothing to do."""
+    images: list[Path] = []
+    videos: list[Path] = []
+    for item in inputs:
+        path = Path(item)
+        if path.is_dir():
+            found = sorted(path.iterdir())
+            images += [p for p in found if p.suffix.lower() in IMAGE_SUFFIXES]
+            videos += [p for p in found if p.suffix.lower() in VIDEO_SUFFIXES]
+        elif path.is_file():
+            (videos if path.suffix.lower() in VIDEO_SUFFIXES else images).append(path)
+        else:
+            raise FileNotFoundError(f"inputs: {item!r} does not exist")
+    if not images and not videos:
+        raise FileNotFoundError("inputs: no images or videos found")
+    return images, videos
+
+
+def open_video(path: str | Path, name: str = "source") -> Any:
+    """An opened ``cv2.VideoCapture`` of a video file; ``ValueError`` naming the argument
+    ``name`` if it cannot be decoded (corrupt, truncated, unknown codec)."""
+    import cv2
+
+    _quiet_decoder()
+    cap = cv2.VideoCapture(str(path))
+    if not cap.isOpened():
+        cap.release()
+        raise ValueError(f"{name}: cannot decode video {str(path)!r}")
+    return cap
+
+
+def video_info(path: str | Path, name: str = "source") -> tuple[float, int | None]:
+    """``(fps, frame_count)`` of a video file; fps 0 when the file does not say, frame_count
+    None when unknown (the container's count, which some formats only estimate)."""
+    import cv2
+
+    cap = open_video(path, name)
+    try:
+        fps = float(cap.get(cv2.CAP_PROP_FPS))
+        count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+    finally:
+        cap.release()
+    return (fps if np.isfinite(fps) and fps > 0 else 0.0), (count if count > 0 else None)
+
+
+def video_frames(path: str | Path, name: str = "source") -> Iterator[np.ndarray | None]:
+    """Yields the frames of a video file, None for each frame that does not decode.
+
+    A decoder that fails in the middle of a file goes on with the next frame (the failed read
+    consumed it); :data:`MAX_FAILED_READS` failures in a row, or reaching the container's frame
+    count, is the end. Failures after the last good frame count as frames only up to the
+    container's frame count.
+    """
+    import cv2
+
+    cap = open_video(path, name)
+    count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+    n = failed = 0  # frames yielded; failed reads since the last good one
+    try:
+        while failed < MAX_FAILED_READS and (count <= 0 or n + failed < count):
+            ok, frame = cap.read()
+            if not ok:
+                failed += 1
+                continue
+            for _ in range(failed):
+                yield None
+            n += failed + 1
+            failed = 0
+            yield frame
+        for _ in range(min(failed, max(count - n, 0))):
+            yield None
+    finally:
+        cap.release()
+
+
+def frame_count(source: str, limit: int | None = None) -> int | None:
+    """Frames :func:`frames` will yield for ``source``, at most ``limit`` (None: unknown, e.g.
+    a camera without a limit). For progress bars only: a source that cannot be opened gives
+    None here and its error where it is read."""
+    path = Path(source)
+    count: int | None = None
+    if path.is_dir():
+        count = sum(1 for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+    elif not source.isdigit() and path.is_file():
+        try:
+            count = video_info(path)[1]
+        except ValueError:
+            count = None
+    if limit is None:
+        return count
+    return limit if count is None else min(count, limit)
+
+
 def frames(source: str) -> Iterator[np.ndarray | None]:
     """Yields BGR frames from a folder, a video or a camera index; None for an unreadable frame.
 
@@ -46,16 +152,15 @@ def frames(source: str) -> Iterator[np.ndarray | None]:
         for f in files:
             yield cv2.imread(str(f), cv2.IMREAD_COLOR)
         return
-    if source.isdigit():
-        cap = cv2.VideoCapture(int(source))
-        if not cap.isOpened():
-            raise FileNotFoundError(f"source: cannot open camera {source}")
-    else:
+    if not source.isdigit():
         if not path.is_file():
             raise FileNotFoundError(f"source: {source!r} is not a file, folder or camera index")
-        cap = cv2.VideoCapture(str(path))
-        if not cap.isOpened():
-            raise ValueError(f"source: cannot decode video {source!r}")
+        yield from video_frames(path)
+        return
+    _quiet_decoder()
+    cap = cv2.VideoCapture(int(source))
+    if not cap.isOpened():
+        raise FileNotFoundError(f"source: cannot open camera {source}")
     failed = 0
     try:
         while True:
@@ -64,13 +169,9 @@ def frames(source: str) -> Iterator[np.ndarray | None]:
                 failed = 0
                 yield frame
                 continue
-            if not source.isdigit():
-                return  # end of the video file
             failed += 1
             if failed >= MAX_FAILED_READS:
                 raise ConnectionError(f"camera {source} stopped delivering frames")
             yield None
     finally:
         cap.release()
-
-

@@ -6,7 +6,7 @@ import argparse
 import csv
 from pathlib import Path
 
-from tacswitch.cli.sources import frames
+from tacswitch.cli.sources import frame_count, frames
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -23,7 +23,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="per-frame gate in pixels (default: half the marker pitch)")
     p.add_argument("--polarity", choices=("dark", "bright"), default="dark")
     p.add_argument("--max-frames", type=int, default=None)
-    p.add_argument("-q", "--quiet", action="store_true")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(run=run)
 
 
@@ -31,17 +31,21 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     import tacswitch as ts
+    from tacswitch.cli.progress import progress
 
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     tracker: ts.MarkerTracker | None = None
     n = skipped = 0
-    with open(out, "w", newline="") as fh:
+    total = frame_count(args.source, args.max_frames)
+    with open(out, "w", newline="") as fh, \
+            progress(total=total, desc="track", unit="frame", quiet=args.quiet) as bar:
         writer = csv.writer(fh)
         writer.writerow(["frame", "marker", "x_ref", "y_ref", "dx", "dy", "valid"])
         for frame in frames(args.source):
             if args.max_frames is not None and n >= args.max_frames:
                 break
+            bar.update()
             if frame is None:
                 skipped += 1
                 continue
@@ -62,8 +66,9 @@ def run(args: argparse.Namespace) -> int:
                                  int(valid[i])])
             fh.flush()
             n += 1
-            if not args.quiet and n % 100 == 0:
-                print(f"{n} frames, {int(np.sum(valid))}/{len(ref)} markers tracked")
+            if n % 50 == 1:
+                bar.set_postfix_str(f"{int(np.sum(valid))}/{len(ref)} markers tracked",
+                                    refresh=False)
     if n == 0:
         raise ValueError(f"source: no readable frames in {args.source!r}")
     if not args.quiet:

@@ -51,3 +51,10 @@ def test_ruff_clean() -> None:
 
 def test_version_is_exposed() -> None:
     assert tacswitch.__version__.count(".") == 2
+
+
+def test_mypy_clean() -> None:
+    pytest.importorskip("mypy")
+    out = subprocess.run([sys.executable, "-m", "mypy", "python/tacswitch"], capture_output=True,
+                         text=True, cwd=ROOT)
+    assert out.returncode == 0, out.stdout + out.stderr

@@ -7,7 +7,7 @@ import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO
+from typing import IO, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -57,7 +57,7 @@ def read_image(path: str | os.PathLike[str]) -> NDArray[np.uint8]:
     img = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if img is None:
         raise ValueError(f"path: cannot read an image from {str(path)!r}")
-    return img
+    return cast("NDArray[np.uint8]", img)  # IMREAD_COLOR always decodes to uint8
 
 
 def write_onnx(tmp: Path, target: str | os.PathLike[str], meta: dict[str, str],

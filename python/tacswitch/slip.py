@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
+from numpy.typing import NDArray
 
 from tacswitch import _native
 from tacswitch._checks import as_motion, as_points, as_valid, positive_or_none
@@ -103,8 +104,9 @@ class SlipDetector:
         if self._rigid_auto and rigid_threshold_px != "auto":
             raise ValueError(f"rigid_threshold_px: a number of pixels or 'auto'; "
                              f"got {rigid_threshold_px!r}")
+        # Not "auto" here, so not a str (``_rigid_auto`` is the isinstance check above).
         self._rigid = None if self._rigid_auto else positive_or_none(
-            rigid_threshold_px, "rigid_threshold_px")
+            cast("float | None", rigid_threshold_px), "rigid_threshold_px")
         if not (0.0 < float(active_fraction) <= 1.0):
             raise ValueError(f"active_fraction: must be in (0, 1]; got {active_fraction!r}")
         self._active_fraction = float(active_fraction)
@@ -176,11 +178,11 @@ class SlipDetector:
                 if self._image_width is None:
                     self._image_width = int(motion_or_img.shape[1])
             motion, valid_arr = self.tracker.update(motion_or_img)
-            points = self.tracker.reference
+            points: NDArray[np.float32] | None = self.tracker.reference
         else:
             motion = as_motion(motion_or_img, "motion_or_img")
             if valid is None:
-                valid_arr = ~np.isnan(motion).any(axis=1)
+                valid_arr = cast("NDArray[np.bool_]", ~np.isnan(motion).any(axis=1))
             else:
                 valid_arr = as_valid(valid, motion.shape[0])
             points = self._points

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal, overload
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,6 +23,12 @@ def estimate_pitch(points: Any) -> float | None:
     return _native.estimate_pitch(as_points(points, "points"))
 
 
+@overload
+def match_markers(ref_pts: Any, cur_pts: Any, max_dist: float | None = None, *,
+                  return_index: Literal[False] = False) -> tuple[Motion, Valid]: ...
+@overload
+def match_markers(ref_pts: Any, cur_pts: Any, max_dist: float | None = None, *,
+                  return_index: Literal[True]) -> tuple[Motion, Valid, NDArray[np.int64]]: ...
 def match_markers(
     ref_pts: Any,
     cur_pts: Any,

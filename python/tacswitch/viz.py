@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,7 +37,8 @@ def draw_motion(
     out = img.copy() if img.ndim == 3 else cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
     pts = np.asarray(points, np.float64)
     mv = np.asarray(motion, np.float64)
-    ok = np.isfinite(mv).all(axis=1) if valid is None else np.asarray(valid, bool)
+    ok = (cast("NDArray[np.bool_]", np.isfinite(mv).all(axis=1)) if valid is None
+          else np.asarray(valid, bool))
     for (x, y), (dx, dy), good in zip(pts, mv, ok, strict=True):
         start = (round(x), round(y))
         if not good:
@@ -84,9 +86,9 @@ def line_plot(
     cv2.line(img, (left, h - bottom), (w - right, h - bottom), (0, 0, 0), 1)
     cv2.line(img, (left, top), (left, h - bottom), (0, 0, 0), 1)
     for frac in (0.0, 0.5, 1.0):
-        v = ymax * frac / 1.1
-        _, y = to_px(0, v)
-        cv2.putText(img, f"{v:.1f}", (4, y + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (0, 0, 0), 1)
+        tick = ymax * frac / 1.1
+        _, y = to_px(0, tick)
+        cv2.putText(img, f"{tick:.1f}", (4, y + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (0, 0, 0), 1)
     if hline is not None:
         _, y = to_px(0, hline)
         for x in range(left, w - right, 12):

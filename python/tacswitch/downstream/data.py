@@ -122,13 +122,13 @@ def render_inputs(task: str, index: int, scale: StudyScale, seed: int = 0,
     rng = np.random.default_rng(np.random.SeedSequence([seed, TASKS.index(task), index]))
     s = render_sample(scale.preset, rng, label=labels[cls])
     frame = s.image_markers
-    td = {"steps": scale.steps, "model": model}
     imgs = {
         "none": frame,
         "ns": ts.remove_markers(frame, method="ns"),
         "telea": ts.remove_markers(frame, method="telea"),
-        "tacdiff": ts.remove_markers(frame, method="tacdiff", **td),
-        "hybrid": ts.remove_markers(frame, method="hybrid", ref=s.reference, **td),
+        "tacdiff": ts.remove_markers(frame, method="tacdiff", steps=scale.steps, model=model),
+        "hybrid": ts.remove_markers(frame, method="hybrid", ref=s.reference, steps=scale.steps,
+                                    model=model),
         "truth": s.image,
     }
     return {"images": imgs, "label": cls, "contact": s.contact_mask}

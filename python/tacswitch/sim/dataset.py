@@ -20,11 +20,12 @@ from __future__ import annotations
 import json
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 FORMAT = "tacswitch-sim"
 VERSION = 1
@@ -34,7 +35,7 @@ def _u8mask(m: np.ndarray) -> np.ndarray:
     return (np.asarray(m, bool) * np.uint8(255)).astype(np.uint8)
 
 
-def _round(a: np.ndarray, nd: int = 4) -> list:
+def _round(a: ArrayLike, nd: int = 4) -> list:
     return np.round(np.asarray(a, np.float64), nd).tolist()
 
 
@@ -182,6 +183,7 @@ def generate_dataset(out: str | Path, *, preset: str = "gelsight", n: int = 100,
     stream = sys.stderr
     jobs = [(out, i, seed, preset, sequences, opts) for i in todo]
     done = 0
+    results: Iterator[dict]
     if workers <= 1 or len(jobs) <= 1:
         results = map(_worker, jobs)
         pool = None

@@ -7,6 +7,8 @@ penetrates the rest surface. Arrays are ``H x W`` float32 on the sensor's pixel 
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -29,7 +31,9 @@ def gaussian_blur(img: NDArray[np.float32], sigma_px: float) -> NDArray[np.float
     if sigma_px < 0.3:
         return img
     k = int(2 * np.ceil(3 * sigma_px) + 1)
-    return cv2.GaussianBlur(img, (k, k), sigma_px, borderType=cv2.BORDER_REFLECT_101)
+    # The blur keeps the input's float32 dtype.
+    return cast("NDArray[np.float32]",
+                cv2.GaussianBlur(img, (k, k), sigma_px, borderType=cv2.BORDER_REFLECT_101))
 
 
 def deform_gel(

@@ -17,6 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -56,7 +57,10 @@ def load_calibration(name: str) -> Calibration:
 
 def slopes(z_mm: NDArray, mm_per_px: float) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Surface slopes ``(dz/dx, dz/dy)`` (dimensionless) by central differences."""
-    gy, gx = np.gradient(np.asarray(z_mm, np.float32), mm_per_px)
+    # numpy's stub types the gradient of an array of unknown ndim as a 1-D array; a 2-D input
+    # gives one array per axis.
+    gy, gx = cast("tuple[NDArray[np.float32], NDArray[np.float32]]",
+                  np.gradient(np.asarray(z_mm, np.float32), mm_per_px))
     return gx.astype(np.float32), gy.astype(np.float32)
 
 
@@ -66,7 +70,8 @@ def background_image(calib: Calibration, height: int, width: int) -> NDArray[np.
 
     bg = calib.background
     if bg.shape[:2] != (height, width):
-        bg = cv2.resize(bg, (width, height), interpolation=cv2.INTER_AREA)
+        bg = cast("NDArray[np.uint8]",  # resizing keeps the uint8 dtype
+                  cv2.resize(bg, (width, height), interpolation=cv2.INTER_AREA))
     return bg.astype(np.float32)
 
 

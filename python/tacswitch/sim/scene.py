@@ -14,7 +14,7 @@ same camera noise added to both images. Hence ``I_w == I_wo`` wherever ``marker_
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,7 +23,13 @@ from tacswitch.sim.deform import deform_gel
 from tacswitch.sim.indenters import CLASSES, ObjectSpec, depth_range, random_object
 from tacswitch.sim.markers import gel_background, marker_layer
 from tacswitch.sim.motion import contact_displacement, sample_field
-from tacswitch.sim.optics import background_image, load_calibration, shade_phong, shade_taxim
+from tacswitch.sim.optics import (
+    Calibration,
+    background_image,
+    load_calibration,
+    shade_phong,
+    shade_taxim,
+)
 from tacswitch.sim.presets import SensorPreset, get_preset
 
 Optics = Literal["auto", "taxim", "phong"]
@@ -115,7 +121,7 @@ class Scene:
         self.optics = "taxim" if (optics != "phong" and p.calib is not None) else "phong"
         if self.optics == "taxim":
             assert p.calib is not None
-            self.calib = load_calibration(p.calib)
+            self.calib: Calibration | None = load_calibration(p.calib)
             self.background = background_image(self.calib, h, w)
         else:
             self.calib = None
@@ -174,7 +180,7 @@ class Scene:
             pts = np.cumsum(rng.normal(0, 6, (n, 2)), 0) + rng.uniform([0, 0], [w, h])
             cv2.polylines(dirt, [pts.astype(np.int32)], False, float(rng.uniform(0.8, 0.92)), 1,
                           cv2.LINE_AA)
-        return cv2.GaussianBlur(dirt, (3, 3), 0.6)
+        return cast("NDArray[np.float32]", cv2.GaussianBlur(dirt, (3, 3), 0.6))  # keeps float32
 
     # ------------------------------------------------------------------------------------
     def render(self, rng: Any = None, *, offset: tuple[float, float] | None = None,
@@ -260,9 +266,13 @@ class Scene:
         i_w = np.clip(np.rint(clean * trans[..., None] + noise), 0, 255).astype(np.uint8)
         if self.jpeg_quality is not None:
             q = [int(cv2.IMWRITE_JPEG_QUALITY), int(self.jpeg_quality)]
-            i_wo = cv2.imdecode(cv2.imencode(".jpg", i_wo, q)[1], cv2.IMREAD_COLOR)
+            # Decoding a buffer cv2 just encoded cannot fail; IMREAD_COLOR gives uint8 BGR.
+            i_wo = cast("NDArray[np.uint8]",
+                        cv2.imdecode(cv2.imencode(".jpg", i_wo, q)[1], cv2.IMREAD_COLOR))
             i_w = np.where(mask[..., None],
-                           cv2.imdecode(cv2.imencode(".jpg", i_w, q)[1], cv2.IMREAD_COLOR), i_wo)
+                           cast("NDArray[np.uint8]",
+                                cv2.imdecode(cv2.imencode(".jpg", i_w, q)[1], cv2.IMREAD_COLOR)),
+                           i_wo)
         return i_wo, i_w
 
     def reference(self, rng: Any = None) -> NDArray[np.uint8]:

@@ -22,7 +22,13 @@ torch are imported by the functions that need them.
 from __future__ import annotations
 
 from tacswitch._native import __version__
-from tacswitch.inpaint import inpaint_telea, merge_patches, remove_markers, tile
+from tacswitch.inpaint import (
+    inpaint_biharmonic,
+    inpaint_telea,
+    merge_patches,
+    remove_markers,
+    tile,
+)
 from tacswitch.markers import Markers, dilate_mask, extract_markers
 from tacswitch.motion.infer import MotionModel, predict_motion
 from tacswitch.slip import SlipDetector, SlipState
@@ -38,6 +44,7 @@ __all__ = [
     "dilate_mask",
     "estimate_pitch",
     "extract_markers",
+    "inpaint_biharmonic",
     "inpaint_telea",
     "match_markers",
     "merge_patches",

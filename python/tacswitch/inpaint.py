@@ -1,4 +1,5 @@
-"""Marker removal: TELEA inpainting (Rust core), NS (OpenCV), patch tiling and merging.
+"""Marker removal: TELEA and biharmonic inpainting (Rust core), NS (OpenCV), patch tiling and
+merging.
 
 Conventions: images are numpy ``H x W x C`` (C in 1, 3, 4; colour order **BGR**, as OpenCV) or grey
 ``H x W``; masks are ``H x W`` bool or uint8, True / nonzero = pixel to fill; patch origins are
@@ -16,7 +17,7 @@ from numpy.typing import NDArray
 from tacswitch import _native
 from tacswitch._checks import as_count, as_image
 
-InpaintMethod = Literal["telea", "ns", "tacdiff", "hybrid"]
+InpaintMethod = Literal["telea", "biharmonic", "ns", "tacdiff", "hybrid"]
 MergeMode = Literal["average", "feather"]
 
 #: dtypes the native TELEA, tiling and merging accept.
@@ -93,6 +94,43 @@ def inpaint_telea(img: NDArray[Any], mask: NDArray[Any], radius: float = 3) -> N
     m = _as_mask(mask, arr.shape)
     r = _as_radius(radius)
     out: NDArray[Any] = _native.inpaint_telea(arr, m, r)
+    return out
+
+
+def inpaint_biharmonic(img: NDArray[Any], mask: NDArray[Any]) -> NDArray[Any]:
+    """Fills each hole with the smoothest surface through the known pixels around it (Rust core).
+
+    Minimises the discrete thin-plate energy (the sum of squared 5-point Laplacians) over the
+    masked pixels. Away from the image border this is the 13-point biharmonic equation that
+    ``skimage.restoration.inpaint_biharmonic(img, mask, split_into_regions=True,
+    channel_axis=-1)`` solves (results agree to solver precision); holes touching the border
+    are filled with natural boundary conditions. Unlike TELEA's weighted mean, which flattens
+    shading across a hole, it continues gradients and curvature: on contact shading it is the
+    more accurate classical fill (on flat gel TELEA is as good and faster). Each group of
+    coupled holes is one sparse symmetric positive definite system, factorised in float64 by
+    an envelope Cholesky and solved for every channel; groups run in parallel (rayon), with the
+    GIL released. About ten times faster than scikit-image on marker masks.
+
+    Args:
+        img: ``H x W`` or ``H x W x C`` (C in 1, 3, 4; BGR kept, channels independent) uint8,
+            uint16 or float32. Masked pixels may hold anything, NaN included; unmasked float
+            pixels must be finite.
+        mask: ``H x W`` bool or uint8; True / nonzero = fill.
+
+    Returns:
+        A new array of ``img``'s dtype and shape; unmasked pixels are bit-identical to ``img``;
+        integer outputs are rounded half up and saturated (the surface may overshoot the
+        known values near strong edges; it is clipped to the dtype's range).
+
+    Raises:
+        TypeError: ``img`` or ``mask`` is not a numpy array of a supported dtype.
+        ValueError: bad shapes, a mask covering every pixel, a single hole too large for the
+            direct solver (about 20 000 pixels; use :func:`inpaint_telea`), or NaN/Inf in an
+            unmasked pixel; the message names the argument.
+    """
+    arr = _as_image(img)
+    m = _as_mask(mask, arr.shape)
+    out: NDArray[Any] = _native.inpaint_biharmonic(arr, m)
     return out
 
 
@@ -208,7 +246,8 @@ def remove_markers(
             :func:`tacswitch.extract_markers` (``dilate`` dilations by a 3x3 cross, which is
             OpenCV's 3x3 ellipse: the paper dilates the mask once before inpainting), keeping
             markers cut by the frame border (``exclude_border=False`` unless given).
-        method: ``"telea"`` (:func:`inpaint_telea`, the Rust core), ``"ns"``
+        method: ``"telea"`` (:func:`inpaint_telea`, the Rust core), ``"biharmonic"``
+            (:func:`inpaint_biharmonic`, the Rust core; smoother on contact shading), ``"ns"``
             (``cv2.inpaint(img, mask, radius, cv2.INPAINT_NS)``, uint8/uint16/float32 grey or
             3-channel, as OpenCV allows), ``"tacdiff"`` (the diffusion model, onnxruntime;
             uint8 BGR only, :func:`tacswitch.tacdiff.inpaint_tacdiff`) or ``"hybrid"`` (TacDiff
@@ -231,8 +270,9 @@ def remove_markers(
         TypeError / ValueError: bad arguments (the message names the argument), or a method that
             is not available.
     """
-    if method not in ("telea", "ns", *_MODEL_METHODS):
-        raise ValueError(f"method: must be 'telea', 'ns', 'tacdiff' or 'hybrid'; got {method!r}")
+    if method not in ("telea", "biharmonic", "ns", *_MODEL_METHODS):
+        raise ValueError("method: must be 'telea', 'biharmonic', 'ns', 'tacdiff' or 'hybrid'; "
+                         f"got {method!r}")
     arr = _as_image(img)
     if mask is None:
         from tacswitch.markers import extract_markers
@@ -245,6 +285,8 @@ def remove_markers(
         m = _as_mask(mask, arr.shape)
     if method == "telea":
         return inpaint_telea(arr, m, radius)
+    if method == "biharmonic":
+        return inpaint_biharmonic(arr, m)
     if method == "tacdiff":
         from tacswitch.tacdiff import DEFAULT_STEPS, inpaint_tacdiff
 

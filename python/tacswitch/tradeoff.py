@@ -49,7 +49,8 @@ class Row:
 
 def default_methods(radii: Sequence[int] = (3, 5, 8, 12), opencv: bool = True
                     ) -> dict[tuple[str, str], Inpaint]:
-    """TELEA (ours) at each radius, and OpenCV's TELEA and NS at the same radii."""
+    """TELEA (ours) at each radius, our biharmonic fill (no knob), and OpenCV's TELEA and NS at
+    the same radii."""
     import cv2
 
     import tacswitch as ts
@@ -63,6 +64,7 @@ def default_methods(radii: Sequence[int] = (3, 5, 8, 12), opencv: bool = True
     methods: dict[tuple[str, str], Inpaint] = {}
     for r in radii:
         methods[("TELEA (tacswitch)", f"r={r}")] = ours(r)
+    methods[("biharmonic (tacswitch)", "-")] = lambda img, m, f: ts.inpaint_biharmonic(img, m)
     if opencv:
         for r in radii:
             methods[("TELEA (OpenCV)", f"r={r}")] = opencv_inpaint(r, cv2.INPAINT_TELEA)

@@ -31,9 +31,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("inputs", nargs="+", help="image files, video files or folders of them")
     p.add_argument("-o", "--out", required=True, help="output folder")
-    p.add_argument("--method", choices=("telea", "ns", *MODEL_METHODS), default="telea",
-                   help="telea (fast, default), ns (OpenCV), tacdiff (diffusion model), hybrid "
-                        "(tacdiff near the contact, telea elsewhere)")
+    p.add_argument("--method", choices=("telea", "biharmonic", "ns", *MODEL_METHODS),
+                   default="telea",
+                   help="telea (fast, default), biharmonic (smooth fill, better on contact "
+                        "shading), ns (OpenCV), tacdiff (diffusion model), hybrid (tacdiff near "
+                        "the contact, telea elsewhere)")
     p.add_argument("--radius", type=int, default=3, help="inpainting radius, px (default: 3)")
     p.add_argument("--steps", type=int, default=None,
                    help="tacdiff/hybrid sampler steps K (default: 1)")
@@ -45,8 +47,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--frames", action="store_true",
                    help="write a video's frames as PNGs into OUT/<stem>/ instead of a video")
     p.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="telea/ns: threads over images and video frames (default: all cores); "
-                        "tacdiff/hybrid run one item at a time, onnxruntime uses all cores")
+                   help="telea/biharmonic/ns: threads over images and video frames (default: "
+                        "all cores); tacdiff/hybrid run one item at a time, onnxruntime uses "
+                        "all cores")
     p.add_argument("--overwrite", action="store_true", help="redo existing outputs")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bars or messages")
     p.set_defaults(run=run)

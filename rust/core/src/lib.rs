@@ -7,6 +7,7 @@
 //!
 //! Nothing here knows about Python; the bindings crate validates and converts, then calls in.
 
+pub mod biharmonic;
 pub mod error;
 pub mod extract;
 pub mod geometry;

@@ -5,6 +5,7 @@
 //! error to a Python exception. Algorithms live in the core crate only.
 
 mod arrays;
+mod biharmonic;
 mod errors;
 mod extract;
 mod matching;
@@ -23,6 +24,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     tracker::register(m)?;
     slip::register(m)?;
     telea::register(m)?;
+    biharmonic::register(m)?;
     merge::register(m)?;
     Ok(())
 }

@@ -29,7 +29,11 @@ pub fn contiguous<'a, T: Element>(
 }
 
 /// Borrows the `H x W` uint8 mask (nonzero = fill).
-fn mask_arg<'a>(mask: &'a PyReadonlyArrayDyn<'_, u8>, h: usize, w: usize) -> PyResult<&'a [u8]> {
+pub fn mask_arg<'a>(
+    mask: &'a PyReadonlyArrayDyn<'_, u8>,
+    h: usize,
+    w: usize,
+) -> PyResult<&'a [u8]> {
     if mask.shape() != [h, w] {
         return Err(PyValueError::new_err(format!(
             "mask: expected shape ({h}, {w}) to match img; got {:?}",

@@ -131,12 +131,13 @@ def test_train_tacdiff_tiny_run_resumes_and_exports(tmp_path: Path):
     net = load_network(run / "model.safetensors")
     model = TacDiffModel(run / "model.onnx", threads=1)
     rng = np.random.default_rng(0)
-    arrs = [rng.standard_normal((1, c, 32, 48)).astype(np.float32) for c in (3, 1, 3, 3, 3)]
+    assert model.prior == net.cfg.prior == "telea+biharmonic"
+    arrs = [rng.standard_normal((1, c, 32, 48)).astype(np.float32) for c in (3, 1, 3, 3, 3, 3)]
     arrs[1] = (arrs[1] > 0.5).astype(np.float32)
     with torch.no_grad():
         want = net(network_input(*[torch.from_numpy(a) for a in arrs]),
                    torch.tensor([0.7])).numpy()
-    got = model.v(*arrs, 0.7)
+    got = model.v(*arrs[:5], 0.7, arrs[5])
     np.testing.assert_allclose(got, want, rtol=1e-4, atol=1e-5 * np.abs(want).max())
     img = render_sample("digit", 3).image_markers
     mask = ts.extract_markers(img, dilate=1, exclude_border=False).mask

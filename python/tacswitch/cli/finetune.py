@@ -61,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
     init = Path(args.init) if args.init else default_weights_path()
     arch = load_network(init).cfg
     cfg = TrainConfig(base=arch.base, mults=arch.mults, attention=arch.attention,
+                      prior=arch.prior,
                       steps=args.steps, batch=args.batch, crop=args.crop, lr=args.lr,
                       warmup=min(100, args.steps // 10), seed=args.seed,
                       extra={"finetune": [str(f) for f in files], "offset": offset})

@@ -26,6 +26,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tacswitch.tacdiff.prior import DEFAULT_PRIOR, check_prior, combine, fills, has_spread
+from tacswitch.tacdiff.prior import to_net as prior_to_net
+
 #: Default mix of simulator presets (name, share of samples).
 PRESET_MIX: tuple[tuple[str, float], ...] = (
     ("gelsight", 0.3), ("gelsight_mini", 0.4), ("digit", 0.15), ("dense", 0.15))
@@ -156,12 +159,16 @@ class CropSampler:
     is weakest and the network has something to learn), on any loss pixel with probability
     ``hole_share`` (so crops of sparse grids are not mostly empty), and uniformly otherwise.
     Augmentation: flips, 90-degree turns (square crops), and a per-crop colour gain/offset applied
-    identically to ``cond`` and ``target`` so the model does not learn one sensor's lighting.
+    identically to ``cond``, ``target`` and the classical fills (both are linear in the image) so
+    the model does not learn one sensor's lighting. ``prior`` names the classical fill the
+    residual is taken over (:mod:`~tacswitch.tacdiff.prior`); the fills are computed once per
+    shard (``telea``, ``smooth`` arrays added to it).
     """
 
     def __init__(self, shards: Sequence[dict[str, NDArray[Any]]], size: int = 64,
-                 augment: bool = True, *, contact_share: float = 0.0,
-                 hole_share: float = 0.5) -> None:
+                 augment: bool = True, *, prior: str = DEFAULT_PRIOR,
+                 contact_share: float = 0.0, hole_share: float = 0.5) -> None:
+        self.prior = check_prior(prior)
         if not (0 <= contact_share and 0 <= hole_share and contact_share + hole_share <= 1):
             raise ValueError("contact_share, hole_share: need shares >= 0 summing to <= 1; got "
                              f"{contact_share}, {hole_share}")
@@ -176,8 +183,10 @@ class CropSampler:
         self.size = size
         self.augment = augment
         for sh in self.shards:
-            if "prior" not in sh:
-                sh["prior"] = telea_prior(sh["cond"], sh["mask"])
+            if "telea" not in sh or (has_spread(prior) and "smooth" not in sh):
+                sh["telea"], smooth = classical_fills(sh["cond"], sh["mask"], prior)
+                if smooth is not None:
+                    sh["smooth"] = smooth
         weights = np.array([len(s["cond"]) for s in self.shards], np.float64)
         self.shard_p = weights / weights.sum()
         # Loss pixels per sample (all, and those in contact), for centred crops (computed once).
@@ -188,12 +197,15 @@ class CropSampler:
             for s in self.shards]
 
     def batch(self, n: int, rng: np.random.Generator) -> dict[str, NDArray[Any]]:
-        """``n`` crops: ``cond``/``target``/``prior`` ``n x 3 x S x S`` float32 in [-1, 1]
-        (BGR), ``mask``/``loss_mask`` ``n x 1 x S x S`` float32 in {0, 1}."""
+        """``n`` crops: ``cond``/``target``/``prior`` (and ``spread`` for two-fill priors)
+        ``n x 3 x S x S`` float32 in [-1, 1] (BGR), ``mask``/``loss_mask`` ``n x 1 x S x S``
+        float32 in {0, 1}."""
         s = self.size
+        two = has_spread(self.prior)
         cond = np.empty((n, s, s, 3), np.float32)
         target = np.empty((n, s, s, 3), np.float32)
-        prior = np.empty((n, s, s, 3), np.float32)
+        telea = np.empty((n, s, s, 3), np.float32)
+        smooth = np.empty((n, s, s, 3), np.float32) if two else None
         mask = np.empty((n, s, s), np.float32)
         loss = np.empty((n, s, s), np.float32)
         for b in range(n):
@@ -214,7 +226,9 @@ class CropSampler:
             win = (i, slice(y0, y0 + s), slice(x0, x0 + s))
             c = shard["cond"][win].astype(np.float32)
             t = shard["target"][win].astype(np.float32)
-            pr = shard["prior"][win].astype(np.float32)
+            fills = [shard["telea"][win].astype(np.float32)]
+            if two:
+                fills.append(shard["smooth"][win].astype(np.float32))
             m = shard["mask"][win].astype(np.float32)
             lm = shard["loss_mask"][win].astype(np.float32)
             if self.augment:
@@ -222,24 +236,30 @@ class CropSampler:
                 bias = rng.uniform(-20, 20, 3).astype(np.float32)
                 c = np.clip(c * gain + bias, 0, 255)
                 t = np.clip(t * gain + bias, 0, 255)
-                pr = np.clip(pr * gain + bias, 0, 255)
+                fills = [np.clip(f * gain + bias, 0, 255) for f in fills]
                 turns, flip = int(rng.integers(4)), bool(rng.random() < 0.5)
-                c, t, pr, m, lm = (_orient(a, turns, flip) for a in (c, t, pr, m, lm))
-            cond[b], target[b], prior[b], mask[b], loss[b] = c, t, pr, m, lm
-        to_net = lambda a: np.ascontiguousarray(a.transpose(0, 3, 1, 2) / 127.5 - 1.0)  # noqa: E731
-        return {"cond": to_net(cond).astype(np.float32),
-                "target": to_net(target).astype(np.float32),
-                "prior": to_net(prior).astype(np.float32),
-                "mask": mask[:, None], "loss_mask": loss[:, None]}
+                c, t, m, lm = (_orient(a, turns, flip) for a in (c, t, m, lm))
+                fills = [_orient(f, turns, flip) for f in fills]
+            cond[b], target[b], telea[b], mask[b], loss[b] = c, t, fills[0], m, lm
+            if smooth is not None:
+                smooth[b] = fills[1]
+        to_net = lambda a: np.ascontiguousarray(prior_to_net(a).transpose(0, 3, 1, 2))  # noqa: E731
+        prior, spread = combine(to_net(telea), None if smooth is None else to_net(smooth))
+        out = {"cond": to_net(cond), "target": to_net(target), "prior": prior,
+               "mask": mask[:, None], "loss_mask": loss[:, None]}
+        if spread is not None:
+            out["spread"] = spread
+        return out
 
 
-def telea_prior(frames: NDArray[np.uint8], masks: NDArray[np.bool_], radius: int = 3
-                ) -> NDArray[np.uint8]:
-    """``B x H x W x 3`` frames with their mask holes filled by our TELEA (the network's
-    prior; inference uses the same radius)."""
-    from tacswitch.inpaint import inpaint_telea
-
-    return np.stack([inpaint_telea(f, m, radius) for f, m in zip(frames, masks, strict=True)])
+def classical_fills(frames: NDArray[np.uint8], masks: NDArray[np.bool_], prior: str
+                    ) -> tuple[NDArray[np.uint8], NDArray[np.uint8] | None]:
+    """``B x H x W x 3`` frames with their holes filled by TELEA, and by the biharmonic fill when
+    ``prior`` uses it (:func:`tacswitch.tacdiff.prior.fills`, as at inference)."""
+    pairs = [fills(f, m, prior) for f, m in zip(frames, masks, strict=True)]
+    telea = np.stack([p[0] for p in pairs])
+    smooth = np.stack([p[1] for p in pairs]) if has_spread(prior) else None  # type: ignore[misc]
+    return telea, smooth
 
 
 def _orient(a: NDArray[Any], turns: int, flip: bool) -> NDArray[Any]:

@@ -4,10 +4,12 @@ One self-contained float32 graph with dynamic batch, height and width (multiples
 
     cond   float32 B x 3 x H x W   condition image, BGR in [-1, 1] (holes may hold anything)
     mask   float32 B x 1 x H x W   1 = pixel to fill
-    x_t    float32 B x 3 x H x W   current sample of the scaled residual over TELEA (only its
-                                   masked pixels are read)
+    x_t    float32 B x 3 x H x W   current sample of the scaled residual over the prior (only
+                                   its masked pixels are read)
     noise  float32 B x 3 x H x W   the run's initial noise, shown in the condition's holes
-    prior  float32 B x 3 x H x W   the frame with its holes filled by TELEA, in [-1, 1]
+    prior  float32 B x 3 x H x W   the frame with its holes filled classically, in [-1, 1]
+                                   (:mod:`~tacswitch.tacdiff.prior`)
+    spread float32 B x 3 x H x W   TELEA minus biharmonic fill (``telea+biharmonic`` prior only)
     sigma  float32 B               noise level sigma(t) in [0, 1]
     -> v   float32 B x 3 x H x W   v-prediction of the residual
 
@@ -26,9 +28,16 @@ import torch
 from torch import nn
 
 from tacswitch.tacdiff.model import MULTIPLE, RESIDUAL_SCALE, DenoiserUNet, network_input
+from tacswitch.tacdiff.prior import has_spread
 
 OPSET = 17
-INPUTS = ("cond", "mask", "x_t", "noise", "prior", "sigma")
+#: Image inputs of every model, then ``spread`` for two-fill priors, then ``sigma``.
+IMAGE_INPUTS = ("cond", "mask", "x_t", "noise", "prior")
+
+
+def input_names(prior: str) -> tuple[str, ...]:
+    """The graph's input names for a model with ``prior``."""
+    return (*IMAGE_INPUTS, *(("spread",) if has_spread(prior) else ()), "sigma")
 
 
 class _Graph(nn.Module):
@@ -37,8 +46,9 @@ class _Graph(nn.Module):
         self.net = net
 
     def forward(self, cond: torch.Tensor, mask: torch.Tensor, x_t: torch.Tensor,
-                noise: torch.Tensor, prior: torch.Tensor, sigma: torch.Tensor) -> torch.Tensor:
-        return self.net(network_input(cond, mask, x_t, noise, prior), sigma)
+                noise: torch.Tensor, prior: torch.Tensor, *rest: torch.Tensor) -> torch.Tensor:
+        spread, sigma = (rest[0], rest[1]) if len(rest) == 2 else (None, rest[0])
+        return self.net(network_input(cond, mask, x_t, noise, prior, spread), sigma)
 
 
 def export_onnx(net: DenoiserUNet, path: str | Path, *, metadata: dict[str, Any] | None = None,
@@ -59,19 +69,22 @@ def export_onnx(net: DenoiserUNet, path: str | Path, *, metadata: dict[str, Any]
     was_training = net.training
     g = _Graph(net).eval()
     b, h, w = 2, 2 * MULTIPLE, 3 * MULTIPLE
-    args = (torch.zeros(b, 3, h, w), torch.ones(b, 1, h, w), torch.zeros(b, 3, h, w),
-            torch.zeros(b, 3, h, w), torch.zeros(b, 3, h, w), torch.full((b,), 0.5))
+    names = input_names(net.cfg.prior)
+    images = [torch.ones(b, 1, h, w) if n == "mask" else torch.zeros(b, 3, h, w)
+              for n in names[:-1]]
+    args = (*images, torch.full((b,), 0.5))
     axes: dict[str, dict[int, str]] = {
-        name: {0: "batch", 2: "height", 3: "width"} for name in (*INPUTS[:5], "v")}
+        name: {0: "batch", 2: "height", 3: "width"} for name in (*names[:-1], "v")}
     axes["sigma"] = {0: "batch"}
     target = Path(path)
     tmp = target.with_suffix(".tmp.onnx")
     with torch.no_grad():
-        torch.onnx.export(g, args, str(tmp), input_names=list(INPUTS), output_names=["v"],
+        torch.onnx.export(g, args, str(tmp), input_names=list(names), output_names=["v"],
                           dynamic_axes=axes, opset_version=OPSET, dynamo=False)
     net.train(was_training)
     meta = {"tacswitch.kind": "tacdiff", "tacswitch.prediction": "v",
-            "tacswitch.target": "residual-over-telea",
+            "tacswitch.target": f"residual-over-{net.cfg.prior}",
+            "tacswitch.prior": net.cfg.prior,
             "tacswitch.residual_scale": str(RESIDUAL_SCALE),
             "tacswitch.schedule": "cosine-ztsnr", "tacswitch.colour_order": "BGR",
             "tacswitch.multiple": str(MULTIPLE), "tacswitch.unet": json.dumps(net.cfg.to_dict())}

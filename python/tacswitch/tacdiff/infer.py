@@ -2,9 +2,10 @@
 
 :func:`inpaint_tacdiff` fills the masked pixels of a BGR frame with the diffusion model:
 
-1. The holes are filled by our TELEA first (the prior; what is diffused is the residual over
-   it, see :mod:`~tacswitch.tacdiff.model`). Noise is drawn once for the whole frame (seeded),
-   so overlapping patches start from the same noise.
+1. The holes are filled classically first (the prior, :mod:`~tacswitch.tacdiff.prior`: the
+   mean of our TELEA and biharmonic fills, or TELEA for older models; what is diffused is the
+   residual over it, see :mod:`~tacswitch.tacdiff.model`). Noise is drawn once for the whole
+   frame (seeded), so overlapping patches start from the same noise.
 2. Regions: the whole frame (padded by reflection to a multiple of 16) or ``patch x patch``
    tiles from the Rust :func:`tacswitch.tile`; tiles without a pixel to fill are not run (their
    output is the input). ``patch="auto"`` picks whichever runs fewer pixels through the network,
@@ -29,6 +30,7 @@ from numpy.typing import NDArray
 
 from tacswitch._checks import as_image_u8
 from tacswitch._ort import cached, open_session
+from tacswitch.tacdiff.prior import check_prior, combine, fills, has_spread, to_net
 from tacswitch.tacdiff.schedule import Sampler, Solver, alpha_sigma, timesteps, v_to_x0_eps
 
 #: File name of the shipped default model under ``tacswitch/models``.
@@ -37,8 +39,6 @@ DEFAULT_MODEL = "tacdiff_unet.onnx"
 DEFAULT_STEPS = 1
 #: Default tile side and overlap, px, when tiling (multiples of the model's size multiple).
 DEFAULT_PATCH, DEFAULT_OVERLAP = 128, 32
-#: TELEA radius of the prior (as in training, :func:`tacswitch.tacdiff.data.telea_prior`).
-PRIOR_RADIUS = 3
 #: Most regions sent to onnxruntime in one call (bounds memory on huge frames).
 MAX_BATCH = 16
 
@@ -78,17 +78,34 @@ class TacDiffModel:
         self.multiple = int(meta.get("tacswitch.multiple", "16"))
         self.unet = json.loads(meta.get("tacswitch.unet", "{}"))
         self.residual_scale = float(meta.get("tacswitch.residual_scale", "1"))
+        # Models exported before the prior was recorded diffuse the residual over TELEA.
+        self.prior = check_prior(meta.get("tacswitch.prior", "telea"))
+        inputs = [i.name for i in self.session.get_inputs()]
+        if ("spread" in inputs) != has_spread(self.prior):
+            raise ValueError(f"model: {str(self.path)!r} has inputs {inputs}, which do not "
+                             f"match its prior {self.prior!r}")
+
+    @property
+    def channels(self) -> int:
+        """Channels of the region stack :func:`_sample` takes: cond 3, mask 1, noise 3, prior 3
+        and, for two-fill priors, spread 3."""
+        return 13 if has_spread(self.prior) else 10
 
     def v(self, cond: NDArray[np.float32], mask: NDArray[np.float32], x_t: NDArray[np.float32],
-          noise: NDArray[np.float32], prior: NDArray[np.float32], sigma: float
-          ) -> NDArray[np.float32]:
+          noise: NDArray[np.float32], prior: NDArray[np.float32], sigma: float,
+          spread: NDArray[np.float32] | None = None) -> NDArray[np.float32]:
         """The network's v-prediction for a batch (arrays as in the export's docstring)."""
+        if (spread is not None) != has_spread(self.prior):
+            raise ValueError(f"spread: this model's prior is {self.prior!r}; pass spread "
+                             "exactly for 'telea+biharmonic'")
         outs = []
         for i in range(0, len(cond), MAX_BATCH):
             sl = slice(i, i + MAX_BATCH)
             n = len(cond[sl])
             feed = {"cond": cond[sl], "mask": mask[sl], "x_t": x_t[sl], "noise": noise[sl],
                     "prior": prior[sl], "sigma": np.full(n, sigma, np.float32)}
+            if spread is not None:
+                feed["spread"] = spread[sl]
             outs.append(self.session.run(None, feed)[0])
         return np.concatenate(outs)
 
@@ -129,10 +146,12 @@ def _pad(a: NDArray[np.float32], ph: int, pw: int) -> NDArray[np.float32]:
 
 def _sample(model: TacDiffModel, regions: NDArray[np.float32], steps: int, sampler: Sampler
             ) -> NDArray[np.float32]:
-    """Runs the sampler on ``B x S x S x 10`` regions (cond 3, mask 1, noise 3, prior 3;
-    channels last) and returns the ``B x S x S x 3`` image estimates in [-1, 1]."""
+    """Runs the sampler on ``B x S x S x C`` regions (cond 3, mask 1, noise 3, prior 3, and
+    spread 3 for two-fill priors; channels last) and returns the ``B x S x S x 3`` image
+    estimates in [-1, 1]."""
     x = np.ascontiguousarray(regions.transpose(0, 3, 1, 2))
     cond, mask, noise, prior = x[:, :3], x[:, 3:4], x[:, 4:7], x[:, 7:10]
+    spread = x[:, 10:13] if x.shape[1] > 10 else None
     scale = model.residual_scale
     # Residual bounds that keep prior + residual inside the image range [-1, 1].
     lo, hi = scale * (-1.0 - prior), scale * (1.0 - prior)
@@ -142,7 +161,7 @@ def _sample(model: TacDiffModel, regions: NDArray[np.float32], steps: int, sampl
     r0 = x_t
     for t, t_next in itertools.pairwise(ts):
         sigma = float(alpha_sigma(t)[1])
-        v = model.v(cond, mask, x_t, noise, prior, sigma)
+        v = model.v(cond, mask, x_t, noise, prior, sigma, spread)
         r0, eps = v_to_x0_eps(x_t, v, float(t))
         # Clipping the estimate to the image range keeps a poor early estimate from blowing up
         # the multistep extrapolation (saturated and black frames).
@@ -175,7 +194,7 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
         A new ``H x W x 3`` uint8 image; pixels outside ``mask`` are bit-identical to ``img``.
     """
     from tacswitch._checks import as_count
-    from tacswitch.inpaint import _as_mask, inpaint_telea, merge_patches
+    from tacswitch.inpaint import _as_mask, merge_patches
 
     arr = as_image_u8(img, "img")
     if arr.ndim != 3 or arr.shape[2] != 3:
@@ -195,11 +214,15 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
     ov = as_count(overlap, "overlap", 0)
     h, w = m.shape
     rng = np.random.default_rng(seed)
-    stack = np.empty((h, w, 10), np.float32)
-    stack[..., :3] = arr / np.float32(127.5) - 1.0
+    stack = np.empty((h, w, net.channels), np.float32)
+    stack[..., :3] = to_net(arr)
     stack[..., 3] = m
     stack[..., 4:7] = rng.standard_normal((h, w, 3), dtype=np.float32)
-    stack[..., 7:] = inpaint_telea(arr, m, PRIOR_RADIUS) / np.float32(127.5) - 1.0
+    telea, smooth = fills(arr, m, net.prior)
+    prior, spread = combine(to_net(telea), None if smooth is None else to_net(smooth))
+    stack[..., 7:10] = prior
+    if spread is not None:
+        stack[..., 10:13] = spread
     kind, data = _regions(stack, m, net.multiple, patch, ov)
     if kind == "whole":
         x0 = _sample(net, data[None], steps, sampler)[0, :h, :w]

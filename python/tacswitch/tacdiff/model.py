@@ -1,23 +1,26 @@
 """The TacDiff denoiser: a small U-Net conditioned Palette-style (torch; training/export only).
 
-What is diffused is the *residual over TELEA*: ``r0 = RESIDUAL_SCALE * (x0 - prior)`` on the
-masked pixels, where ``prior`` is the frame with its holes filled by our TELEA (5 ms on a CPU).
-TELEA is already within a few grey levels on smooth gel; the network only has to add what it
-misses (texture and edges in contact), and with its zero-initialised output layer an untrained
-network returns TELEA exactly, so training can only move the result away from a strong baseline
-where the data say so.
+What is diffused is the *residual over a classical fill*: ``r0 = RESIDUAL_SCALE * (x0 - prior)``
+on the masked pixels, where ``prior`` is the frame with its holes filled classically
+(:mod:`~tacswitch.tacdiff.prior`: the mean of our TELEA and biharmonic fills, a few ms on a CPU;
+TELEA alone for models before 0.2). The classical fill is already within a few grey levels on
+smooth gel; the network only has to add what it misses (texture and edges in contact), and with
+its zero-initialised output layer an untrained network returns the classical fill exactly, so
+training can only move the result away from a strong baseline where the data say so.
 
-Input (``B x 10 x H x W``, H and W multiples of :data:`MULTIPLE`): the condition image with its
+Input (``B x C x H x W``, H and W multiples of :data:`MULTIPLE`): the condition image with its
 masked pixels replaced by noise (3, BGR in [-1, 1]; Palette), the mask (1, {0, 1}), the noisy
-residual ``x_t`` on the masked pixels (3, zero elsewhere) and the TELEA prior (3). Output: the
-v-prediction of the residual (3). The noise level ``sigma`` in [0, 1] (``B``) enters every
-residual block through a sinusoidal embedding and an MLP (scale and shift after the block's first
-normalisation).
+residual ``x_t`` on the masked pixels (3, zero elsewhere), the prior (3) and, for the
+``"telea+biharmonic"`` prior, the spread (3: TELEA minus biharmonic, where the classical fills
+disagree); C = 13, or 10 without the spread. Output: the v-prediction of the residual (3). The
+noise level ``sigma`` in [0, 1] (``B``) enters every residual block through a sinusoidal
+embedding and an MLP (scale and shift after the block's first normalisation).
 
 Cheap on a CPU by construction: a 2x pixel-unshuffle stem (the first convolutions run at half
 resolution on 4x the channels, the output comes back by pixel-shuffle), three resolution levels
-below it, one residual block per level and one self-attention block at the bottleneck (1/16 of
-the input) for the long-range context of large holes. Widths scale with ``base``.
+below it, one residual block per level and optionally one self-attention block at the
+bottleneck (1/16 of the input) for the long-range context of large holes. Widths scale with
+``base``.
 """
 
 from __future__ import annotations
@@ -47,12 +50,22 @@ class UNetConfig:
         attention: a self-attention block at the bottleneck (off by default: trained on
             small crops, it would attend over far more positions on whole frames).
         emb: width of the noise-level embedding.
+        prior: the classical fill the residual is taken over
+            (:data:`tacswitch.tacdiff.prior.PRIORS`).
     """
 
     base: int = 32
     mults: tuple[int, ...] = (1, 2, 3, 4)
     attention: bool = False
     emb: int = 128
+    prior: str = "telea+biharmonic"
+
+    @property
+    def in_channels(self) -> int:
+        """Input channels: cond 3, mask 1, x_t 3, prior 3 (+ spread 3)."""
+        from tacswitch.tacdiff.prior import has_spread
+
+        return 13 if has_spread(self.prior) else 10
 
     def to_dict(self) -> dict[str, object]:
         d = asdict(self)
@@ -118,9 +131,8 @@ class Attention(nn.Module):
 
 
 class DenoiserUNet(nn.Module):
-    """See the module docstring. ``forward(x, sigma) -> v`` with ``x`` ``B x 7 x H x W``."""
-
-    IN_CHANNELS = 10
+    """See the module docstring. ``forward(x, sigma) -> v`` with ``x``
+    ``B x cfg.in_channels x H x W``."""
 
     def __init__(self, cfg: UNetConfig | None = None) -> None:
         super().__init__()
@@ -128,7 +140,7 @@ class DenoiserUNet(nn.Module):
         widths = [cfg.base * m for m in cfg.mults]
         self.emb = nn.Sequential(nn.Linear(cfg.emb, cfg.emb), nn.SiLU(),
                                  nn.Linear(cfg.emb, cfg.emb))
-        self.stem = nn.Conv2d(4 * self.IN_CHANNELS, widths[0], 3, padding=1)
+        self.stem = nn.Conv2d(4 * cfg.in_channels, widths[0], 3, padding=1)
         self.down = nn.ModuleList()
         self.pool = nn.ModuleList()
         for i, w in enumerate(widths[:-1]):  # the pool before level i+1 sets its width
@@ -163,12 +175,16 @@ class DenoiserUNet(nn.Module):
 
 
 def network_input(cond: torch.Tensor, mask: torch.Tensor, x_t: torch.Tensor,
-                  noise: torch.Tensor, prior: torch.Tensor) -> torch.Tensor:
-    """The 10-channel input: condition with its holes replaced by ``noise`` (Palette), the mask,
-    the noisy residual on the holes, and the TELEA prior. All ``B x C x H x W``; images in
-    [-1, 1]."""
+                  noise: torch.Tensor, prior: torch.Tensor,
+                  spread: torch.Tensor | None = None) -> torch.Tensor:
+    """The network input: condition with its holes replaced by ``noise`` (Palette), the mask,
+    the noisy residual on the holes, the classical prior and (two-fill priors) the spread. All
+    ``B x C x H x W``; images in [-1, 1]."""
     keep = 1.0 - mask
-    return torch.cat([cond * keep + noise * mask, mask, x_t * mask, prior], dim=1)
+    parts = [cond * keep + noise * mask, mask, x_t * mask, prior]
+    if spread is not None:
+        parts.append(spread * mask)
+    return torch.cat(parts, dim=1)
 
 
 def count_params(net: nn.Module) -> int:

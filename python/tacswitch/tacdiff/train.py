@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch._io import save_torch
+from tacswitch.tacdiff.prior import DEFAULT_PRIOR
 from tacswitch.tacdiff.schedule import alpha_sigma
 
 
@@ -37,6 +38,7 @@ class TrainConfig:
     base: int = 24
     mults: tuple[int, ...] = (1, 2, 3, 4)
     attention: bool = False
+    prior: str = DEFAULT_PRIOR  # classical fill the residual is taken over (tacdiff.prior)
     steps: int = 3000
     batch: int = 12
     crop: int = 96
@@ -63,7 +65,7 @@ def sample_times(n: int, rng: np.random.Generator, terminal_fraction: float) -> 
 def masked_v_loss(net: Any, batch: dict[str, NDArray[Any]], t: NDArray[np.float32],
                   rng: np.random.Generator) -> Any:
     """Mean squared v error over the ``loss_mask`` pixels of a batch (all channels); the
-    diffused quantity is the scaled residual of the target over the TELEA prior."""
+    diffused quantity is the scaled residual of the target over the classical prior."""
     import torch
 
     from tacswitch.tacdiff.model import RESIDUAL_SCALE, network_input
@@ -76,7 +78,8 @@ def masked_v_loss(net: Any, batch: dict[str, NDArray[Any]], t: NDArray[np.float3
     eps = torch.from_numpy(rng.standard_normal(target.shape).astype(np.float32))
     x_t = a * r0 + s * eps
     v = a * eps - s * r0
-    pred = net(network_input(cond, mask, x_t, eps, prior), s.flatten())
+    spread = torch.from_numpy(batch["spread"]) if "spread" in batch else None
+    pred = net(network_input(cond, mask, x_t, eps, prior, spread), s.flatten())
     denom = lmask.sum() * 3
     if float(denom) == 0:
         return pred.sum() * 0.0
@@ -104,10 +107,11 @@ def train(shards: list[dict[str, NDArray[Any]]], out: str | Path, cfg: TrainConf
     out.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(cfg.seed)
     torch.set_num_threads(cfg.threads or os.cpu_count() or 1)
-    ucfg = UNetConfig(base=cfg.base, mults=tuple(cfg.mults), attention=cfg.attention)
+    ucfg = UNetConfig(base=cfg.base, mults=tuple(cfg.mults), attention=cfg.attention,
+                      prior=cfg.prior)
     net = DenoiserUNet(ucfg)
     ema = DenoiserUNet(ucfg)
-    sampler = CropSampler(shards, cfg.crop, contact_share=cfg.contact_share,
+    sampler = CropSampler(shards, cfg.crop, prior=cfg.prior, contact_share=cfg.contact_share,
                           hole_share=cfg.hole_share)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
 
@@ -241,6 +245,8 @@ def load_network(path: str | Path) -> Any:
     defaults = UNetConfig()
     net = DenoiserUNet(UNetConfig(base=cfg.get("base", defaults.base),
                                   mults=tuple(cfg.get("mults", defaults.mults)),
-                                  attention=cfg.get("attention", defaults.attention)))
+                                  attention=cfg.get("attention", defaults.attention),
+                                  # Files written before the prior was recorded used TELEA.
+                                  prior=cfg.get("prior", "telea")))
     net.load_state_dict(load_weights(p))
     return net.eval()

@@ -74,9 +74,21 @@ def default_methods(radii: Sequence[int] = (3, 5, 8, 12), opencv: bool = True
 
 def tacdiff_methods(steps: Sequence[int] = (1, 2, 4, 8, 20), hybrid_steps: Sequence[int] = (2,),
                     model: str | None = None) -> dict[tuple[str, str], Inpaint]:
-    """TacDiff (onnxruntime, all cores) at each step count K, and the hybrid mode (TacDiff near
-    the contact, found against the reference frame or from texture; TELEA r=3 elsewhere)."""
+    """TacDiff (onnxruntime, all cores) at each step count K, the hybrid mode (TacDiff near
+    the contact, found against the reference frame or from texture; TELEA r=3 elsewhere), and
+    the model's classical prior alone (what the network starts from), so the table shows what
+    the learned part adds."""
     from tacswitch.tacdiff import inpaint_hybrid, inpaint_tacdiff
+    from tacswitch.tacdiff.infer import load_model
+    from tacswitch.tacdiff.prior import combine, fills, to_net
+
+    kind = load_model(model).prior
+
+    def prior_only(img: NDArray[np.uint8], m: NDArray[np.uint8], f: PairedFrame
+                   ) -> NDArray[np.uint8]:
+        telea, smooth = fills(img, m.astype(bool), kind)
+        prior, _ = combine(to_net(telea), None if smooth is None else to_net(smooth))
+        return np.clip(np.rint((prior + 1) * 127.5), 0, 255).astype(np.uint8)
 
     def diffusion(k: int) -> Inpaint:
         return lambda img, m, f: inpaint_tacdiff(img, m, k, model=model)
@@ -85,7 +97,7 @@ def tacdiff_methods(steps: Sequence[int] = (1, 2, 4, 8, 20), hybrid_steps: Seque
         return lambda img, m, f: inpaint_hybrid(img, m, f.reference if use_ref else None,
                                                 steps=k, model=model)[0]
 
-    methods: dict[tuple[str, str], Inpaint] = {}
+    methods: dict[tuple[str, str], Inpaint] = {("TacDiff prior (no network)", kind): prior_only}
     for k in steps:
         methods[("TacDiff", f"K={k}")] = diffusion(k)
     for k in hybrid_steps:

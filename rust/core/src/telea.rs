@@ -246,28 +246,35 @@ fn inpaint_impl<T: Sample>(
     };
     // With one thread, solve here: handing the groups to the pool's thread costs wake-ups.
     let parallel = per_group && rayon::current_num_threads() > 1;
-    let filled: Vec<Vec<T>> = if parallel {
-        groups
+    if parallel {
+        let filled: Vec<Vec<T>> = groups
             .par_iter()
             .zip(&group_runs)
-            .map(|(&bbox, runs)| with_workspace(|ws| ctx.solve(ws, bbox, runs)))
-            .collect()
-    } else {
-        groups
-            .iter()
-            .zip(&group_runs)
-            .map(|(&bbox, runs)| with_workspace(|ws| ctx.solve(ws, bbox, runs)))
-            .collect()
-    };
-    let mut out = data.to_vec();
-    for (values, runs) in filled.iter().zip(&group_runs) {
-        let mut values = values.iter();
-        for run in runs {
-            let span = (run.y * w + run.x0) * c..(run.y * w + run.x1 + 1) * c;
-            for (o, v) in out[span].iter_mut().zip(values.by_ref()) {
-                *o = *v;
+            .map(|(&bbox, runs)| {
+                with_workspace(|ws| {
+                    ctx.solve(ws, bbox, runs);
+                    ctx.values(ws)
+                })
+            })
+            .collect();
+        let mut out = data.to_vec();
+        for (values, runs) in filled.iter().zip(&group_runs) {
+            let mut values = values.iter();
+            for run in runs {
+                let span = (run.y * w + run.x0) * c..(run.y * w + run.x1 + 1) * c;
+                for (o, v) in out[span].iter_mut().zip(values.by_ref()) {
+                    *o = *v;
+                }
             }
         }
+        return Ok(out);
+    }
+    let mut out = data.to_vec();
+    for (&bbox, runs) in groups.iter().zip(&group_runs) {
+        with_workspace(|ws| {
+            ctx.solve(ws, bbox, runs);
+            ctx.write(ws, runs, &mut out);
+        });
     }
     Ok(out)
 }
@@ -821,7 +828,6 @@ struct Workspace {
     queue: FrontQueue,
     band: Vec<usize>,
     reached: Vec<usize>,
-    targets: Vec<usize>,
     /// The group's runs in window coordinates `(y, x0, x1)`.
     wruns: Vec<(usize, usize, usize)>,
     /// Difference array of a window row (coverage of the grown runs).
@@ -871,7 +877,9 @@ struct Ctx<'a, 'b, T> {
 
 impl<T: Sample> Ctx<'_, '_, T> {
     /// Fills the holes made of `runs`; returns their values in run order.
-    fn solve(&self, ws: &mut Workspace, bbox: BBox, runs: &[Run]) -> Vec<T> {
+    /// Solves the group (`bbox`, `runs`) in `ws`; [`Self::values`] or [`Self::write`] then read
+    /// the filled pixels out.
+    fn solve(&self, ws: &mut Workspace, bbox: BBox, runs: &[Run]) {
         match self.img.channels() {
             1 => self.solve_c::<1>(ws, bbox, runs),
             2 => self.solve_c::<2>(ws, bbox, runs),
@@ -885,7 +893,7 @@ impl<T: Sample> Ctx<'_, '_, T> {
     /// neighbours, one more so that every read of a processed pixel's 4-neighbours stays inside
     /// the window. Masked pixels of other groups inside the window stay "known": they lie farther
     /// than any read reaches.
-    fn solve_c<const C: usize>(&self, ws: &mut Workspace, bbox: BBox, runs: &[Run]) -> Vec<T> {
+    fn solve_c<const C: usize>(&self, ws: &mut Workspace, bbox: BBox, runs: &[Run]) {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: `avx2` is only set after `is_x86_feature_detected!("avx2")`.
@@ -897,37 +905,50 @@ impl<T: Sample> Ctx<'_, '_, T> {
     /// [`Self::solve_with`] compiled for AVX2, the disk arithmetic on AVX registers.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn solve_avx2<const C: usize>(
-        &self,
-        ws: &mut Workspace,
-        bbox: BBox,
-        runs: &[Run],
-    ) -> Vec<T> {
+    unsafe fn solve_avx2<const C: usize>(&self, ws: &mut Workspace, bbox: BBox, runs: &[Run]) {
         self.solve_with::<C, avx::Avx8>(ws, bbox, runs)
     }
 
     #[inline(always)]
-    fn solve_with<const C: usize, V: Simd8>(
-        &self,
-        ws: &mut Workspace,
-        bbox: BBox,
-        runs: &[Run],
-    ) -> Vec<T> {
+    fn solve_with<const C: usize, V: Simd8>(&self, ws: &mut Workspace, bbox: BBox, runs: &[Run]) {
         self.prepare::<C, V>(ws, bbox, runs);
         while inward_step::<C, V>(ws) {}
-        self.collect::<C>(ws)
     }
 
-    /// The pixels' values in run order, converted.
-    fn collect<const C: usize>(&self, ws: &Workspace) -> Vec<T> {
-        let n = ws.flag.len();
-        let mut out = vec![T::from_f32(0.0); ws.targets.len() * C];
-        for (o, &wi) in out.chunks_exact_mut(C).zip(ws.targets.iter()) {
-            for (ch, o) in o.iter_mut().enumerate() {
-                *o = T::from_f32(ws.vals[ch * n + wi]);
-            }
+    /// The solved group's pixels (interleaved, converted) in run order.
+    fn values(&self, ws: &Workspace) -> Vec<T> {
+        let c = self.img.channels();
+        let pixels: usize = ws.wruns.iter().map(|r| r.2 + 1 - r.1).sum();
+        let mut out = vec![T::from_f32(0.0); pixels * c];
+        let mut at = 0;
+        for &(wy, wx0, wx1) in &ws.wruns {
+            let len = (wx1 + 1 - wx0) * c;
+            self.convert(ws, wy * ws.ww + wx0, &mut out[at..at + len]);
+            at += len;
         }
         out
+    }
+
+    /// Writes the solved group's pixels (`runs`, as given to [`Self::solve`]) into `out`, the
+    /// whole image.
+    fn write(&self, ws: &Workspace, runs: &[Run], out: &mut [T]) {
+        let (w, c) = (self.img.width(), self.img.channels());
+        for (run, &(wy, wx0, _)) in runs.iter().zip(&ws.wruns) {
+            let span = (run.y * w + run.x0) * c..(run.y * w + run.x1 + 1) * c;
+            self.convert(ws, wy * ws.ww + wx0, &mut out[span]);
+        }
+    }
+
+    /// `dst` (interleaved) from the window's planes, from window pixel `at` on.
+    fn convert(&self, ws: &Workspace, at: usize, dst: &mut [T]) {
+        let n = ws.flag.len();
+        let c = self.img.channels();
+        let len = dst.len() / c;
+        for (ch, plane) in ws.vals.chunks_exact(n).enumerate() {
+            for (o, &v) in dst.iter_mut().skip(ch).step_by(c).zip(&plane[at..at + len]) {
+                *o = T::from_f32(v);
+            }
+        }
     }
 
     /// Builds the window of the group (`bbox`, `runs`) in `ws`, marches the outward front and
@@ -1021,16 +1042,13 @@ impl<T: Sample> Ctx<'_, '_, T> {
                 }
             }
         }
-        // The holes, and the pixels to fill in run order.
-        let targets = &mut ws.targets;
-        targets.clear();
+        // The holes.
         for &(wy, wx0, wx1) in wr.iter() {
             let (a, b) = (wy * ww + wx0, wy * ww + wx1 + 1);
             flag[a..b].fill(INSIDE);
             for plane in vals.chunks_exact_mut(n) {
                 plane[a..b].fill(0.0);
             }
-            targets.extend(a..b);
         }
         // The front starts on the NEAR pixels 4-adjacent to the hole, at T = 0; collected in
         // window (= image) raster order, the order they leave the queue in. Branch-free: new

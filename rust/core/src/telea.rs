@@ -202,7 +202,7 @@ fn inpaint_impl<T: Sample>(
     }
     // The front queue links window pixels by 32-bit indices, with a list head per bucket after
     // them; the largest window is the padded image.
-    let plan = DiskPlan::new(radius);
+    let plan = DiskPlan::cached(radius);
     let margin = plan.margin;
     if (h + 2 * margin).saturating_mul(w + 2 * margin) > u32::MAX as usize - BUCKETS {
         return Err(CoreError::invalid(
@@ -251,10 +251,9 @@ fn inpaint_impl<T: Sample>(
             .par_iter()
             .zip(&group_runs)
             .map(|(&bbox, runs)| {
-                with_workspace(|ws| {
-                    ctx.solve(ws, bbox, runs);
-                    ctx.values(ws)
-                })
+                let mut values = Vec::new();
+                with_workspace(|ws| ctx.solve(ws, bbox, runs, Out::Runs(&mut values)));
+                values
             })
             .collect();
         let mut out = data.to_vec();
@@ -271,10 +270,7 @@ fn inpaint_impl<T: Sample>(
     }
     let mut out = data.to_vec();
     for (&bbox, runs) in groups.iter().zip(&group_runs) {
-        with_workspace(|ws| {
-            ctx.solve(ws, bbox, runs);
-            ctx.write(ws, runs, &mut out);
-        });
+        with_workspace(|ws| ctx.solve(ws, bbox, runs, Out::Image(&mut out)));
     }
     Ok(out)
 }
@@ -464,22 +460,32 @@ fn group_holes(boxes: &[BBox], reach: usize) -> (Vec<u32>, Vec<BBox>) {
 
 /// Lanes of one disk chunk: weights and sums are computed 8 disk pixels at a time.
 const LANES: usize = 8;
-/// Per-lane constants of a chunk: `r = p - q` and the geometric weight `1 / |r|^3`; 0 for lanes
-/// that are not disk pixels (the centre among them).
+/// Per-lane constants of a chunk: `r = p - q`, the geometric weight `g = 1 / |r|^3`, and for the
+/// weights `g r` and `g` times the direction term's limit and floor; all 0 for lanes that are
+/// not disk pixels (the centre among them).
 #[derive(Debug, Clone, Copy, Default)]
 #[repr(C, align(32))]
 struct Lanes {
     rx: [f32; LANES],
     ry: [f32; LANES],
     geometric: [f32; LANES],
+    g_rx: [f32; LANES],
+    g_ry: [f32; LANES],
+    g_limit: [f32; LANES],
+    g_floor: [f32; LANES],
 }
 
 impl Lanes {
     fn set(&mut self, l: usize, dx: isize, dy: isize) {
         let len2 = (dx * dx + dy * dy) as f64;
+        let g = 1.0 / (len2 * len2.sqrt());
         self.rx[l] = -dx as f32;
         self.ry[l] = -dy as f32;
-        self.geometric[l] = (1.0 / (len2 * len2.sqrt())) as f32;
+        self.geometric[l] = g as f32;
+        self.g_rx[l] = (-dx as f64 * g) as f32;
+        self.g_ry[l] = (-dy as f64 * g) as f32;
+        self.g_limit[l] = (f64::from(MIN_DIRECTION) * g) as f32;
+        self.g_floor[l] = (f64::from(DIRECTION_FLOOR) * g) as f32;
     }
 }
 
@@ -495,6 +501,7 @@ struct DiskPlan {
     gathered_lanes: Vec<Lanes>,
     /// Pixels taken one at a time: `(dx, dy)` and `[rx, ry, geometric]`.
     single: Vec<((isize, isize), [f32; 3])>,
+    radius: usize,
     /// Window margin around a group's box: `radius + 2` (disk, outward front, its neighbours,
     /// their neighbours), or more if a direct chunk reads farther.
     margin: usize,
@@ -512,6 +519,25 @@ impl DiskPlan {
             .unwrap_or_else(|| DiskPlan::cut(r, 1, false))
     }
 
+    /// [`DiskPlan::new`], kept per thread for the last radius asked for.
+    fn cached(r: usize) -> std::rc::Rc<DiskPlan> {
+        thread_local! {
+            static LAST: std::cell::RefCell<Option<std::rc::Rc<DiskPlan>>> =
+                const { std::cell::RefCell::new(None) };
+        }
+        LAST.with(|last| {
+            let mut last = last.borrow_mut();
+            match &*last {
+                Some(plan) if plan.radius == r => plan.clone(),
+                _ => {
+                    let plan = std::rc::Rc::new(DiskPlan::new(r));
+                    *last = Some(plan.clone());
+                    plan
+                }
+            }
+        })
+    }
+
     /// The disk of radius `r`: runs of at least `min_direct` row pixels as direct chunks, the
     /// others as single pixels (`single`) or gathered chunks.
     fn cut(r: usize, min_direct: usize, single: bool) -> DiskPlan {
@@ -525,6 +551,7 @@ impl DiskPlan {
             gathered: Vec::new(),
             gathered_lanes: Vec::new(),
             single: Vec::new(),
+            radius: r,
             margin: r + 2,
         };
         let mut left: Vec<(isize, isize)> = Vec::new();
@@ -641,9 +668,9 @@ fn key_index(k: u64) -> usize {
 
 /// Buckets of the front queue per pixel of arrival time ...
 const BUCKET_SCALE: f32 = 64.0;
-/// ... and buckets in its ring: 8 pixels of arrival time, while a front spans about one (a new
+/// ... and buckets in its ring: 4 pixels of arrival time, while a front spans about one (a new
 /// arrival time is at most 1 more than the one just popped).
-const BUCKETS: usize = 512;
+const BUCKETS: usize = 256;
 const RING_WORDS: usize = BUCKETS / 64;
 
 /// The bucket of arrival time `t`: `round(t * BUCKET_SCALE)`, nondecreasing in `t`, by integer
@@ -827,7 +854,6 @@ struct Workspace {
     vals: Vec<f32>,
     queue: FrontQueue,
     band: Vec<usize>,
-    reached: Vec<usize>,
     /// The group's runs in window coordinates `(y, x0, x1)`.
     wruns: Vec<(usize, usize, usize)>,
     /// Difference array of a window row (coverage of the grown runs).
@@ -876,15 +902,14 @@ struct Ctx<'a, 'b, T> {
 }
 
 impl<T: Sample> Ctx<'_, '_, T> {
-    /// Fills the holes made of `runs`; returns their values in run order.
-    /// Solves the group (`bbox`, `runs`) in `ws`; [`Self::values`] or [`Self::write`] then read
-    /// the filled pixels out.
-    fn solve(&self, ws: &mut Workspace, bbox: BBox, runs: &[Run]) {
+    /// Fills the holes made of `runs` (a group, in its box `bbox`) and writes their pixels to
+    /// `out`.
+    fn solve(&self, ws: &mut Workspace, bbox: BBox, runs: &[Run], out: Out<'_, T>) {
         match self.img.channels() {
-            1 => self.solve_c::<1>(ws, bbox, runs),
-            2 => self.solve_c::<2>(ws, bbox, runs),
-            3 => self.solve_c::<3>(ws, bbox, runs),
-            _ => self.solve_c::<4>(ws, bbox, runs),
+            1 => self.solve_c::<1>(ws, bbox, runs, out),
+            2 => self.solve_c::<2>(ws, bbox, runs, out),
+            3 => self.solve_c::<3>(ws, bbox, runs, out),
+            _ => self.solve_c::<4>(ws, bbox, runs, out),
         }
     }
 
@@ -893,60 +918,62 @@ impl<T: Sample> Ctx<'_, '_, T> {
     /// neighbours, one more so that every read of a processed pixel's 4-neighbours stays inside
     /// the window. Masked pixels of other groups inside the window stay "known": they lie farther
     /// than any read reaches.
-    fn solve_c<const C: usize>(&self, ws: &mut Workspace, bbox: BBox, runs: &[Run]) {
+    fn solve_c<const C: usize>(
+        &self,
+        ws: &mut Workspace,
+        bbox: BBox,
+        runs: &[Run],
+        out: Out<'_, T>,
+    ) {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
-            // SAFETY: `avx2` is only set after `is_x86_feature_detected!("avx2")`.
-            return unsafe { self.solve_avx2::<C>(ws, bbox, runs) };
+            // SAFETY: `avx2` is only set after AVX2 and FMA were detected.
+            return unsafe { self.solve_avx2::<C>(ws, bbox, runs, out) };
         }
-        self.solve_with::<C, Lanes8>(ws, bbox, runs)
+        self.solve_with::<C, Lanes8>(ws, bbox, runs, out)
     }
 
-    /// [`Self::solve_with`] compiled for AVX2, the disk arithmetic on AVX registers.
+    /// [`Self::solve_with`] compiled for AVX2 and FMA, the disk arithmetic on AVX registers.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn solve_avx2<const C: usize>(&self, ws: &mut Workspace, bbox: BBox, runs: &[Run]) {
-        self.solve_with::<C, avx::Avx8>(ws, bbox, runs)
+    unsafe fn solve_avx2<const C: usize>(
+        &self,
+        ws: &mut Workspace,
+        bbox: BBox,
+        runs: &[Run],
+        out: Out<'_, T>,
+    ) {
+        self.solve_with::<C, avx::Avx8>(ws, bbox, runs, out)
     }
 
     #[inline(always)]
-    fn solve_with<const C: usize, V: Simd8>(&self, ws: &mut Workspace, bbox: BBox, runs: &[Run]) {
+    fn solve_with<const C: usize, V: Simd8>(
+        &self,
+        ws: &mut Workspace,
+        bbox: BBox,
+        runs: &[Run],
+        out: Out<'_, T>,
+    ) {
         self.prepare::<C, V>(ws, bbox, runs);
         while inward_step::<C, V>(ws) {}
-    }
-
-    /// The solved group's pixels (interleaved, converted) in run order.
-    fn values(&self, ws: &Workspace) -> Vec<T> {
-        let c = self.img.channels();
-        let pixels: usize = ws.wruns.iter().map(|r| r.2 + 1 - r.1).sum();
-        let mut out = vec![T::from_f32(0.0); pixels * c];
-        let mut at = 0;
-        for &(wy, wx0, wx1) in &ws.wruns {
-            let len = (wx1 + 1 - wx0) * c;
-            self.convert(ws, wy * ws.ww + wx0, &mut out[at..at + len]);
-            at += len;
-        }
-        out
-    }
-
-    /// Writes the solved group's pixels (`runs`, as given to [`Self::solve`]) into `out`, the
-    /// whole image.
-    fn write(&self, ws: &Workspace, runs: &[Run], out: &mut [T]) {
-        let (w, c) = (self.img.width(), self.img.channels());
-        for (run, &(wy, wx0, _)) in runs.iter().zip(&ws.wruns) {
-            let span = (run.y * w + run.x0) * c..(run.y * w + run.x1 + 1) * c;
-            self.convert(ws, wy * ws.ww + wx0, &mut out[span]);
-        }
-    }
-
-    /// `dst` (interleaved) from the window's planes, from window pixel `at` on.
-    fn convert(&self, ws: &Workspace, at: usize, dst: &mut [T]) {
-        let n = ws.flag.len();
-        let c = self.img.channels();
-        let len = dst.len() / c;
-        for (ch, plane) in ws.vals.chunks_exact(n).enumerate() {
-            for (o, &v) in dst.iter_mut().skip(ch).step_by(c).zip(&plane[at..at + len]) {
-                *o = T::from_f32(v);
+        match out {
+            Out::Image(img) => {
+                let w = self.img.width();
+                for (run, &(wy, wx0, _)) in runs.iter().zip(&ws.wruns) {
+                    let span = (run.y * w + run.x0) * C..(run.y * w + run.x1 + 1) * C;
+                    convert::<T, C>(ws, wy * ws.ww + wx0, &mut img[span]);
+                }
+            }
+            Out::Runs(values) => {
+                let pixels: usize = ws.wruns.iter().map(|r| r.2 + 1 - r.1).sum();
+                values.clear();
+                values.resize(pixels * C, T::from_f32(0.0));
+                let mut at = 0;
+                for &(wy, wx0, wx1) in &ws.wruns {
+                    let len = (wx1 + 1 - wx0) * C;
+                    convert::<T, C>(ws, wy * ws.ww + wx0, &mut values[at..at + len]);
+                    at += len;
+                }
             }
         }
     }
@@ -1105,7 +1132,7 @@ impl<T: Sample> Ctx<'_, '_, T> {
 
         // Outward front over those pixels; its arrival times, negated, order the known pixels
         // for the level-set weight.
-        march_outward::<V>(&mut ws.queue, flag, t, band, &mut ws.reached, ww);
+        march_outward::<V>(&mut ws.queue, flag, t, band, ww);
 
         // Inward front: each pixel is filled when first reached.
         self.plan.place(ww, n, &mut ws.disk);
@@ -1114,12 +1141,56 @@ impl<T: Sample> Ctx<'_, '_, T> {
     }
 }
 
+/// Where a group's filled pixels go.
+enum Out<'a, T> {
+    /// The output image (interleaved, the input's layout).
+    Image(&'a mut [T]),
+    /// A vector of the pixels in run order.
+    Runs(&'a mut Vec<T>),
+}
+
+/// `dst` (`C` interleaved channels) from the window's planes, from window pixel `at` on: each
+/// plane converted in pieces (straight loops, which vectorise), then interleaved.
+#[inline(always)]
+fn convert<T: Sample, const C: usize>(ws: &Workspace, at: usize, dst: &mut [T]) {
+    const PIECE: usize = 64;
+    let n = ws.flag.len();
+    let mut piece = [[T::from_f32(0.0); PIECE]; C];
+    for (k, out) in dst.chunks_mut(PIECE * C).enumerate() {
+        let m = out.len() / C;
+        let from = at + k * PIECE;
+        for (ch, p) in piece.iter_mut().enumerate() {
+            let plane = &ws.vals[ch * n + from..ch * n + from + m];
+            for (q, &v) in p.iter_mut().zip(plane) {
+                *q = T::from_f32(v);
+            }
+        }
+        for (i, o) in out.chunks_exact_mut(C).enumerate() {
+            for (o, p) in o.iter_mut().zip(&piece) {
+                *o = p[i];
+            }
+        }
+    }
+}
+
 /// `p` and its 4-neighbours in `s` (a window `ww` wide): `[up, left, centre, right, down]`, from
 /// one bounds check (processed pixels lie inside the window).
 #[inline(always)]
 fn cross<X: Copy>(s: &[X], p: usize, ww: usize) -> [X; 5] {
-    let w = &s[p - ww..p + ww + 1];
-    [w[0], w[ww - 1], w[ww], w[ww + 1], w[2 * ww]]
+    if p > ww && p + ww < s.len() {
+        // SAFETY: `p - ww >= 1` and `p + ww < len`, so all five indices are in bounds.
+        unsafe {
+            [
+                *s.get_unchecked(p - ww),
+                *s.get_unchecked(p - 1),
+                *s.get_unchecked(p),
+                *s.get_unchecked(p + 1),
+                *s.get_unchecked(p + ww),
+            ]
+        }
+    } else {
+        [s[p - ww], s[p - 1], s[p], s[p + 1], s[p + ww]]
+    }
 }
 
 /// The 4-neighbours of `wi` (up, left, down, right) and, as bits in that order, which of them
@@ -1132,32 +1203,28 @@ fn neighbours_with(flag: &[u8], wi: usize, ww: usize, f: u8) -> ([usize; 4], u32
 }
 
 /// Outward front from the band (`T = 0`) over the `NEAR` pixels, which become `KNOWN` with the
-/// negated arrival time.
+/// negated arrival time (the level-set weight then orders known pixels before the hole).
 #[inline(always)]
 fn march_outward<V: Simd8>(
     queue: &mut FrontQueue,
     flag: &mut [u8],
     t: &mut [f32],
     band: &[usize],
-    reached: &mut Vec<usize>,
     ww: usize,
 ) {
     queue.reset(flag.len(), band);
-    reached.clear();
     while let Some(wi) = queue.pop() {
         let (nbs, mut todo) = neighbours_with(flag, wi, ww, NEAR);
         while todo != 0 {
             let nb = nbs[todo.trailing_zeros() as usize & 3];
             todo &= todo - 1;
-            let d = V::arrival(cross(t, nb, ww));
-            t[nb] = d;
+            // Reached pixels hold -T already: the neighbours' times are the magnitudes (the
+            // band's 0 and the others' +inf unchanged).
+            let d = V::arrival(cross(t, nb, ww).map(f32::abs));
+            t[nb] = -d;
             flag[nb] = KNOWN;
-            reached.push(nb);
             queue.push(d, nb);
         }
-    }
-    for &wi in reached.iter() {
-        t[wi] = -t[wi];
     }
 }
 
@@ -1235,8 +1302,8 @@ trait Simd8: Copy {
     fn mul_add(self, o: Self, c: Self) -> Self;
     fn div(self, o: Self) -> Self;
     fn abs(self) -> Self;
-    /// `floor` in the lanes where `|self| <= limit`, else `self`.
-    fn floor_small(self, limit: f32, floor: f32) -> Self;
+    /// `floor` in the lanes where `self <= limit`, else `self`.
+    fn floor_small(self, limit: Self, floor: Self) -> Self;
     /// `((l0 + l1) + (l2 + l3)) + ((l4 + l5) + (l6 + l7))`.
     fn sum(self) -> f32;
     /// The sums of four vectors, each as [`Simd8::sum`] adds.
@@ -1317,8 +1384,15 @@ impl Simd8 for Lanes8 {
         self.zip(self, |a, _| a.abs())
     }
     #[inline(always)]
-    fn floor_small(self, limit: f32, floor: f32) -> Self {
-        self.zip(self, |a, _| if a.abs() <= limit { floor } else { a })
+    fn floor_small(self, limit: Self, floor: Self) -> Self {
+        Lanes8(std::array::from_fn(|l| {
+            let a = self.0[l];
+            if a <= limit.0[l] {
+                floor.0[l]
+            } else {
+                a
+            }
+        }))
     }
     #[inline(always)]
     fn sum(self) -> f32 {
@@ -1423,10 +1497,10 @@ mod avx {
             Avx8(unsafe { _mm256_and_ps(self.0, _mm256_castsi256_ps(_mm256_set1_epi32(i32::MAX))) })
         }
         #[inline(always)]
-        fn floor_small(self, limit: f32, floor: f32) -> Self {
+        fn floor_small(self, limit: Self, floor: Self) -> Self {
             unsafe {
-                let small = _mm256_cmp_ps::<_CMP_LE_OQ>(self.abs().0, _mm256_set1_ps(limit));
-                Avx8(_mm256_blendv_ps(self.0, _mm256_set1_ps(floor), small))
+                let small = _mm256_cmp_ps::<_CMP_LE_OQ>(self.0, limit.0);
+                Avx8(_mm256_blendv_ps(self.0, floor.0, small))
             }
         }
         #[inline(always)]
@@ -1490,16 +1564,17 @@ fn lanes_at(s: &[f32], at: usize) -> &[f32; LANES] {
 
 /// Telea's weights of one chunk of disk pixels (arrival times `tq`) for the pixel being filled
 /// (arrival time `tp`, gradient `(gx, gy)`): `direction * level-set * geometric`, the direction
-/// term floored so that no neighbour drops out.
+/// term floored so that no neighbour drops out; `geometric * direction` as one term,
+/// `|g r . grad T|` (floored at `g` times the floor where at most `g` times the limit).
 #[inline(always)]
 fn chunk_weights<V: Simd8>(tq: V, tp: V, gx: V, gy: V, lanes: &Lanes) -> V {
     let one = V::splat(1.0);
     let level = one.div(one.add(tq.sub(tp).abs()));
-    let dir = V::load(&lanes.rx)
-        .mul_add(gx, V::load(&lanes.ry).mul(gy))
+    let g_dir = V::load(&lanes.g_rx)
+        .mul_add(gx, V::load(&lanes.g_ry).mul(gy))
         .abs()
-        .floor_small(MIN_DIRECTION, DIRECTION_FLOOR);
-    V::load(&lanes.geometric).mul(level).mul(dir)
+        .floor_small(V::load(&lanes.g_limit), V::load(&lanes.g_floor));
+    level.mul(g_dir)
 }
 
 /// Eight values of `s` from `at`.

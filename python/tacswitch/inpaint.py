@@ -61,13 +61,15 @@ def _as_radius(radius: Any) -> int:
 def inpaint_telea(img: NDArray[Any], mask: NDArray[Any], radius: float = 3) -> NDArray[Any]:
     """Fills the masked pixels by Telea's fast-marching method (Rust core).
 
-    Drop-in for ``cv2.inpaint(img, mask, radius, cv2.INPAINT_TELEA)``: same front order, same
-    weights (direction x level-set distance x geometric distance) and the same outward level set
-    up to ``radius`` pixels, so results agree with OpenCV to about one grey level where OpenCV is
-    not defective. Deliberate differences:
+    Drop-in for ``cv2.inpaint(img, mask, radius, cv2.INPAINT_TELEA)``: the same fronts, weights
+    (direction x level-set distance x geometric distance) and outward level set up to ``radius``
+    pixels, so results agree with OpenCV to about one grey level where OpenCV is not defective.
+    Deliberate differences:
 
     - no ``+0.5`` before rounding and no OpenCV normalised-gradient term (up to +-1.4 grey levels
       of noise): a flat image comes back exactly flat, float images are not biased;
+    - the fronts advance in order of arrival time quantised to 1/64 pixel (ties in the order the
+      pixels were reached) rather than by a heap on the exact time;
     - holes touching any image border are filled (OpenCV leaves the top row and left column);
     - each 8-connected hole sees only known pixels and its own group of holes (holes closer than
       ``2 * radius + 2`` px are solved together); OpenCV lets a hole borrow a nearby hole's

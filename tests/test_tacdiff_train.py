@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import cv2
@@ -124,6 +125,9 @@ def test_train_tacdiff_tiny_run_resumes_and_exports(tmp_path: Path):
     shards = sorted(p.name for p in (tmp_path / "d").iterdir())
     assert shards and all(n.startswith("pairs_") for n in shards)
     assert (run / "checkpoint.pt").is_file() and (run / "model.safetensors").is_file()
+    umask = os.umask(0)
+    os.umask(umask)
+    assert (run / "model.safetensors").stat().st_mode & 0o777 == 0o666 & ~umask  # not private
     before = (run / "log.jsonl").read_text()
     assert main(args) == 0  # finished run: resumes, trains no further
     assert (run / "log.jsonl").read_text() == before

@@ -200,6 +200,10 @@ def save_weights(net: Any, path: str | Path, config: dict[str, Any], *,
     state = {k: (v.half() if half and v.is_floating_point() else v).contiguous()
              for k, v in net.state_dict().items()}
     save_file(state, str(tmp), metadata={"tacswitch.config": json.dumps(config)})
+    # safetensors creates the file private (0600); give it the mode a plain open() would have.
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)
     os.replace(tmp, target)
     return target
 

@@ -200,10 +200,50 @@ def test_tiles_without_holes_are_not_run(sample, monkeypatch):
     np.testing.assert_array_equal(out[~mask], img[~mask])
     count.pixels = 0
     infer.inpaint_tacdiff(img, mask, 1, patch="auto")
-    assert count.pixels == 128 * 128  # auto picks the tile over the 240 x 640 frame
+    # auto picks the window around the hole (grown by 16 px of context, in 16-px cells) over
+    # the tile and the 240 x 640 frame
+    assert count.pixels == 48 * 48
     count.pixels = 0
     infer.inpaint_tacdiff(img, mask, 1, patch=None)
     assert count.pixels == 240 * 640
+
+
+def test_hole_windows_cover_every_hole_once():
+    rng = np.random.default_rng(3)
+    mask = np.zeros((100, 150), bool)
+    for _ in range(12):
+        y, x = rng.integers(0, 100), rng.integers(0, 150)
+        mask[y:y + 9, x:x + 7] = True
+    windows, owner = infer.hole_windows(mask, 16, 16)
+    assert owner.shape == (7, 10)
+    for y0, x0, y1, x1 in windows:
+        assert y0 % 16 == x0 % 16 == y1 % 16 == x1 % 16 == 0
+        assert 0 <= y0 < y1 <= 112 and 0 <= x0 < x1 <= 160
+    # Every cell holding a hole pixel has exactly one owner, whose window holds it with at
+    # least one cell (16 px) of context where the frame allows.
+    cells = np.zeros((112, 160), bool)
+    cells[:100, :150] = mask
+    occupied = cells.reshape(7, 16, 10, 16).any(axis=(1, 3))
+    assert ((owner >= 0) == occupied).all()
+    for cy, cx in zip(*np.nonzero(occupied), strict=True):
+        y0, x0, y1, x1 = windows[owner[cy, cx]]
+        assert y0 <= max(0, cy - 1) * 16 and y1 >= min(112, (cy + 2) * 16)
+        assert x0 <= max(0, cx - 1) * 16 and x1 >= min(160, (cx + 2) * 16)
+
+
+def test_hole_windows_match_the_whole_frame():
+    from tacswitch.sim.scene import render_sample
+
+    s = render_sample("gelsight", 1)  # sparse grid: one window per marker
+    mask = ts.dilate_mask(s.marker_mask)
+    windows, _ = infer.hole_windows(mask, 16, infer.DEFAULT_CONTEXT)
+    assert len(windows) > 20
+    whole = infer.inpaint_tacdiff(s.image_markers, mask, 1, patch=None)
+    holes = infer.inpaint_tacdiff(s.image_markers, mask, 1, patch="holes")
+    np.testing.assert_array_equal(holes[~mask], s.image_markers[~mask])
+    e_w = masked_mae(whole, s.image, mask)
+    e_h = masked_mae(holes, s.image, mask)
+    assert abs(e_w - e_h) < 0.1 * e_w
 
 
 def test_tiled_result_close_to_whole_frame(sample):

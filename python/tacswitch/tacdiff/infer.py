@@ -41,8 +41,10 @@ DEFAULT_STEPS = 1
 DEFAULT_PATCH, DEFAULT_OVERLAP = 128, 32
 #: Most regions sent to onnxruntime in one call (bounds memory on huge frames).
 MAX_BATCH = 16
+#: Context (px) kept around each hole in ``patch="holes"`` windows.
+DEFAULT_CONTEXT = 16
 
-PatchArg = int | Literal["auto"] | None
+PatchArg = int | Literal["auto", "holes"] | None
 
 
 def default_model_path() -> Path:
@@ -115,47 +117,111 @@ def load_model(path: str | os.PathLike[str] | None = None) -> TacDiffModel:
     return cached(TacDiffModel, Path(path) if path is not None else default_model_path())
 
 
-def _regions(stack: NDArray[np.float32], mask: NDArray[np.bool_], multiple: int,
-             patch: PatchArg, overlap: int) -> tuple[str, Any]:
-    """Chooses whole-frame or tiled processing. Returns ``("whole", padded stack)`` or
-    ``("tiles", (patches, origins, run))`` where ``run`` flags tiles holding a pixel to fill."""
+def _choose(mask: NDArray[np.bool_], multiple: int, patch: PatchArg, overlap: int,
+            context: int) -> tuple[str, Any]:
+    """What goes through the network: ``("whole", None)``, ``("holes", (windows, owner))``
+    (:func:`hole_windows`) or ``("tiles", (origins, run))`` (tiles of the Rust
+    :func:`tacswitch.tile`, ``run`` flagging those holding a pixel to fill). ``"auto"`` takes
+    whichever runs the fewest pixels; ties go to the whole frame (one call), then the windows."""
     from tacswitch.inpaint import tile
 
     h, w = mask.shape
     ph, pw = -(-h // multiple) * multiple, -(-w // multiple) * multiple
-    whole_cost = ph * pw
-    if patch is None or (patch == "auto" and min(h, w) < DEFAULT_PATCH):
-        return "whole", _pad(stack, ph, pw)
-    side = DEFAULT_PATCH if patch == "auto" else int(patch)
-    patches, origins = tile(stack, side, overlap)
-    run = np.array([mask[y:y + side, x:x + side].any() for x, y in origins])
-    if patch == "auto" and int(run.sum()) * side * side >= whole_cost:
-        return "whole", _pad(stack, ph, pw)
-    return "tiles", (patches, origins, run)
+    options: dict[str, tuple[int, Any]] = {}
+    if patch in (None, "auto"):
+        options["whole"] = (ph * pw, None)
+    if patch in ("holes", "auto"):
+        windows, owner = hole_windows(mask, multiple, context)
+        options["holes"] = (sum((y1 - y0) * (x1 - x0) for y0, x0, y1, x1 in windows),
+                            (windows, owner))
+    if isinstance(patch, int) or (patch == "auto" and min(h, w) >= DEFAULT_PATCH):
+        side = DEFAULT_PATCH if patch == "auto" else int(patch)  # type: ignore[arg-type]
+        # Tiling the one-channel mask gives the layout at a fraction of the frame's cost.
+        flags, origins = tile(mask.view(np.uint8)[:, :, None], side, overlap)
+        run = flags.reshape(len(flags), -1).any(axis=1)
+        options["tiles"] = (int(run.sum()) * side * side, (origins, run, side))
+    kind = min(options, key=lambda k: (options[k][0], ("whole", "holes", "tiles").index(k)))
+    return kind, options[kind][1]
 
 
-def _pad(a: NDArray[np.float32], ph: int, pw: int) -> NDArray[np.float32]:
-    h, w = a.shape[:2]
-    if (h, w) == (ph, pw):
-        return a
-    mode = "reflect" if h > 1 and w > 1 and ph - h < h and pw - w < w else "edge"
-    out: NDArray[np.float32] = np.pad(a, ((0, ph - h), (0, pw - w), (0, 0)),
-                                      mode=mode)  # type: ignore[call-overload]
+def hole_windows(mask: NDArray[np.bool_], multiple: int, context: int
+                 ) -> tuple[list[tuple[int, int, int, int]], NDArray[np.int32]]:
+    """Windows around the holes for ``patch="holes"``: only these pixels go through the network.
+
+    The frame is cut into ``multiple x multiple`` cells; the cells holding a pixel to fill are
+    grouped into 8-connected components (about one per marker), and each component's bounding
+    box, grown by ``context`` px (whole cells) and clipped to the frame, is one window. Every
+    window is thus a multiple of the network's size step and holds at least ``context`` px of
+    gel around its holes (neighbouring holes inside it are seen as holes, as in a whole-frame
+    run). Windows may overlap; each fills only its own component's cells.
+
+    Returns:
+        ``(windows, owner)``: windows ``(y0, x0, y1, x1)`` in px of the frame padded to a
+        multiple of ``multiple``, and the ``ceil(H / m) x ceil(W / m)`` map giving, for each cell
+        holding a pixel to fill, the index of the window that fills it (-1 elsewhere).
+    """
+    h, w = mask.shape
+    ch, cw = -(-h // multiple), -(-w // multiple)
+    cells = np.zeros((ch * multiple, cw * multiple), bool)
+    cells[:h, :w] = mask
+    occupied: NDArray[np.bool_] = np.asarray(
+        cells.reshape(ch, multiple, cw, multiple).any(axis=(1, 3)))
+    k = -(-context // multiple)
+    owner = np.full((ch, cw), -1, np.int32)
+    windows: list[tuple[int, int, int, int]] = []
+    for sy, sx in zip(*np.nonzero(occupied), strict=True):
+        if owner[sy, sx] >= 0:
+            continue
+        idx = len(windows)
+        owner[sy, sx] = idx
+        todo, y0, x0, y1, x1 = [(int(sy), int(sx))], int(sy), int(sx), int(sy), int(sx)
+        while todo:  # flood fill over at most ch * cw cells
+            y, x = todo.pop()
+            y0, x0, y1, x1 = min(y0, y), min(x0, x), max(y1, y), max(x1, x)
+            for ny in range(max(0, y - 1), min(ch, y + 2)):
+                for nx in range(max(0, x - 1), min(cw, x + 2)):
+                    if occupied[ny, nx] and owner[ny, nx] < 0:
+                        owner[ny, nx] = idx
+                        todo.append((ny, nx))
+        windows.append((max(0, y0 - k) * multiple, max(0, x0 - k) * multiple,
+                        min(ch, y1 + 1 + k) * multiple, min(cw, x1 + 1 + k) * multiple))
+    return windows, owner
+
+
+def _sample_windows(model: TacDiffModel, planes: NDArray[np.float32],
+                    windows: list[tuple[int, int, int, int]], owner: NDArray[np.int32],
+                    steps: int, sampler: Sampler) -> NDArray[np.float32]:
+    """Samples every window of the padded ``C x H x W`` planes (batched by size) and returns
+    the ``3 x H x W`` image estimate: each window's output on the cells it owns, the prior
+    elsewhere."""
+    m = model.multiple
+    out = planes[7:10].copy()
+    by_shape: dict[tuple[int, int], list[int]] = {}
+    for i, (y0, x0, y1, x1) in enumerate(windows):
+        by_shape.setdefault((y1 - y0, x1 - x0), []).append(i)
+    for idx in by_shape.values():
+        batch = np.stack([planes[:, windows[i][0]:windows[i][2], windows[i][1]:windows[i][3]]
+                          for i in idx])
+        res = _sample(model, batch, steps, sampler)
+        for i, r in zip(idx, res, strict=True):
+            y0, x0, y1, x1 = windows[i]
+            own = owner[y0 // m:y1 // m, x0 // m:x1 // m] == i
+            own_px = np.repeat(np.repeat(own, m, axis=0), m, axis=1)
+            out[:, y0:y1, x0:x1][:, own_px] = r[:, own_px]
     return out
 
 
-def _sample(model: TacDiffModel, regions: NDArray[np.float32], steps: int, sampler: Sampler
+def _sample(model: TacDiffModel, x: NDArray[np.float32], steps: int, sampler: Sampler
             ) -> NDArray[np.float32]:
-    """Runs the sampler on ``B x S x S x C`` regions (cond 3, mask 1, noise 3, prior 3, and
-    spread 3 for two-fill priors; channels last) and returns the ``B x S x S x 3`` image
-    estimates in [-1, 1]."""
-    x = np.ascontiguousarray(regions.transpose(0, 3, 1, 2))
+    """Runs the sampler on ``B x C x H x W`` regions (cond 3, mask 1, noise 3, prior 3, and
+    spread 3 for two-fill priors) and returns the ``B x 3 x H x W`` image estimates in
+    [-1, 1]."""
     cond, mask, noise, prior = x[:, :3], x[:, 3:4], x[:, 4:7], x[:, 7:10]
     spread = x[:, 10:13] if x.shape[1] > 10 else None
     scale = model.residual_scale
     # Residual bounds that keep prior + residual inside the image range [-1, 1].
     lo, hi = scale * (-1.0 - prior), scale * (1.0 - prior)
-    x_t = noise.copy()
+    x_t = np.ascontiguousarray(noise)
     solver = Solver(sampler)
     ts = timesteps(steps)
     r0 = x_t
@@ -167,13 +233,40 @@ def _sample(model: TacDiffModel, regions: NDArray[np.float32], steps: int, sampl
         # the multistep extrapolation (saturated and black frames).
         np.clip(r0, lo, hi, out=r0)
         x_t = solver.step(x_t, r0, eps, float(t), float(t_next))
-    img = np.clip(prior + np.clip(r0, lo, hi) / scale, -1.0, 1.0)
-    return np.ascontiguousarray(img.transpose(0, 2, 3, 1))
+    out: NDArray[np.float32] = np.clip(prior + np.clip(r0, lo, hi) / scale, -1.0, 1.0)
+    return out
+
+
+def _planes(arr: NDArray[np.uint8], m: NDArray[np.bool_], model: TacDiffModel,
+            rng: np.random.Generator) -> NDArray[np.float32]:
+    """The network's inputs for the whole frame, channel-first (``C x H' x W'``, the frame
+    reflect-padded to a multiple of the model's size step): condition, mask, the run's noise
+    (drawn once per frame, on the pixels to fill only; the network never reads it elsewhere),
+    the classical prior and, for two-fill priors, the spread."""
+    h, w = m.shape
+    planes = np.zeros((model.channels, h, w), np.float32)
+    planes[0:3] = to_net(arr).transpose(2, 0, 1)
+    planes[3] = m
+    planes[4:7][:, m] = rng.standard_normal((3, int(m.sum())), dtype=np.float32)
+    telea, smooth = fills(arr, m, model.prior)
+    prior, spread = combine(to_net(telea), None if smooth is None else to_net(smooth))
+    planes[7:10] = prior.transpose(2, 0, 1)
+    if spread is not None:
+        planes[10:13] = spread.transpose(2, 0, 1)
+    k = model.multiple
+    ph, pw = -(-h // k) * k, -(-w // k) * k
+    if (ph, pw) == (h, w):
+        return planes
+    mode = "reflect" if h > 1 and w > 1 and ph - h < h and pw - w < w else "edge"
+    padded: NDArray[np.float32] = np.pad(planes, ((0, 0), (0, ph - h), (0, pw - w)),
+                                         mode=mode)  # type: ignore[call-overload]
+    return padded
 
 
 def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
                     sampler: Sampler = "dpmpp2m", seed: int | None = 0,
                     patch: PatchArg = "auto", overlap: int = DEFAULT_OVERLAP,
+                    context: int = DEFAULT_CONTEXT,
                     model: str | os.PathLike[str] | None = None) -> NDArray[np.uint8]:
     """Fills the masked pixels of a BGR frame with the TacDiff diffusion model.
 
@@ -185,16 +278,19 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
         sampler: ``"dpmpp2m"`` (DPM-Solver++(2M)) or ``"ddim"``.
         seed: seed of the initial noise (None: fresh randomness); the default 0 makes the output
             reproducible.
-        patch: ``None`` (whole frame at once), a tile side in px (multiple of 16), or ``"auto"``
-            (tiles of 128 when they run fewer pixels than the whole frame).
+        patch: ``None`` (whole frame at once), a tile side in px (multiple of 16),
+            ``"holes"`` (only windows around the holes, each with ``context`` px of gel around
+            them: :func:`hole_windows`), or ``"auto"`` (whichever of the whole frame, tiles of
+            128 and the hole windows runs the fewest pixels through the network).
         overlap: tile overlap in px.
+        context: px of known gel kept around the holes in ``"holes"`` windows.
         model: ONNX model path (default: the shipped model).
 
     Returns:
         A new ``H x W x 3`` uint8 image; pixels outside ``mask`` are bit-identical to ``img``.
     """
     from tacswitch._checks import as_count
-    from tacswitch.inpaint import _as_mask, merge_patches
+    from tacswitch.inpaint import _as_mask, merge_patches, tile
 
     arr = as_image_u8(img, "img")
     if arr.ndim != 3 or arr.shape[2] != 3:
@@ -207,32 +303,31 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
     if m.all():
         raise ValueError("mask: covers the whole image; nothing is known to inpaint from")
     net = load_model(model)
-    if patch not in (None, "auto"):
+    if patch not in (None, "auto", "holes"):
         side = as_count(patch, "patch", net.multiple)
         if side % net.multiple:
             raise ValueError(f"patch: must be a multiple of {net.multiple}; got {side}")
     ov = as_count(overlap, "overlap", 0)
+    ctx = as_count(context, "context", 0)
     h, w = m.shape
-    rng = np.random.default_rng(seed)
-    stack = np.empty((h, w, net.channels), np.float32)
-    stack[..., :3] = to_net(arr)
-    stack[..., 3] = m
-    stack[..., 4:7] = rng.standard_normal((h, w, 3), dtype=np.float32)
-    telea, smooth = fills(arr, m, net.prior)
-    prior, spread = combine(to_net(telea), None if smooth is None else to_net(smooth))
-    stack[..., 7:10] = prior
-    if spread is not None:
-        stack[..., 10:13] = spread
-    kind, data = _regions(stack, m, net.multiple, patch, ov)
+    planes = _planes(arr, m, net, np.random.default_rng(seed))
+    kind, data = _choose(m, net.multiple, patch, ov, ctx)
     if kind == "whole":
-        x0 = _sample(net, data[None], steps, sampler)[0, :h, :w]
+        x0 = _sample(net, planes[None], steps, sampler)[0]
+    elif kind == "holes":
+        windows, owner = data
+        x0 = _sample_windows(net, planes, windows, owner, steps, sampler)
     else:
-        patches, origins, run = data
-        merged = patches[..., :3].copy()
+        origins, run, side = data
+        hwc = np.ascontiguousarray(planes[:, :h, :w].transpose(1, 2, 0))
+        patches, _ = tile(hwc, side, ov)
+        merged = np.ascontiguousarray(patches[..., :3])
         if run.any():
-            merged[run] = _sample(net, patches[run], steps, sampler)
-        x0 = merge_patches(np.ascontiguousarray(merged), origins, (h, w, 3), mode="feather")
+            res = _sample(net, np.ascontiguousarray(patches[run].transpose(0, 3, 1, 2)), steps,
+                          sampler)
+            merged[run] = res.transpose(0, 2, 3, 1)
+        x0 = merge_patches(merged, origins, (h, w, 3), mode="feather").transpose(2, 0, 1)
     out = arr.copy()
-    vals = np.rint((x0[m] + 1.0) * np.float32(127.5))
+    vals = np.rint((x0[:, :h, :w][:, m].T + 1.0) * np.float32(127.5))
     out[m] = np.clip(vals, 0, 255).astype(np.uint8)
     return out

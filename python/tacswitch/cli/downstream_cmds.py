@@ -28,7 +28,8 @@ def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
                    help="texture samples per class (default: 30)")
     m.add_argument("--contact-samples", type=int, default=None,
                    help="contact-segmentation samples (default: 160)")
-    m.add_argument("--epochs", type=int, default=None, help="epochs of both tasks (default: 12)")
+    m.add_argument("--epochs", type=int, default=None,
+                   help="epochs of both tasks (default: 40 texture, 8 contact)")
     m.add_argument("--preset", default=None, help="simulator preset (default: gelsight_mini)")
     m.add_argument("--tasks", default=",".join(TASKS),
                    help="comma-separated (default: %(default)s)")

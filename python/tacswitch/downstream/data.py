@@ -65,9 +65,9 @@ class StudyScale:
     per_class: int = 30
     contact_samples: int = 160
     seeds: int = 3
-    texture_epochs: int = 12
-    contact_epochs: int = 12
-    texture_crop: int = 112
+    texture_epochs: int = 40
+    contact_epochs: int = 8
+    texture_crop: int = 96
     contact_scale: int = 2
     batch: int = 16
     steps: int = 1

@@ -28,7 +28,7 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -113,6 +113,28 @@ def _schedule(opt: Any, total: int) -> Callable[[int], None]:
     return set_lr
 
 
+def recalibrate_bn(net: Any, batches: Iterable[NDArray[np.uint8]]) -> None:
+    """Recomputes every BatchNorm layer's running statistics as the plain average over
+    ``batches`` (uint8 frames) with the trained weights, then leaves ``net`` in eval mode.
+
+    Needed because torchvision's MobileNetV3 keeps BatchNorm momentum at 0.01: after a few
+    hundred CPU training steps its running statistics are still mostly their initial values,
+    and in eval mode the segmenter then predicts background everywhere (IoU 0). The same
+    recalibration is applied to every model and input, so the comparison stays fair.
+    """
+    import torch
+
+    for mod in net.modules():
+        if isinstance(mod, torch.nn.modules.batchnorm._BatchNorm):
+            mod.reset_running_stats()
+            mod.momentum = None  # cumulative average
+    net.train()
+    with torch.no_grad():
+        for b in batches:
+            net(to_tensor(b))
+    net.eval()
+
+
 def run_texture(data: dict[str, NDArray[Any]], input_type: str, seed: int,
                 scale: StudyScale) -> dict[str, float]:
     """Trains ResNet-18 on ``input_type`` frames with ``seed``; test accuracy and the number of
@@ -155,7 +177,9 @@ def run_texture(data: dict[str, NDArray[Any]], input_type: str, seed: int,
             loss.backward()
             opt.step()
             step += 1
-    net.eval()
+    recalibrate_bn(net, (np.stack([crop_at(imgs[i], int(centres[i, 0]), int(centres[i, 1]),
+                                           side) for i in train[k:k + scale.batch]])
+                         for k in range(0, len(train), scale.batch)))
     with torch.no_grad():
         crops = np.stack([crop_at(imgs[i], int(centres[i, 0]), int(centres[i, 1]), side)
                           for i in test])
@@ -212,12 +236,17 @@ def run_contact(data: dict[str, NDArray[Any]], input_type: str, seed: int,
                 x, y = x[:, ::-1], y[:, ::-1]
             set_lr(step)
             out = net(to_tensor(x))["out"]
-            loss = F.cross_entropy(out, torch.from_numpy(np.ascontiguousarray(y)).long())
+            target = torch.from_numpy(np.ascontiguousarray(y))
+            # Cross-entropy plus a soft Dice term: contact is a minority of the pixels.
+            prob = out.softmax(1)[:, 1]
+            dice = 1 - (2 * (prob * target).sum() + 1) / (prob.sum() + target.sum() + 1)
+            loss = F.cross_entropy(out, target.long()) + dice
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
             step += 1
-    net.eval()
+    recalibrate_bn(net, (imgs[train[k:k + batch]] for k in range(0, len(train) - 1, batch)
+                         if len(train[k:k + batch]) > 1))
     inter = union = correct = total = 0
     with torch.no_grad():
         for i in test:

@@ -262,7 +262,8 @@ def remove_markers(
         ref: ``"hybrid"`` only: a no-contact frame of the same sensor to find the contact
             against (default: found from local texture).
         seed: TacDiff noise seed (None: fresh randomness each call).
-        model: TacDiff ONNX file (default: the shipped model).
+        model: TacDiff ONNX file, or ``"fast"`` for the shipped narrow model (default: the
+            shipped model).
         **extract_opts: passed to :func:`tacswitch.extract_markers` when ``mask`` is None.
 
     Returns:

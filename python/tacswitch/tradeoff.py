@@ -79,7 +79,7 @@ def tacdiff_methods(steps: Sequence[int] = (1, 2, 4, 8, 20), hybrid_steps: Seque
     the model's classical prior alone (what the network starts from), so the table shows what
     the learned part adds."""
     from tacswitch.tacdiff import inpaint_hybrid, inpaint_tacdiff
-    from tacswitch.tacdiff.infer import load_model
+    from tacswitch.tacdiff.infer import load_model, model_path
     from tacswitch.tacdiff.prior import combine, fills, to_net
 
     kind = load_model(model).prior
@@ -103,6 +103,12 @@ def tacdiff_methods(steps: Sequence[int] = (1, 2, 4, 8, 20), hybrid_steps: Seque
     for k in hybrid_steps:
         methods[("Hybrid (reference)", f"K={k}")] = hybrid(k, True)
         methods[("Hybrid (texture)", f"K={k}")] = hybrid(k, False)
+    if model is None and model_path("fast").is_file():
+        # The shipped narrow model: the model-width knob, at its fastest setting.
+        methods[("TacDiff fast", "K=1")] = \
+            lambda img, m, f: inpaint_tacdiff(img, m, 1, model="fast")
+        methods[("Hybrid fast (reference)", "K=1")] = \
+            lambda img, m, f: inpaint_hybrid(img, m, f.reference, steps=1, model="fast")[0]
     return methods
 
 

@@ -43,7 +43,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="hybrid: no-contact frame of the sensor to find the contact against "
                         "(default for a video: its first frame, which should show no contact; "
                         "for images: the contact is found from local texture)")
-    p.add_argument("--model", default=None, help="tacdiff/hybrid ONNX model (default: shipped)")
+    p.add_argument("--model", default=None,
+                   help="tacdiff/hybrid ONNX model, or 'fast' for the shipped narrow model "
+                        "(default: the shipped model)")
     p.add_argument("--frames", action="store_true",
                    help="write a video's frames as PNGs into OUT/<stem>/ instead of a video")
     p.add_argument("--workers", type=int, default=None, metavar="N",

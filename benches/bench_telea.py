@@ -22,6 +22,7 @@ import glob
 import io
 import sys
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -136,20 +137,34 @@ def update_markdown(section: str, body: str) -> None:
     path.write_text(text)
 
 
-def main() -> int:
+def parse_args() -> argparse.Namespace:
+    """The options of the inpainting benchmarks: --quick, --taxim, --update-md."""
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="fewer frames and samples")
     ap.add_argument("--taxim", type=Path, default=Path("/tmp/taxim"), help="folder with the wheel")
     ap.add_argument("--update-md", action="store_true", help="write the table into BENCHMARKS.md")
-    args = ap.parse_args()
+    return ap.parse_args()
+
+
+def synthetic_and_real(run_fn: Callable[[str, list[np.ndarray], int, int], list[list[str]]],
+                       args: argparse.Namespace, quick: tuple[int, int, int],
+                       full: tuple[int, int, int]) -> list[list[str]]:
+    """``run_fn`` on the synthetic frames, then on the real Taxim frames when the wheel is
+    there; ``quick``/``full`` are (rounds, repeat, frames). Pins everything to one thread."""
     single_thread()
-    rounds, repeat, n_frames = (3, 3, 2) if args.quick else (6, 5, 6)
-    rows = run("synthetic", synthetic_frames(n_frames), rounds, repeat)
+    rounds, repeat, n_frames = quick if args.quick else full
+    rows = run_fn("synthetic", synthetic_frames(n_frames), rounds, repeat)
     real = real_frames(args.taxim, 2 * n_frames)
     if real:
-        rows += run(f"real GelSight ({len(real)} frames)", real, rounds, repeat)
+        rows += run_fn(f"real GelSight ({len(real)} frames)", real, rounds, repeat)
     else:
         print(f"(no Taxim wheel under {args.taxim}: real frames skipped)", file=sys.stderr)
+    return rows
+
+
+def main() -> int:
+    args = parse_args()
+    rows = synthetic_and_real(run, args, (3, 3, 2), (6, 5, 6))
     header = [
         "frames",
         "markers",

@@ -25,6 +25,15 @@ def disc_image(
     )
 
 
+def disc_mask(shape: tuple[int, int], centres: list[tuple[float, float]], r: float) -> np.ndarray:
+    """``H x W`` bool mask of discs of radius ``r`` px at ``centres`` ``(x, y)``."""
+    yy, xx = np.mgrid[0 : shape[0], 0 : shape[1]]
+    m = np.zeros(shape, bool)
+    for cx, cy in centres:
+        m |= (xx - cx) ** 2 + (yy - cy) ** 2 <= r * r
+    return m
+
+
 @pytest.fixture
 def gelsight_grid() -> np.ndarray:
     """48 marker centres of the paper's GelSight at sub-pixel offsets."""

@@ -9,16 +9,9 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 import tacswitch as ts
+from conftest import disc_mask
 from tacswitch import tradeoff
 from tacswitch.metrics import masked_mae
-
-
-def discs(shape: tuple[int, int], centres: list[tuple[float, float]], r: float) -> np.ndarray:
-    yy, xx = np.mgrid[0 : shape[0], 0 : shape[1]]
-    m = np.zeros(shape, bool)
-    for cx, cy in centres:
-        m |= (xx - cx) ** 2 + (yy - cy) ** 2 <= r * r
-    return m
 
 
 def test_matches_scikit_image_on_interior_holes():
@@ -28,7 +21,7 @@ def test_matches_scikit_image_on_interior_holes():
     yy, xx = np.mgrid[0:h, 0:w]
     img = np.stack([100 + 40 * np.sin(xx / 9) * np.cos(yy / 13), 80 + 0.3 * xx,
                     rng.normal(120, 10, (h, w))], axis=-1).astype(np.float32)
-    mask = discs((h, w), [(25, 25), (70, 30), (95, 65), (40, 66)], 7.5)
+    mask = disc_mask((h, w), [(25, 25), (70, 30), (95, 65), (40, 66)], 7.5)
     ours = ts.inpaint_biharmonic(img, mask)
     ref = restoration.inpaint_biharmonic(img.astype(np.float64), mask, channel_axis=-1,
                                          split_into_regions=True)
@@ -41,7 +34,7 @@ def test_matches_scikit_image_on_interior_holes():
     (np.float32, 0.1234567, 1), (np.float32, -3.5e4, 3)])
 def test_flat_image_stays_flat_including_border_holes(dtype: type, value: float, channels: int):
     shape = (60, 80)
-    mask = discs(shape, [(0, 0), (79, 59), (40, 30), (0, 30), (44, 0)], 6)
+    mask = disc_mask(shape, [(0, 0), (79, 59), (40, 30), (0, 30), (44, 0)], 6)
     img = np.full((*shape, channels), value, dtype=dtype)
     img[mask] = 0  # what lies under the mask must not leak
     out = ts.inpaint_biharmonic(img if channels > 1 else img[:, :, 0], mask)
@@ -56,7 +49,7 @@ def test_reproduces_smooth_surfaces_that_telea_flattens():
     h, w = 64, 64
     yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
     img = (100 + 0.02 * (xx - 32) ** 2 - 0.02 * (yy - 32) ** 2 + 0.5 * xx).astype(np.float32)
-    mask = discs((h, w), [(32, 32)], 10)
+    mask = disc_mask((h, w), [(32, 32)], 10)
     out = ts.inpaint_biharmonic(img, mask)
     telea = ts.inpaint_telea(img, mask, 3)
     err = np.abs(out - img)[mask].max()

@@ -10,16 +10,9 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 import tacswitch
+from conftest import disc_mask
 from tacswitch import sim
 from tacswitch.inpaint import inpaint_telea, remove_markers
-
-
-def disc_mask(shape: tuple[int, int], centres: list[tuple[float, float]], r: float) -> np.ndarray:
-    yy, xx = np.mgrid[0 : shape[0], 0 : shape[1]]
-    m = np.zeros(shape, bool)
-    for cx, cy in centres:
-        m |= (xx - cx) ** 2 + (yy - cy) ** 2 <= r * r
-    return m
 
 
 def textured(h: int, w: int, seed: int = 0) -> np.ndarray:

@@ -113,6 +113,31 @@ def _schedule(opt: Any, total: int) -> Callable[[int], None]:
     return set_lr
 
 
+def _fit(net: Any, train: NDArray[np.int64], epochs: int, batch: int,
+         rng: np.random.Generator, loss_of: Callable[[NDArray[np.int64]], Any], *,
+         drop_last: bool = False) -> None:
+    """Trains ``net`` with AdamW on the warm-up + cosine schedule: every epoch visits ``train``
+    in a new random order, in batches of ``batch`` indices; ``loss_of(indices)`` returns the
+    batch loss (it may draw from ``rng`` for augmentation). ``drop_last`` skips a short last
+    batch (BatchNorm needs two frames)."""
+    import torch
+
+    opt = torch.optim.AdamW(net.parameters(), lr=LR, weight_decay=WEIGHT_DECAY)
+    per_epoch = max(1, len(train) // batch) if drop_last else math.ceil(len(train) / batch)
+    set_lr = _schedule(opt, per_epoch * epochs)
+    step = 0
+    net.train()
+    for _ in range(epochs):
+        order = rng.permutation(train)
+        for b in range(per_epoch):
+            set_lr(step)
+            loss = loss_of(order[b * batch:(b + 1) * batch])
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            opt.step()
+            step += 1
+
+
 def recalibrate_bn(net: Any, batches: Iterable[NDArray[np.uint8]]) -> None:
     """Recomputes every BatchNorm layer's running statistics as the plain average over
     ``batches`` (uint8 frames) with the trained weights, then leaves ``net`` in eval mode.
@@ -148,35 +173,25 @@ def run_texture(data: dict[str, NDArray[Any]], input_type: str, seed: int,
     train, test = split(labels, "texture", seed)
     torch.manual_seed(seed)
     net = torchvision.models.resnet18(weights=None, num_classes=n_classes)
-    opt = torch.optim.AdamW(net.parameters(), lr=LR, weight_decay=WEIGHT_DECAY)
     rng = np.random.default_rng([seed, 23])
     h, w = imgs.shape[1:3]
     side = min(scale.texture_crop, h, w)
     centres = contact_centres(data["contact"])
     jitter = side // 8
-    per_epoch = math.ceil(len(train) / scale.batch)
-    set_lr = _schedule(opt, per_epoch * scale.texture_epochs)
-    step = 0
-    net.train()
-    for _ in range(scale.texture_epochs):
-        order = rng.permutation(train)
-        for b in range(per_epoch):
-            idx = order[b * scale.batch:(b + 1) * scale.batch]
-            crops = np.empty((len(idx), side, side, 3), np.uint8)
-            for j, i in enumerate(idx):
-                dy, dx = rng.integers(-jitter, jitter + 1, 2)
-                c = crop_at(imgs[i], int(centres[i, 0] + dy), int(centres[i, 1] + dx), side)
-                if rng.random() < 0.5:
-                    c = c[:, ::-1]
-                if rng.random() < 0.5:
-                    c = c[::-1]
-                crops[j] = c
-            set_lr(step)
-            loss = F.cross_entropy(net(to_tensor(crops)), torch.from_numpy(labels[idx]))
-            opt.zero_grad(set_to_none=True)
-            loss.backward()
-            opt.step()
-            step += 1
+
+    def loss_of(idx: NDArray[np.int64]) -> Any:
+        crops = np.empty((len(idx), side, side, 3), np.uint8)
+        for j, i in enumerate(idx):
+            dy, dx = rng.integers(-jitter, jitter + 1, 2)
+            c = crop_at(imgs[i], int(centres[i, 0] + dy), int(centres[i, 1] + dx), side)
+            if rng.random() < 0.5:
+                c = c[:, ::-1]
+            if rng.random() < 0.5:
+                c = c[::-1]
+            crops[j] = c
+        return F.cross_entropy(net(to_tensor(crops)), torch.from_numpy(labels[idx]))
+
+    _fit(net, train, scale.texture_epochs, scale.batch, rng, loss_of)
     recalibrate_bn(net, (np.stack([crop_at(imgs[i], int(centres[i, 0]), int(centres[i, 1]),
                                            side) for i in train[k:k + scale.batch]])
                          for k in range(0, len(train), scale.batch)))
@@ -218,33 +233,23 @@ def run_contact(data: dict[str, NDArray[Any]], input_type: str, seed: int,
     torch.manual_seed(seed)
     net = deeplabv3_mobilenet_v3_large(weights=None, weights_backbone=None, num_classes=2,
                                        aux_loss=False)
-    opt = torch.optim.AdamW(net.parameters(), lr=LR, weight_decay=WEIGHT_DECAY)
     rng = np.random.default_rng([seed, 29])
     batch = max(2, scale.batch // 2)  # BatchNorm needs at least two frames per batch
-    per_epoch = max(1, len(train) // batch)
-    set_lr = _schedule(opt, per_epoch * scale.contact_epochs)
-    step = 0
-    net.train()
-    for _ in range(scale.contact_epochs):
-        order = rng.permutation(train)
-        for b in range(per_epoch):
-            idx = order[b * batch:(b + 1) * batch]
-            x, y = imgs[idx], masks[idx]
-            if rng.random() < 0.5:
-                x, y = x[:, :, ::-1], y[:, :, ::-1]
-            if rng.random() < 0.5:
-                x, y = x[:, ::-1], y[:, ::-1]
-            set_lr(step)
-            out = net(to_tensor(x))["out"]
-            target = torch.from_numpy(np.ascontiguousarray(y))
-            # Cross-entropy plus a soft Dice term: contact is a minority of the pixels.
-            prob = out.softmax(1)[:, 1]
-            dice = 1 - (2 * (prob * target).sum() + 1) / (prob.sum() + target.sum() + 1)
-            loss = F.cross_entropy(out, target.long()) + dice
-            opt.zero_grad(set_to_none=True)
-            loss.backward()
-            opt.step()
-            step += 1
+
+    def loss_of(idx: NDArray[np.int64]) -> Any:
+        x, y = imgs[idx], masks[idx]
+        if rng.random() < 0.5:
+            x, y = x[:, :, ::-1], y[:, :, ::-1]
+        if rng.random() < 0.5:
+            x, y = x[:, ::-1], y[:, ::-1]
+        out = net(to_tensor(x))["out"]
+        target = torch.from_numpy(np.ascontiguousarray(y))
+        # Cross-entropy plus a soft Dice term: contact is a minority of the pixels.
+        prob = out.softmax(1)[:, 1]
+        dice = 1 - (2 * (prob * target).sum() + 1) / (prob.sum() + target.sum() + 1)
+        return F.cross_entropy(out, target.long()) + dice
+
+    _fit(net, train, scale.contact_epochs, batch, rng, loss_of, drop_last=True)
     recalibrate_bn(net, (imgs[train[k:k + batch]] for k in range(0, len(train) - 1, batch)
                          if len(train[k:k + batch]) > 1))
     inter = union = correct = total = 0

@@ -29,11 +29,7 @@ pub fn contiguous<'a, T: Element>(
 }
 
 /// Borrows the `H x W` uint8 mask (nonzero = fill).
-pub fn mask_arg<'a>(
-    mask: &'a PyReadonlyArrayDyn<'_, u8>,
-    h: usize,
-    w: usize,
-) -> PyResult<&'a [u8]> {
+fn mask_arg<'a>(mask: &'a PyReadonlyArrayDyn<'_, u8>, h: usize, w: usize) -> PyResult<&'a [u8]> {
     if mask.shape() != [h, w] {
         return Err(PyValueError::new_err(format!(
             "mask: expected shape ({h}, {w}) to match img; got {:?}",
@@ -43,21 +39,34 @@ pub fn mask_arg<'a>(
     contiguous(mask, "mask")
 }
 
+/// Validates `arr` and `mask`, runs `solve` on zero-copy views with the GIL released, and
+/// returns its output as an array of `arr`'s shape (shared by the inpainting bindings).
+pub fn inpaint_with<'py, T, F>(
+    py: Python<'py>,
+    arr: PyReadonlyArrayDyn<'py, T>,
+    mask: &PyReadonlyArrayDyn<'py, u8>,
+    solve: F,
+) -> PyResult<Bound<'py, PyAny>>
+where
+    T: Sample + Element,
+    F: FnOnce(&ImageView<'_, T>, &[u8]) -> tacswitch_core::Result<Vec<T>> + Send,
+{
+    let shape = arr.shape().to_vec();
+    let (h, w, c) = image_shape(&shape, "img")?;
+    let data = contiguous(&arr, "img")?;
+    let m = mask_arg(mask, h, w)?;
+    let view = ImageView::new(data, h, w, c, "img").map_err(to_py)?;
+    let out = py.detach(|| solve(&view, m)).map_err(to_py)?;
+    Ok(PyArray1::from_vec(py, out).reshape(shape)?.into_any())
+}
+
 fn run<'py, T: Sample + Element>(
     py: Python<'py>,
     arr: PyReadonlyArrayDyn<'py, T>,
     mask: &PyReadonlyArrayDyn<'py, u8>,
     radius: usize,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let shape = arr.shape().to_vec();
-    let (h, w, c) = image_shape(&shape, "img")?;
-    let data = contiguous(&arr, "img")?;
-    let m = mask_arg(mask, h, w)?;
-    let view = ImageView::new(data, h, w, c, "img").map_err(to_py)?;
-    let out = py
-        .detach(|| core_inpaint(&view, m, radius))
-        .map_err(to_py)?;
-    Ok(PyArray1::from_vec(py, out).reshape(shape)?.into_any())
+    inpaint_with(py, arr, mask, |view, m| core_inpaint(view, m, radius))
 }
 
 /// Telea inpainting of a uint8 / uint16 / float32 image (1 to 4 channels); returns a new array.

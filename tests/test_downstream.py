@@ -141,6 +141,9 @@ def test_cli_rejects_bad_arguments(tmp_path: Path, capsys):
 
 
 def test_default_scale_is_the_documented_one():
+    from tacswitch.inpaint import DEFAULT_DILATE
+
     s = ddata.StudyScale()
     assert (s.preset, s.seeds) == ("gelsight_mini", 3)
+    assert s.dilate == DEFAULT_DILATE  # the frames are what remove_markers gives a user
     assert dataclasses.replace(s, seeds=5).data_key() == s.data_key()

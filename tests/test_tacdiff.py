@@ -291,7 +291,7 @@ def test_hybrid_on_untouched_gel_is_telea(sample):
     from tacswitch.markers import extract_markers
 
     ref = s.reference
-    m = extract_markers(ref, dilate=1, exclude_border=False).mask
+    m = extract_markers(ref, dilate=2, exclude_border=False).mask
     out, info = inpaint_hybrid(ref, m, ref)
     assert info.model_pixels == 0 and info.saved == 1.0
     np.testing.assert_array_equal(out, ts.inpaint_telea(ref, m, 3))

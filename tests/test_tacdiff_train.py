@@ -23,7 +23,7 @@ def marker_frames() -> list[np.ndarray]:
 
 def test_marker_offset_pairs_follow_the_paper(marker_frames):
     pairs = tdata.marker_offset_pairs(marker_frames)
-    orig = ts.extract_markers(marker_frames[0], dilate=1, exclude_border=False).mask
+    orig = ts.extract_markers(marker_frames[0], dilate=2, exclude_border=False).mask
     mask, loss = pairs["mask"][0], pairs["loss_mask"][0]
     # Shifted by half the pitch (28.5 px / 2 -> 14) on both axes; pixels shifted out are dropped.
     shift = tdata._shift(orig, (14, 14))
@@ -96,7 +96,7 @@ def test_remove_markers_cli_tacdiff_and_hybrid(tmp_path: Path):
         assert main(["remove-markers", str(src), "-o", str(out), "--method", method,
                      "--steps", "1", *extra, "-q"]) == 0
         got = cv2.imread(str(out / "a.png"))
-        mask = ts.extract_markers(s.image_markers, dilate=1, exclude_border=False).mask
+        mask = ts.extract_markers(s.image_markers, dilate=2, exclude_border=False).mask
         np.testing.assert_array_equal(got[~mask], s.image_markers[~mask])
 
 

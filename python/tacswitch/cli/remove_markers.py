@@ -21,7 +21,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "remove-markers",
         help="remove the painted markers from images and videos",
-        description="Extracts each frame's markers, dilates the mask once (as the paper) and "
+        description="Extracts each frame's markers, dilates the mask twice (it must cover the "
+        "markers' soft edges) and "
         "inpaints it. An image becomes OUT/<stem>.png; a video (" + ", ".join(
             sorted(VIDEO_SUFFIXES)) + ") becomes OUT/<stem>.mp4 (mp4v, same size and fps; "
         "frames that do not decode are skipped and counted), or with --frames a folder "

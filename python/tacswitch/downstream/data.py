@@ -59,6 +59,8 @@ class StudyScale:
         contact_scale: the segmenter sees frames downsampled by this factor (area).
         batch: training batch size.
         steps: TacDiff sampler steps for the ``tacdiff`` and ``hybrid`` inputs.
+        dilate: dilations of each frame's extracted marker mask before inpainting
+            (:data:`tacswitch.inpaint.DEFAULT_DILATE`).
     """
 
     preset: str = "gelsight_mini"
@@ -71,11 +73,13 @@ class StudyScale:
     contact_scale: int = 2
     batch: int = 16
     steps: int = 1
+    dilate: int = 2
 
     def data_key(self) -> dict[str, Any]:
         """The settings that fix the rendered data (a data folder is built for one of these)."""
         return {"preset": self.preset, "per_class": self.per_class,
-                "contact_samples": self.contact_samples, "steps": self.steps}
+                "contact_samples": self.contact_samples, "steps": self.steps,
+                "dilate": self.dilate}
 
 
 #: A scale for tests and smoke runs (seconds, not minutes; numbers are meaningless).
@@ -122,13 +126,15 @@ def render_inputs(task: str, index: int, scale: StudyScale, seed: int = 0,
     rng = np.random.default_rng(np.random.SeedSequence([seed, TASKS.index(task), index]))
     s = render_sample(scale.preset, rng, label=labels[cls])
     frame = s.image_markers
+    d = scale.dilate
     imgs = {
         "none": frame,
-        "ns": ts.remove_markers(frame, method="ns"),
-        "telea": ts.remove_markers(frame, method="telea"),
-        "tacdiff": ts.remove_markers(frame, method="tacdiff", steps=scale.steps, model=model),
-        "hybrid": ts.remove_markers(frame, method="hybrid", ref=s.reference, steps=scale.steps,
-                                    model=model),
+        "ns": ts.remove_markers(frame, method="ns", dilate=d),
+        "telea": ts.remove_markers(frame, method="telea", dilate=d),
+        "tacdiff": ts.remove_markers(frame, method="tacdiff", dilate=d, steps=scale.steps,
+                                     model=model),
+        "hybrid": ts.remove_markers(frame, method="hybrid", dilate=d, ref=s.reference,
+                                    steps=scale.steps, model=model),
         "truth": s.image,
     }
     return {"images": imgs, "label": cls, "contact": s.contact_mask}

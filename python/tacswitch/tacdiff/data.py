@@ -32,7 +32,8 @@ from tacswitch.tacdiff.prior import to_net as prior_to_net
 #: Default mix of simulator presets (name, share of samples).
 PRESET_MIX: tuple[tuple[str, float], ...] = (
     ("gelsight", 0.3), ("gelsight_mini", 0.4), ("digit", 0.15), ("dense", 0.15))
-#: Mask dilations before inpainting (the paper dilates once with a 3x3 ellipse).
+#: Dilations of the *true* marker mask of simulated pairs (it already holds the soft edges; the
+#: paper dilates once with a 3x3 ellipse). Extracted masks use ``inpaint.DEFAULT_DILATE``.
 MASK_DILATE = 1
 
 
@@ -105,7 +106,7 @@ def marker_offset_pairs(frames: Sequence[NDArray[np.uint8]], *, offset: tuple[in
         arrays ``cond``, ``target``, ``mask``, ``loss_mask`` (``B x H x W [x 3]``) as in the
         module docstring.
     """
-    from tacswitch.inpaint import inpaint_telea
+    from tacswitch.inpaint import DEFAULT_DILATE, inpaint_telea
     from tacswitch.markers import extract_markers
     from tacswitch.tracking import estimate_pitch
 
@@ -119,7 +120,7 @@ def marker_offset_pairs(frames: Sequence[NDArray[np.uint8]], *, offset: tuple[in
         if f.shape != shape or f.dtype != np.uint8 or f.ndim != 3 or f.shape[2] != 3:
             raise ValueError(f"frames[{i}]: expected {shape} uint8 BGR like frames[0]; got "
                              f"{f.shape} {f.dtype}")
-        m = extract_markers(f, dilate=MASK_DILATE, **extract_opts)
+        m = extract_markers(f, dilate=DEFAULT_DILATE, **extract_opts)
         if shift is None:
             pitch = estimate_pitch(m.centres)
             if pitch is None:

@@ -109,6 +109,12 @@ def test_evaluate_tacdiff_tiny(tmp_path: Path):
     names = {(r["method"], r["setting"]) for r in rows}
     assert ("TacDiff", "K=1") in names and ("TELEA (OpenCV)", "r=3") in names
     assert all(0 < r["ssim"] <= 1 and r["masked_mae"] > 0 for r in rows)
+    assert main(["evaluate", "tacdiff", "--frames", "1", "--presets", "gelsight_mini",
+                 "--steps", "1", "--mask", "extracted", "--json", str(report), "-q"]) == 0
+    extracted = {(r["method"], r["setting"]): r for r in
+                 json.loads(report.read_text())["gelsight_mini"]}
+    # The extracted mask is scored on its union with the true footprint: a larger area.
+    assert extracted[("TacDiff", "K=1")]["masked_mae"] > 0
 
 
 def test_train_tacdiff_tiny_run_resumes_and_exports(tmp_path: Path):

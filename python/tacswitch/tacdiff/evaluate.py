@@ -39,9 +39,9 @@ def evaluate(frames: Sequence[PairedFrame], methods: dict[tuple[str, str], Inpai
             outs.append(out)
             for k, v in paper_metrics(out, f.truth).items():
                 per[k].append(v)
-            per["masked_mae"].append(masked_mae(out, f.truth, f.mask))
-            if (f.mask & f.contact).any():
-                per["contact_mae"].append(masked_mae(out, f.truth, f.mask & f.contact))
+            per["masked_mae"].append(masked_mae(out, f.truth, f.scored))
+            if (f.scored & f.contact).any():
+                per["contact_mae"].append(masked_mae(out, f.truth, f.scored & f.contact))
         row = {"method": name, "setting": knob,
                **{k: float(np.mean(v)) if v else float("nan") for k, v in per.items()}}
         if features is not None:

@@ -76,10 +76,16 @@ def sample():
     return s, dilate_mask(s.marker_mask)
 
 
-def test_shipped_model_loads_and_says_bgr():
-    m = infer.load_model()
+@pytest.mark.parametrize("name", sorted(infer.SHIPPED))
+def test_shipped_models_load_and_say_bgr(name):
+    m = infer.load_model(name)
     assert m.metadata["tacswitch.colour_order"] == "BGR"
     assert m.metadata["tacswitch.prediction"] == "v"
+
+
+def test_fast_model_is_the_narrower_one():
+    sizes = {name: infer.model_path(name).stat().st_size for name in ("default", "fast")}
+    assert sizes["fast"] < 0.6 * sizes["default"], sizes
 
 
 def test_unmasked_pixels_are_untouched_and_seed_is_reproducible(sample):
@@ -91,12 +97,13 @@ def test_unmasked_pixels_are_untouched_and_seed_is_reproducible(sample):
     assert a.dtype == np.uint8 and a.shape == s.image_markers.shape
 
 
-def test_quality_close_to_telea_and_far_better_than_no_fill(sample):
-    """The shipped model must inpaint, not hallucinate: its masked error is within a small
+@pytest.mark.parametrize("name", sorted(infer.SHIPPED))
+def test_quality_close_to_telea_and_far_better_than_no_fill(sample, name):
+    """The shipped models must inpaint, not hallucinate: their masked error is within a small
     margin of TELEA's and far below leaving the markers in."""
     s, mask = sample
     telea = ts.inpaint_telea(s.image_markers, mask, 3)
-    diff = ts.remove_markers(s.image_markers, mask, method="tacdiff")
+    diff = ts.remove_markers(s.image_markers, mask, method="tacdiff", model=name)
     e_telea = masked_mae(telea, s.image, mask)
     e_diff = masked_mae(diff, s.image, mask)
     e_none = masked_mae(s.image_markers, s.image, mask)

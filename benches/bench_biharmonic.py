@@ -17,8 +17,8 @@ from __future__ import annotations
 import sys
 
 import numpy as np
-from bench_telea import LAYOUTS, mae, paint, parse_args, synthetic_and_real, update_markdown
-from harness import interleaved, machine, table
+from bench_telea import LAYOUTS, mae, paint, parse_args, synthetic_and_real
+from harness import interleaved, machine, publish
 
 from tacswitch.inpaint import inpaint_biharmonic, inpaint_telea
 
@@ -58,19 +58,12 @@ def main() -> int:
     rows = synthetic_and_real(run, args, (2, 2, 2), (4, 3, 6))
     header = ["frames", "markers", "masked px", "scikit-image", "tacswitch", "speed-up",
               "MAE scikit-image", "MAE ours", "MAE TELEA r=3 (ours)"]
-    body = "\n".join([
+    publish("## Biharmonic inpainting", [
         f"Machine: {machine()}. One thread (`RAYON_NUM_THREADS=1`).",
         "Times: median [IQR] per 640x480 BGR frame, both in alternating rounds of one run.",
         "MAE: mean |inpainted - true| over the masked pixels and channels (grey levels),",
         "averaged over the frames; markers and mask as in the TELEA section.",
-        "",
-        table(header, rows),
-        "",
-        f"Command: `{COMMAND}`",
-    ])
-    print(body)
-    if args.update_md:
-        update_markdown("## Biharmonic inpainting", body)
+    ], header, rows, COMMAND, args.update_md)
     return 0
 
 

@@ -13,8 +13,7 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from bench_telea import update_markdown
-from harness import interleaved, machine, single_thread, table
+from harness import interleaved, machine, publish, single_thread
 
 from tacswitch.inpaint import merge_patches, tile
 
@@ -110,21 +109,12 @@ def main() -> int:
             ]
         )
     header = ["operation", "patches", "numpy", "tacswitch", "speed-up", "max |ours - numpy|"]
-    body = "\n".join(
-        [
-            f"Machine: {machine()}. One thread (`RAYON_NUM_THREADS=1`).",
-            "256x256x3 float32 patches, each offset by its index so overlaps disagree;",
-            "median [IQR] per call, both in alternating rounds of one run.",
-            "numpy: slice-accumulate `w * patch` and `w`, then divide (float32).",
-            "",
-            table(header, rows),
-            "",
-            f"Command: `{COMMAND}`",
-        ]
-    )
-    print(body)
-    if args.update_md:
-        update_markdown("## Patch merging", body)
+    publish("## Patch merging", [
+        f"Machine: {machine()}. One thread (`RAYON_NUM_THREADS=1`).",
+        "256x256x3 float32 patches, each offset by its index so overlaps disagree;",
+        "median [IQR] per call, both in alternating rounds of one run.",
+        "numpy: slice-accumulate `w * patch` and `w`, then divide (float32).",
+    ], header, rows, COMMAND, args.update_md)
     return 0
 
 

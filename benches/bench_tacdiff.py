@@ -3,7 +3,7 @@ TELEA r=3 and biharmonic fills on the same frames, median of repeated runs. Ever
 cores, as users run it (onnxruntime's threads, rayon's pool for TELEA and the biharmonic fill
 TacDiff starts from).
 
-    python benches/bench_tacdiff.py [--frames 3] [--rounds 3]
+    python benches/bench_tacdiff.py [--frames 3] [--rounds 3] [--fast-steps 1,2]
 
 Quality is reported by ``tacswitch evaluate tacdiff`` (held-out frames, the paper's metrics).
 """
@@ -38,8 +38,10 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=3)
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--steps", default="1,2,4,8,20")
+    ap.add_argument("--fast-steps", default="1,2", help="K for the shipped fast model")
     args = ap.parse_args()
-    steps = [int(k) for k in args.steps.split(",")]
+    runs = [("default", int(k)) for k in args.steps.split(",")]
+    runs += [("fast", int(k)) for k in args.fast_steps.split(",") if k]
     print("| preset | method | ms / frame (median over frames) | vs TELEA r=3 | share of holes "
           "through the network |")
     print("|---|---|---|---|---|")
@@ -52,19 +54,22 @@ def main() -> None:
         bh = float(np.median([_median_ms(lambda s=s, m=m: ts.inpaint_biharmonic(
             s.image_markers, m), args.rounds) for s, m in zip(samples, masks, strict=True)]))
         print(f"| {preset} | biharmonic | {bh:.1f} | {bh / telea:.0f}x | 0 |")
-        for k in steps:
-            ms = float(np.median([_median_ms(lambda s=s, m=m, k=k: inpaint_tacdiff(
-                s.image_markers, m, k), args.rounds) for s, m in zip(samples, masks, strict=True)]))
-            print(f"| {preset} | TacDiff K={k} | {ms:.0f} | {ms / telea:.0f}x | 1 |")
-        for use_ref in (True, False):
-            shares = [inpaint_hybrid(s.image_markers, m, s.reference if use_ref else None,
-                                     steps=1)[1].holes_fraction
-                      for s, m in zip(samples, masks, strict=True)]
-            ms = float(np.median([_median_ms(lambda s=s, m=m, u=use_ref: inpaint_hybrid(
-                s.image_markers, m, s.reference if u else None, steps=1), args.rounds)
+        for model, k in runs:
+            ms = float(np.median([_median_ms(lambda s=s, m=m, k=k, mo=model: inpaint_tacdiff(
+                s.image_markers, m, k, model=mo), args.rounds)
                 for s, m in zip(samples, masks, strict=True)]))
-            name = "reference" if use_ref else "texture"
-            print(f"| {preset} | hybrid ({name}) K=1 | {ms:.0f} | {ms / telea:.0f}x | "
+            name = "TacDiff" if model == "default" else f"TacDiff {model}"
+            print(f"| {preset} | {name} K={k} | {ms:.0f} | {ms / telea:.0f}x | 1 |")
+        for model, use_ref in (("default", True), ("default", False), ("fast", True)):
+            shares = [inpaint_hybrid(s.image_markers, m, s.reference if use_ref else None,
+                                     steps=1, model=model)[1].holes_fraction
+                      for s, m in zip(samples, masks, strict=True)]
+            ms = float(np.median([_median_ms(lambda s=s, m=m, u=use_ref, mo=model: inpaint_hybrid(
+                s.image_markers, m, s.reference if u else None, steps=1, model=mo), args.rounds)
+                for s, m in zip(samples, masks, strict=True)]))
+            name = ("hybrid" if model == "default" else f"hybrid {model}") + (
+                " (reference)" if use_ref else " (texture)")
+            print(f"| {preset} | {name} K=1 | {ms:.0f} | {ms / telea:.0f}x | "
                   f"{np.mean(shares):.2f} |")
 
 

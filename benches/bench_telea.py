@@ -27,7 +27,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from harness import interleaved, machine, single_thread, table
+from harness import interleaved, machine, publish, single_thread
 
 from tacswitch import sim
 from tacswitch.inpaint import inpaint_telea
@@ -123,20 +123,6 @@ def run(name: str, frames: list[np.ndarray], rounds: int, repeat: int) -> list[l
     return rows
 
 
-def update_markdown(section: str, body: str) -> None:
-    """Replaces (or appends) ``section`` in BENCHMARKS.md, leaving other sections alone."""
-    path = Path(__file__).resolve().parents[1] / "BENCHMARKS.md"
-    text = path.read_text() if path.exists() else "# Benchmarks\n"
-    block = f"{section}\n\n{body.strip()}\n"
-    start = text.find(section + "\n")
-    if start < 0:
-        text = text.rstrip("\n") + "\n\n" + block
-    else:
-        nxt = text.find("\n## ", start + len(section))
-        text = text[:start] + block + (text[nxt:] if nxt >= 0 else "")
-    path.write_text(text)
-
-
 def parse_args() -> argparse.Namespace:
     """The options of the inpainting benchmarks: --quick, --taxim, --update-md."""
     ap = argparse.ArgumentParser()
@@ -176,22 +162,13 @@ def main() -> int:
         "MAE cv2",
         "MAE ours",
     ]
-    body = "\n".join(
-        [
-            f"Machine: {machine()}. One thread (`RAYON_NUM_THREADS=1`, `cv2.setNumThreads(1)`).",
-            "Times: median [IQR] per 640x480 BGR frame, both in alternating rounds of one run.",
-            "MAE: mean |inpainted - true| over the masked pixels and channels (grey levels),",
-            "averaged over the frames; markers are dark soft discs painted on known pixels,",
-            "mask = painted pixels dilated once by a 3x3 ellipse.",
-            "",
-            table(header, rows),
-            "",
-            f"Command: `{COMMAND}`",
-        ]
-    )
-    print(body)
-    if args.update_md:
-        update_markdown("## TELEA inpainting", body)
+    publish("## TELEA inpainting", [
+        f"Machine: {machine()}. One thread (`RAYON_NUM_THREADS=1`, `cv2.setNumThreads(1)`).",
+        "Times: median [IQR] per 640x480 BGR frame, both in alternating rounds of one run.",
+        "MAE: mean |inpainted - true| over the masked pixels and channels (grey levels),",
+        "averaged over the frames; markers are dark soft discs painted on known pixels,",
+        "mask = painted pixels dilated once by a 3x3 ellipse.",
+    ], header, rows, COMMAND, args.update_md)
     return 0
 
 

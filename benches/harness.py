@@ -107,3 +107,31 @@ def table(header: list[str], rows: list[list[str]]) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(r) + " |" for r in rows]
     return "\n".join(lines)
+
+
+def update_markdown(section: str, body: str) -> None:
+    """Replaces (or appends) ``section`` in BENCHMARKS.md, leaving other sections alone.
+    The file is replaced atomically, so an interrupted run never truncates it."""
+    path = Path(__file__).resolve().parents[1] / "BENCHMARKS.md"
+    text = path.read_text() if path.exists() else "# Benchmarks\n"
+    block = f"{section}\n\n{body.strip()}\n"
+    start = text.find(section + "\n")
+    if start < 0:
+        text = text.rstrip("\n") + "\n\n" + block
+    else:
+        nxt = text.find("\n## ", start + len(section))
+        text = text[:start] + block + (text[nxt:] if nxt >= 0 else "")
+    tmp = path.with_suffix(".md.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def publish(section: str, notes: list[str], header: list[str], rows: list[list[str]],
+            command: str, update: bool) -> None:
+    """Prints a benchmark's notes, table and command; with ``update`` also writes them as
+    ``section`` of BENCHMARKS.md."""
+    body = "\n".join([*notes, "", table(header, rows), "", f"Command: `{command}`"])
+    print(body)
+    if update:
+        update_markdown(section, body)
+

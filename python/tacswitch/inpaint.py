@@ -118,7 +118,7 @@ def inpaint_biharmonic(img: NDArray[Any], mask: NDArray[Any]) -> NDArray[Any]:
     more accurate classical fill (on flat gel TELEA is as good and faster). Each group of
     coupled holes is one sparse symmetric positive definite system, factorised in float64 by
     an envelope Cholesky and solved for every channel; groups run in parallel (rayon), with the
-    GIL released. About ten times faster than scikit-image on marker masks.
+    GIL released. 7-10x faster than scikit-image on marker masks (BENCHMARKS.md).
 
     Args:
         img: ``H x W`` or ``H x W x C`` (C in 1, 3, 4; BGR kept, channels independent) uint8,

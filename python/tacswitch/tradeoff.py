@@ -88,15 +88,13 @@ def tacdiff_methods(steps: Sequence[int] = (1, 2, 4, 8, 20), hybrid_steps: Seque
     the learned part adds."""
     from tacswitch.tacdiff import inpaint_hybrid, inpaint_tacdiff
     from tacswitch.tacdiff.infer import load_model, model_path
-    from tacswitch.tacdiff.prior import combine, fills, to_net
+    from tacswitch.tacdiff.prior import from_net, prior_planes
 
     kind = load_model(model).prior
 
     def prior_only(img: NDArray[np.uint8], m: NDArray[np.uint8], f: PairedFrame
                    ) -> NDArray[np.uint8]:
-        telea, smooth = fills(img, m.astype(bool), kind)
-        prior, _ = combine(to_net(telea), None if smooth is None else to_net(smooth))
-        return np.clip(np.rint((prior + 1) * 127.5), 0, 255).astype(np.uint8)
+        return from_net(prior_planes(img, m.astype(bool), kind)[0])
 
     def diffusion(k: int) -> Inpaint:
         return lambda img, m, f: inpaint_tacdiff(img, m, k, model=model)

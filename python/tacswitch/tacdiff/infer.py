@@ -30,7 +30,14 @@ from numpy.typing import NDArray
 
 from tacswitch._checks import as_image_u8
 from tacswitch._ort import cached, open_session
-from tacswitch.tacdiff.prior import check_prior, combine, fills, has_spread, to_net
+from tacswitch.tacdiff.prior import (
+    check_prior,
+    from_net,
+    has_spread,
+    input_channels,
+    prior_planes,
+    to_net,
+)
 from tacswitch.tacdiff.schedule import Sampler, Solver, alpha_sigma, timesteps, v_to_x0_eps
 
 #: File name of the shipped default model under ``tacswitch/models``.
@@ -103,7 +110,7 @@ class TacDiffModel:
     def channels(self) -> int:
         """Channels of the region stack :func:`_sample` takes: cond 3, mask 1, noise 3, prior 3
         and, for two-fill priors, spread 3."""
-        return 13 if has_spread(self.prior) else 10
+        return input_channels(self.prior)
 
     def v(self, cond: NDArray[np.float32], mask: NDArray[np.float32], x_t: NDArray[np.float32],
           noise: NDArray[np.float32], prior: NDArray[np.float32], sigma: float,
@@ -260,8 +267,7 @@ def _planes(arr: NDArray[np.uint8], m: NDArray[np.bool_], model: TacDiffModel,
     planes[0:3] = to_net(arr).transpose(2, 0, 1)
     planes[3] = m
     planes[4:7][:, m] = rng.standard_normal((3, int(m.sum())), dtype=np.float32)
-    telea, smooth = fills(arr, m, model.prior)
-    prior, spread = combine(to_net(telea), None if smooth is None else to_net(smooth))
+    prior, spread = prior_planes(arr, m, model.prior)
     planes[7:10] = prior.transpose(2, 0, 1)
     if spread is not None:
         planes[10:13] = spread.transpose(2, 0, 1)
@@ -341,6 +347,5 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
             merged[run] = res.transpose(0, 2, 3, 1)
         x0 = merge_patches(merged, origins, (h, w, 3), mode="feather").transpose(2, 0, 1)
     out = arr.copy()
-    vals = np.rint((x0[:, :h, :w][:, m].T + 1.0) * np.float32(127.5))
-    out[m] = np.clip(vals, 0, 255).astype(np.uint8)
+    out[m] = from_net(x0[:, :h, :w][:, m].T)
     return out

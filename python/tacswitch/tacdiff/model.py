@@ -32,6 +32,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from tacswitch.tacdiff.prior import DEFAULT_PRIOR, input_channels
+
 #: H and W of the input must be multiples of this (stem 2 x three 2x downsamplings).
 MULTIPLE = 16
 #: Scale of the diffused residual over TELEA (images in [-1, 1]): residuals of a few grey levels
@@ -58,14 +60,12 @@ class UNetConfig:
     mults: tuple[int, ...] = (1, 2, 3, 4)
     attention: bool = False
     emb: int = 128
-    prior: str = "telea+biharmonic"
+    prior: str = DEFAULT_PRIOR
 
     @property
     def in_channels(self) -> int:
         """Input channels: cond 3, mask 1, x_t 3, prior 3 (+ spread 3)."""
-        from tacswitch.tacdiff.prior import has_spread
-
-        return 13 if has_spread(self.prior) else 10
+        return input_channels(self.prior)
 
     def to_dict(self) -> dict[str, object]:
         d = asdict(self)

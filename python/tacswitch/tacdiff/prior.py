@@ -41,6 +41,12 @@ def has_spread(kind: str) -> bool:
     return check_prior(kind) == "telea+biharmonic"
 
 
+def input_channels(kind: str) -> int:
+    """Channels of the network input with this prior: cond 3, mask 1, x_t (or noise) 3,
+    prior 3 and, for two-fill priors, spread 3."""
+    return 13 if has_spread(kind) else 10
+
+
 def fills(img: NDArray[np.uint8], mask: NDArray[np.bool_], kind: str
           ) -> tuple[NDArray[np.uint8], NDArray[np.uint8] | None]:
     """The classical fills of one uint8 BGR frame: TELEA, and the biharmonic fill when ``kind``
@@ -57,6 +63,14 @@ def to_net(a: NDArray[np.uint8] | NDArray[np.float32]) -> NDArray[np.float32]:
     return (np.asarray(a, np.float32) / np.float32(127.5) - np.float32(1.0)).astype(np.float32)
 
 
+def from_net(a: NDArray[np.float32]) -> NDArray[np.uint8]:
+    """float32 in [-1, 1] -> uint8 grey levels (rounded, saturated); the inverse of
+    :func:`to_net`."""
+    out: NDArray[np.uint8] = np.clip(np.rint((a + 1.0) * np.float32(127.5)), 0, 255
+                                     ).astype(np.uint8)
+    return out
+
+
 def combine(telea: NDArray[np.float32], smooth: NDArray[np.float32] | None
             ) -> tuple[NDArray[np.float32], NDArray[np.float32] | None]:
     """``(prior, spread)`` from the fills in [-1, 1]: the mean and the difference (TELEA minus
@@ -65,3 +79,11 @@ def combine(telea: NDArray[np.float32], smooth: NDArray[np.float32] | None
         return telea, None
     prior = (np.float32(0.5) * (telea + smooth)).astype(np.float32)
     return prior, (telea - smooth).astype(np.float32)
+
+
+def prior_planes(img: NDArray[np.uint8], mask: NDArray[np.bool_], kind: str
+                 ) -> tuple[NDArray[np.float32], NDArray[np.float32] | None]:
+    """``(prior, spread)`` of one uint8 BGR frame in [-1, 1], ``H x W x 3``: its classical
+    fills (:func:`fills`) combined (:func:`combine`); spread is None for the TELEA-only prior."""
+    telea, smooth = fills(img, mask, kind)
+    return combine(to_net(telea), None if smooth is None else to_net(smooth))

@@ -23,7 +23,7 @@ use rayon::prelude::*;
 use crate::error::{CoreError, Result};
 use crate::image::ImageView;
 use crate::simd::multiversion;
-use crate::telea::{Sample, MAX_CHANNELS};
+use crate::telea::{check_image_and_mask, check_known_finite, Sample, MAX_CHANNELS};
 
 /// Most envelope entries one group may need (128 MiB of f64): a hole of about 20 000 pixels
 /// (a 160 px disc). Larger holes are refused with a clear error instead of a long solve.
@@ -58,18 +58,7 @@ const NEIGHBOURS: [(isize, isize); 4] = [(1, 0), (-1, 0), (0, 1), (0, -1)];
 /// ([`MAX_ENVELOPE`]).
 pub fn inpaint_biharmonic<T: Sample>(img: &ImageView<'_, T>, mask: &[u8]) -> Result<Vec<T>> {
     let (h, w, c) = (img.height(), img.width(), img.channels());
-    if c > MAX_CHANNELS {
-        return Err(CoreError::invalid(
-            "img",
-            format!("expected at most {MAX_CHANNELS} channels; got {c}"),
-        ));
-    }
-    if mask.len() != h * w {
-        return Err(CoreError::invalid(
-            "mask",
-            format!("expected {h}x{w} values; got {}", mask.len()),
-        ));
-    }
+    check_image_and_mask(img, mask)?;
     let mut out = img.data().to_vec();
     let n_masked = mask.iter().filter(|&&m| m != 0).count();
     if n_masked == 0 {
@@ -81,16 +70,7 @@ pub fn inpaint_biharmonic<T: Sample>(img: &ImageView<'_, T>, mask: &[u8]) -> Res
             "covers every pixel: nothing is known to inpaint from",
         ));
     }
-    if T::FLOAT {
-        let data = img.data();
-        let bad = (0..h * w).any(|p| mask[p] == 0 && (0..c).any(|k| !data[p * c + k].is_finite()));
-        if bad {
-            return Err(CoreError::invalid(
-                "img",
-                "holds NaN or infinite values outside the mask",
-            ));
-        }
-    }
+    check_known_finite(img, mask)?;
     let groups = coupled_groups(mask, h, w);
     let solved: Vec<Result<Vec<f64>>> = groups
         .par_iter()

@@ -99,6 +99,49 @@ impl Sample for f32 {
     }
 }
 
+/// The argument checks every inpainting method shares: at most [`MAX_CHANNELS`] channels and
+/// one mask value per pixel.
+pub(crate) fn check_image_and_mask<T: Sample>(img: &ImageView<'_, T>, mask: &[u8]) -> Result<()> {
+    let (h, w, c) = (img.height(), img.width(), img.channels());
+    if c > MAX_CHANNELS {
+        return Err(CoreError::invalid(
+            "img",
+            format!("must have at most {MAX_CHANNELS} channels; got {c}"),
+        ));
+    }
+    if mask.len() != h * w {
+        return Err(CoreError::invalid(
+            "mask",
+            format!(
+                "must have the image's {h}x{w} pixels; got {} values",
+                mask.len()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Refuses a float image with NaN or infinity in a known (unmasked) pixel, naming the first;
+/// masked pixels may hold anything. Integer images pass without a scan.
+pub(crate) fn check_known_finite<T: Sample>(img: &ImageView<'_, T>, mask: &[u8]) -> Result<()> {
+    if !T::FLOAT {
+        return Ok(());
+    }
+    let (w, c, data) = (img.width(), img.channels(), img.data());
+    let bad = |i: &usize| mask[*i] == 0 && data[i * c..(i + 1) * c].iter().any(|v| !v.is_finite());
+    match (0..mask.len()).find(bad) {
+        Some(i) => Err(CoreError::invalid(
+            "img",
+            format!(
+                "unmasked pixel (x={}, y={}) is NaN or infinite; mask it or clean it first",
+                i % w,
+                i / w
+            ),
+        )),
+        None => Ok(()),
+    }
+}
+
 /// Inclusive pixel box `x0..=x1`, `y0..=y1`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct BBox {
@@ -171,21 +214,7 @@ fn inpaint_impl<T: Sample>(
             format!("must be between 1 and {MAX_RADIUS} pixels; got {radius}"),
         ));
     }
-    if c > MAX_CHANNELS {
-        return Err(CoreError::invalid(
-            "img",
-            format!("must have at most {MAX_CHANNELS} channels; got {c}"),
-        ));
-    }
-    if mask.len() != h * w {
-        return Err(CoreError::invalid(
-            "mask",
-            format!(
-                "must have the image's {h}x{w} pixels; got {} values",
-                mask.len()
-            ),
-        ));
-    }
+    check_image_and_mask(img, mask)?;
     let data = img.data();
     let n_pixels = h * w;
     // The runs also count the masked pixels (no separate pass over the mask).
@@ -210,22 +239,7 @@ fn inpaint_impl<T: Sample>(
             format!("must have fewer than 2^32 pixels; got {h}x{w}"),
         ));
     }
-    let bad = |i: &usize| mask[*i] == 0 && data[i * c..(i + 1) * c].iter().any(|v| !v.is_finite());
-    let first_bad = if T::FLOAT {
-        (0..n_pixels).find(bad)
-    } else {
-        None
-    };
-    if let Some(i) = first_bad {
-        return Err(CoreError::invalid(
-            "img",
-            format!(
-                "unmasked pixel (x={}, y={}) is NaN or infinite; mask it or clean it first",
-                i % w,
-                i / w
-            ),
-        ));
-    }
+    check_known_finite(img, mask)?;
 
     let (comp_of, boxes) = label_runs(&runs);
     let (group_of, groups) = if per_group {

@@ -129,6 +129,7 @@ def test_progress_bars_go_to_stderr_and_quiet_silences_them(
     from tacswitch.cli import progress
 
     monkeypatch.setattr(progress, "DELAY_S", 0.0)  # draw at once (the real runs wait 1 s)
+    monkeypatch.setattr(progress, "stderr_is_terminal", lambda: True)  # as on a terminal
     n_folder = len(list(frame_folder.iterdir()))
     runs = {
         "remove-markers": (["remove-markers", str(frame_folder), "-o", str(tmp_path / "rm"),
@@ -148,6 +149,24 @@ def test_progress_bars_go_to_stderr_and_quiet_silences_them(
         assert quiet.err == "" and quiet.out == "", name
     with open(tmp_path / "t.csv") as fh:
         assert next(csv.reader(fh)) == ["frame", "marker", "x_ref", "y_ref", "dx", "dy", "valid"]
+    # stderr redirected to a file or a pipe: no bar at all (the summary is on stdout).
+    monkeypatch.setattr(progress, "stderr_is_terminal", lambda: False)
+    for name, (args, _) in runs.items():
+        assert main(args) == 0, name
+        assert capsys.readouterr().err == "", name
+
+
+def test_no_bar_for_a_short_job(tmp_path: Path, frame_folder: Path,
+                                monkeypatch: pytest.MonkeyPatch,
+                                capsys: pytest.CaptureFixture[str]) -> None:
+    from tacswitch.cli import progress
+
+    monkeypatch.setattr(progress, "stderr_is_terminal", lambda: True)
+    one = tmp_path / "one"
+    one.mkdir()
+    (one / "a.png").write_bytes((frame_folder / "0001.png").read_bytes())
+    assert main(["markers", str(one), "-o", str(tmp_path / "m")]) == 0  # well under 1 s
+    assert capsys.readouterr().err == ""
 
 
 def test_user_mistakes_are_one_line_errors(tmp_path: Path) -> None:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import csv
 import io
-from pathlib import Path
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -48,18 +47,19 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from tacswitch._io import atomic_open, read_image, write_image
+    from tacswitch.cli.options import input_file, load_model_option, output_dir
     from tacswitch.cli.progress import progress, say
     from tacswitch.cli.sources import collect_images
     from tacswitch.motion.infer import load_model
 
-    model = load_model(args.model)
-    ref = read_image(args.ref) if args.ref else None
-    centres = _read_centres(args.centres) if args.centres else None
-    out = Path(args.out)
+    model = load_model_option(load_model, args.model)
+    ref = read_image(input_file(args.ref, "--ref"), "--ref", quiet=True) if args.ref else None
+    centres = _read_centres(str(input_file(args.centres, "--centres"))) if args.centres else None
     files = collect_images(args.inputs)
+    out = output_dir(args.out, "--out")
     with progress(files, desc="motion", unit="img", quiet=args.quiet) as bar:
         for path in bar:
-            img = read_image(path)
+            img = read_image(path, "inputs", quiet=True)
             pts = model.centres_for(*img.shape[:2]) if centres is None else centres
             motion = model(img, ref=ref, centres=pts)
             buf = io.StringIO()

@@ -57,7 +57,7 @@ class MotionModel:
     def __init__(self, path: str | os.PathLike[str] | None = None, *,
                  threads: int | None = None) -> None:
         self.path = Path(path) if path is not None else default_model_path()
-        self.session, meta = open_session(self.path, threads)
+        self.session, meta = open_session(self.path, threads, kind="motion")
         self.metadata = dict(meta)
         self.arch = meta.get("tacswitch.arch", "?")
         self.use_ref = json.loads(meta.get("tacswitch.use_ref", "false"))

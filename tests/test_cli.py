@@ -69,7 +69,8 @@ def test_markers_command_writes_csv_json_and_overlay(tmp_path: Path, grasp) -> N
 
 def test_slip_on_a_folder_detects_the_slip(tmp_path: Path, frame_folder: Path, grasp) -> None:
     log = tmp_path / "log.csv"
-    assert main(["slip", str(frame_folder), "--log", str(log), "-q"]) == 0
+    # The folder starts in the established grasp (no contact onset to find): --start 0.
+    assert main(["slip", str(frame_folder), "--log", str(log), "-q", "--start", "0"]) == 0
     with open(log) as fh:
         rows = list(csv.DictReader(fh))
     assert len(rows) == len(grasp.frames) - grasp.grasp_start + 1
@@ -81,12 +82,19 @@ def test_slip_on_a_folder_detects_the_slip(tmp_path: Path, frame_folder: Path, g
 def test_slip_rigid_only_still_detects_the_slip(tmp_path: Path, frame_folder: Path) -> None:
     log = tmp_path / "log.csv"
     args = ["slip", str(frame_folder), "--log", str(log), "-q", "--rigid-threshold-px", "auto",
-            "--rigid-only"]
+            "--rigid-only", "--start", "0"]
     assert main(args) == 0
     with open(log) as fh:
         rows = list(csv.DictReader(fh))
     assert any(r["slip"] == "1" and r["criterion"] == "rigid" for r in rows)
-    assert main(["slip", str(frame_folder), "--log", str(log), "-q", "--rigid-only"]) == 1
+
+def test_slip_rigid_only_without_its_threshold_names_the_flags(
+        tmp_path: Path, frame_folder: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = tmp_path / "log.csv"
+    assert main(["slip", str(frame_folder), "--log", str(log), "-q", "--rigid-only"]) == 2
+    err = capsys.readouterr().err
+    assert "--rigid-only" in err and "--rigid-threshold-px" in err
+    assert "use_displacement" not in err and err.count("\n") == 1
 
 
 def test_slip_survives_corrupt_frames(tmp_path: Path, frame_folder: Path) -> None:

@@ -124,6 +124,16 @@ def _count(text: str) -> int:
     return value
 
 
+def _dilate(text: str) -> int | str:
+    if text == "auto":
+        return text
+    try:
+        return _count(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0 or 'auto', "
+                                         f"got {text!r}") from None
+
+
 def _positive(text: str) -> float:
     try:
         value = float(text)
@@ -175,9 +185,12 @@ def add_extraction_options(p: argparse.ArgumentParser, *, border_default: str,
     for flag, dest, kw in EXTRACTION_OPTIONS:
         group.add_argument(flag, dest=f"x_{dest}", default=None, **kw)
     if dilate:
-        group.add_argument("--dilate", dest="x_dilate", type=_count, default=None, metavar="N",
-                           help="grow the marker mask by N 3x3-cross dilations before filling "
-                                "(default: the library's)")
+        group.add_argument("--dilate", dest="x_dilate", type=_dilate, default=None,
+                           metavar="N|auto",
+                           help="grow the marker mask before filling: N 3x3-cross dilations, "
+                                "or 'auto' (per marker, until the ring around it matches the "
+                                "local background: soft edges and codec rings inside); "
+                                "default: the library's")
     border = group.add_mutually_exclusive_group()
     border.add_argument("--exclude-border", dest="x_exclude_border", action="store_const",
                         const=True, default=None,

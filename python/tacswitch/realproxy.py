@@ -402,3 +402,20 @@ def methods(radii: Sequence[int] = (3, 5, 8, 12), *, models: bool = True,
         out["TacDiff fast K=1 (own mask)"] = own_mask_fill("tacdiff", model="fast")
         out["hybrid K=1 (own mask)"] = own_mask_fill("hybrid")
     return out
+
+
+def grown_biharmonic_fill(px: float | None = None) -> Fill:
+    """The biharmonic fill solved on each hole of :func:`default_mask` grown by ``px``
+    (default :data:`tacswitch.tacdiff.prior.PRIOR_GROW`; within its Voronoi cell), kept on the
+    hole: the biharmonic part of the ``"telea+biharmonic-grown"`` prior."""
+    from tacswitch.inpaint import inpaint_biharmonic
+    from tacswitch.tacdiff.prior import PRIOR_GROW, grow_holes
+
+    g = PRIOR_GROW if px is None else px
+
+    def fill(img: NDArray[np.uint8], extra: NDArray[np.bool_] | None) -> NDArray[np.uint8]:
+        m = _with(default_mask(img), extra)
+        out = img.copy()
+        out[m] = inpaint_biharmonic(img, grow_holes(m, g))[m]
+        return out
+    return fill

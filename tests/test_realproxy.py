@@ -97,3 +97,23 @@ def test_bad_arguments() -> None:
         R.proxy_frames("gelsight_mini", 1, captures=("vhs",))
     with pytest.raises(ValueError, match="img"):
         R.shifted_holdout(np.full((50, 50, 3), 128, np.uint8))
+
+
+def test_tradeoff_proxy_rows() -> None:
+    from tacswitch import tradeoff
+
+    frames = tradeoff.proxy_frames(1, "gelsight_mini", cases=(("painted", "h264"),))
+    assert len(frames) == 1
+    f = frames[0]
+    assert f.score is not None and f.scored is f.score and f.mask.any()
+    methods = tradeoff.default_methods((3,), opencv=False)
+    rows = tradeoff.evaluate(frames, methods, rounds=1)
+    assert {r.method for r in rows} == {"TELEA (tacswitch)", "biharmonic (tacswitch)"}
+    assert all(0 < r.mae < 20 for r in rows)
+    assert "| TELEA (tacswitch) | r=3 |" in tradeoff.markdown(rows)
+
+
+def test_bench_cli_rejects_negative_real() -> None:
+    from tacswitch.cli import main
+
+    assert main(["bench", "--real", "-1", "--quick", "-q", "-o", "/nonexistent/never"]) != 0

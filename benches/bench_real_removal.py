@@ -109,6 +109,32 @@ def real_table(methods: dict) -> str | None:
                  "markers with abs ghost > 1"], [r[1] for r in rows]))
 
 
+def profile_table() -> str | None:
+    """Real FOTS dots against the painted style, lossless and through the proxy's codecs."""
+    import cv2
+
+    from tacswitch import realproxy as R
+    from tacswitch.sim import capture
+    from tacswitch.sim.markers import marker_grid, paint_markers
+
+    files = sorted(REAL.glob("*.png"))
+    if not files:
+        return None
+    ks = range(4, 12)
+    real = np.mean([R.radial_profile(cv2.imread(str(p)), radii=12) for p in files], axis=0)
+    rng = np.random.default_rng(0)
+    gel = np.full((240, 320, 3), (190, 150, 178), np.uint8)  # the FOTS frames' mean gel colour
+    centres = marker_grid(240, 320, 8, 10, 29.0) + rng.uniform(-0.5, 0.5, (80, 2))
+    painted, _ = paint_markers(gel, centres, R.styles_for("gelsight_mini")["painted"], rng=1)
+    rows = [["real FOTS Mini dots", *(f"{real[k]:.3f}" for k in ks)]]
+    for name, prof in R.CAPTURES.items():
+        p = R.radial_profile(capture.apply(painted, prof, 0), centres, radii=12)
+        rows.append([f"painted style, {name}", *(f"{p[k]:.3f}" for k in ks)])
+    return ("**Marker profile** (mean luma over the gel 10-14 px out, by distance from the dot "
+            "centre; 320x240): the painted style against the real FOTS GelSight Mini dots.\n\n"
+            + table(["dots", *(f"{k}-{k + 1} px" for k in ks)], rows))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="1 press per sensor, radii 3 and 12")
@@ -124,6 +150,7 @@ def main() -> None:
     methods = R.methods(radii, models=not args.no_models,
                         priors=("telea+biharmonic", "telea+biharmonic-grown"))
     methods["biharmonic grown (own mask)"] = R.grown_biharmonic_fill()
+    profile = profile_table()
     parts = proxy_tables(n, methods, R.SENSORS)
     real = real_table(methods)
     cmd = "python benches/bench_real_removal.py" + (" --quick" if args.quick else
@@ -138,7 +165,8 @@ def main() -> None:
         "gel ring 3-6 px out) minus the same on the clean frame, luma; it should stay within "
         "+-1. Numbers measured on real frames with painted markers (the proxy), not on real "
         "markers, except the last table.",
-        *parts, *([real] if real else []), f"Machine: {machine()}.", f"Command: `{cmd}`"])
+        *([profile] if profile else []), *parts, *([real] if real else []),
+        f"Machine: {machine()}.", f"Command: `{cmd}`"])
     print(body)
     if args.update:
         update_markdown(SECTION, body)

@@ -117,3 +117,15 @@ def test_bench_cli_rejects_negative_real() -> None:
     from tacswitch.cli import main
 
     assert main(["bench", "--real", "-1", "--quick", "-q", "-o", "/nonexistent/never"]) != 0
+
+
+def test_radial_profile_of_painted_dots() -> None:
+    gel = np.full((120, 160, 3), 180, np.uint8)
+    centres = marker_grid(120, 160, 3, 4, 36.0)
+    img, _ = paint_markers(gel, centres, MarkerStyle(texture=0, level_jitter=0, halo=0))
+    p = R.radial_profile(img, centres, radii=12)
+    assert p.shape == (12,)
+    assert 0.25 < p[0] < 0.30 and p[11] == pytest.approx(1.0, abs=0.01)
+    assert np.all(np.diff(p) >= -1e-3)  # rises monotonically from the centre
+    with pytest.raises(ValueError, match="centres"):
+        R.radial_profile(img, np.array([[1.0, 1.0]]))

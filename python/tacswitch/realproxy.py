@@ -126,14 +126,19 @@ def load_presses(sensor: str, n: int | None = None
 def styles_for(sensor: str) -> dict[str, MarkerStyle]:
     """The marker looks at ``sensor``'s scale: ``"painted"`` (the style fitted to real Mini
     frames), ``"pasted"`` (black dots, the same rim, a fainter halo) and ``"crisp"`` (black
-    dots with a 1 px rim and no halo, the case where a wider mask only costs)."""
+    dots with a 1 px rim and no halo, the case where a wider mask only costs). Diameters scale
+    with the frame (11.5 px at 320x240, 23 px at 640x480); rims and halo do not."""
     if sensor not in SENSORS:
         raise ValueError(f"sensor: expected one of {SENSORS}; got {sensor!r}")
-    s = 2.0 if sensor == "gelsight" else 1.0  # 640x480 vs 320x240 px
+    # Dots are twice as wide at 640x480, but their rims and halo are not twice as soft: with the
+    # Mini's rim and halo in px, the ring just outside a one-dilation threshold mask of H.264
+    # GelSight frames is 3.5 % of the gel (-6 grey levels), as the issue measured on real
+    # GelSight H.264 recordings and as real FOTS Mini frames show (-6.1 at their brighter gel).
+    s = 2.0 if sensor == "gelsight" else 1.0
     return {
-        "painted": MarkerStyle(diameter=11.5 * s, edge_px=1.5 * s, halo_px=1.5 * s),
-        "pasted": MarkerStyle(kind="pasted", diameter=11.5 * s, darkness=0.97, edge_px=1.5 * s,
-                              halo=0.03, halo_px=1.5 * s, texture=0.0, level_jitter=0.02),
+        "painted": MarkerStyle(diameter=11.5 * s, edge_px=1.5, halo_px=1.5),
+        "pasted": MarkerStyle(kind="pasted", diameter=11.5 * s, darkness=0.97, edge_px=1.5,
+                              halo=0.03, halo_px=1.5, texture=0.0, level_jitter=0.02),
         "crisp": MarkerStyle(kind="pasted", diameter=11.5 * s, darkness=0.95, edge_px=1.0,
                              halo=0.0, texture=0.0, level_jitter=0.0),
     }

@@ -42,15 +42,14 @@ def _os_reason(exc: OSError) -> str:
 
 
 def _make_dir(folder: Path, option: str, what: str) -> None:
+    """Creates ``folder`` (and its parents); :class:`UsageError` ``"{option}: {what}: why"``."""
     blocker = _blocking_file(folder / "x")
     if blocker is not None:
-        raise UsageError(f"{option}: cannot create {what} {str(folder)!r}: {str(blocker)!r} is a "
-                         "file, not a folder")
+        raise UsageError(f"{option}: {what}: {str(blocker)!r} is a file, not a folder")
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise UsageError(f"{option}: cannot create {what} {str(folder)!r}: "
-                         f"{_os_reason(exc)}") from None
+        raise UsageError(f"{option}: {what}: {_os_reason(exc)}") from None
 
 
 def output_dir(path: str | os.PathLike[str], option: str) -> Path:
@@ -59,7 +58,7 @@ def output_dir(path: str | os.PathLike[str], option: str) -> Path:
     folder = Path(path)
     if folder.exists() and not folder.is_dir():
         raise UsageError(f"{option}: {str(folder)!r} is a file; give a folder")
-    _make_dir(folder, option, "folder")
+    _make_dir(folder, option, f"cannot create folder {str(folder)!r}")
     if not os.access(folder, os.W_OK | os.X_OK):
         raise UsageError(f"{option}: cannot write in {str(folder)!r}: permission denied")
     return folder
@@ -72,7 +71,7 @@ def output_file(path: str | os.PathLike[str], option: str) -> Path:
     if target.is_dir():
         raise UsageError(f"{option}: {str(target)!r} is a folder; give a file name")
     parent = target.parent
-    _make_dir(parent, option, "the folder of")
+    _make_dir(parent, option, f"cannot write {str(target)!r}")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise UsageError(f"{option}: cannot write in {str(parent)!r}: permission denied")
     if target.exists() and not os.access(target, os.W_OK):

@@ -74,11 +74,10 @@ def methods(models: dict[str, str | None], slow: bool, sensor: str
         "flow DIS medium (default)": (_flow("dis", "medium"), refs),
         "flow Farneback": (_flow("farneback"), refs),
     }
-    if slow:
+    if slow and sensor == "gelsight_mini":  # 2-5 s a frame at 640 x 480 on this machine
         out["flow PCAFlow"] = (_flow("pcaflow"), refs)
         out["flow dense RLOF"] = (_flow("rlof"), refs)
-        if sensor == "gelsight_mini":  # ~5 s a frame at 640 x 480 on this machine
-            out["flow DeepFlow"] = (_flow("deepflow"), refs)
+        out["flow DeepFlow"] = (_flow("deepflow"), refs)
     for name, path in models.items():
         m = MotionModel(path, threads=2)
         single_ok = (not m.use_ref) or getattr(m, "design", "plain") == "consistent"
@@ -181,7 +180,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="every 4th sample, no speed table")
     ap.add_argument("--slow", action="store_true",
-                    help="also PCAFlow, dense RLOF and (Mini only) DeepFlow")
+                    help="also PCAFlow, dense RLOF and DeepFlow (GelSight Mini only)")
     ap.add_argument("--model", action="append", default=[], metavar="NAME=PATH",
                     help="score this ONNX motion model too (default: the shipped one)")
     ap.add_argument("--per-press", type=int, default=1, help="random fields per press and kind")

@@ -141,7 +141,7 @@ def test_train_tacdiff_tiny_run_resumes_and_exports(tmp_path: Path):
     net = load_network(run / "model.safetensors")
     model = TacDiffModel(run / "model.onnx", threads=1)
     rng = np.random.default_rng(0)
-    assert model.prior == net.cfg.prior == "telea+biharmonic"
+    assert model.prior == net.cfg.prior == "telea+biharmonic-grown"  # DEFAULT_PRIOR
     arrs = [rng.standard_normal((1, c, 32, 48)).astype(np.float32) for c in (3, 1, 3, 3, 3, 3)]
     arrs[1] = (arrs[1] > 0.5).astype(np.float32)
     with torch.no_grad():

@@ -108,7 +108,8 @@ def load_presses(sensor: str, n: int | None = None
     def prep(a: NDArray[np.uint8]) -> NDArray[np.uint8]:
         if scale == 1.0:
             return np.ascontiguousarray(a)
-        return cv2.resize(a, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+        return np.asarray(cv2.resize(a, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA),
+                          np.uint8)
 
     presses = []
     for i in idx.astype(int):
@@ -151,8 +152,8 @@ def grid_for(sensor: str, rng: np.random.Generator) -> NDArray[np.float32]:
     from tacswitch.sim.presets import get_preset
 
     p = get_preset(sensor)
-    pts = marker_grid(p.height, p.width, p.rows + 1, p.cols + 1, p.pitch, jitter=0.5, seed=rng)
-    pts = pts + rng.uniform(-p.pitch / 2, p.pitch / 2, 2)
+    grid = marker_grid(p.height, p.width, p.rows + 1, p.cols + 1, p.pitch, jitter=0.5, seed=rng)
+    pts = grid.astype(np.float64) + rng.uniform(-p.pitch / 2, p.pitch / 2, 2)
     r = p.diameter / 2
     keep = ((pts[:, 0] > -r) & (pts[:, 0] < p.width - 1 + r)
             & (pts[:, 1] > -r) & (pts[:, 1] < p.height - 1 + r))

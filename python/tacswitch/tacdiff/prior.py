@@ -99,7 +99,12 @@ def fills(img: NDArray[np.uint8], mask: NDArray[np.bool_], kind: str
         return telea, inpaint_biharmonic(img, mask)
     m = np.asarray(mask, bool)
     smooth = img.copy()
-    smooth[m] = inpaint_biharmonic(img, grow_holes(m, PRIOR_GROW))[m]
+    try:
+        smooth[m] = inpaint_biharmonic(img, grow_holes(m, PRIOR_GROW))[m]
+    except ValueError:
+        # A hole that grown is beyond the biharmonic solver's size limit: the ungrown holes
+        # still give a prior (or the same error as the plain biharmonic prior).
+        smooth = inpaint_biharmonic(img, m)
     return telea, smooth
 
 

@@ -125,12 +125,13 @@ def network_from_onnx(path: str | Path) -> DenoiserUNet:
     rest = iter(a for _, a in anonymous if a.ndim == 3 and a.shape[1:] == (1, 1))
     new = {}
     for key, ref in state.items():
-        arr = named.get(key)
-        if arr is None:
-            arr = next(rest, None)
-            if arr is None:
+        found = named.get(key)
+        if found is None:
+            folded = next(rest, None)
+            if folded is None:
                 raise ValueError(f"path: {str(path)!r} has no weight for {key!r}")
-            arr = arr.reshape(-1)
+            found = folded.reshape(-1)
+        arr = found
         if tuple(arr.shape) != tuple(ref.shape):
             raise ValueError(f"path: {str(path)!r}: weight {key!r} has shape {arr.shape}, "
                              f"expected {tuple(ref.shape)}")

@@ -267,7 +267,7 @@ def merge_patches(
         raise ValueError(f"shape: {dims[2]} channels but the patches have {channels}")
     if len(dims) == 2 and channels is not None:
         raise ValueError(f"shape: (H, W) given but the patches have {channels} channels")
-    if mode not in ("average", "feather"):
+    if not isinstance(mode, str) or mode not in ("average", "feather"):
         raise ValueError(f"mode: must be 'average' or 'feather'; got {mode!r}")
     out: NDArray[Any] = _native.merge_patches(
         aligned(patches), aligned(org), dims[0], dims[1], mode
@@ -343,7 +343,7 @@ def remove_markers(
         TypeError / ValueError: bad arguments (the message names the argument), or a method that
             is not available.
     """
-    if method not in ("telea", "biharmonic", "ns", *_MODEL_METHODS):
+    if not isinstance(method, str) or method not in ("telea", "biharmonic", "ns", *_MODEL_METHODS):
         raise ValueError("method: must be 'telea', 'biharmonic', 'ns', 'tacdiff' or 'hybrid'; "
                          f"got {method!r}")
     arr = _as_image(img)

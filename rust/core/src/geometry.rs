@@ -4,7 +4,7 @@
 //! check for NaN/Inf before calling in).
 
 use crate::error::{CoreError, Result};
-use crate::kdtree::KdTree;
+use crate::kdtree::dist2_f64;
 
 /// Query points sampled (evenly, deterministically) for the pitch median.
 const PITCH_SAMPLES: usize = 32;
@@ -103,6 +103,15 @@ impl CellGrid {
         self.cell
     }
 
+    /// Most points in one cell: a query scans at most 9 times this many.
+    pub fn max_occupancy(&self) -> usize {
+        self.starts
+            .windows(2)
+            .map(|w| (w[1] - w[0]) as usize)
+            .max()
+            .unwrap_or(0)
+    }
+
     /// Indices of the points in the 3x3 cells around `p` (nothing if `p` is far outside).
     pub fn candidates(&self, p: [f32; 2]) -> impl Iterator<Item = usize> + '_ {
         let fx = ((p[0] - self.min[0]) / self.cell).floor();
@@ -139,23 +148,47 @@ pub fn estimate_pitch(points: &[[f32; 2]]) -> Option<f32> {
 /// [`estimate_pitch`] in `f64`: exact for any finite coordinates (`3e38` apart included).
 ///
 /// The median runs over up to [`PITCH_SAMPLES`] query points taken at an even stride (a median
-/// needs no more, and the stride keeps it deterministic); each query finds its nearest distinct
-/// point in a 2-d tree, `O(log N)` whatever the layout or the number of duplicates.
+/// needs no more, and the stride keeps it deterministic). Each finds its nearest distinct point
+/// among the grid cells around it, or by a full scan when none lies within one cell: at most
+/// `PITCH_SAMPLES * N` distance evaluations whatever the layout (duplicates included).
 pub fn estimate_pitch_f64(points: &[[f32; 2]]) -> Option<f64> {
     if points.len() < 2 {
         return None;
     }
-    let tree = KdTree::unique(points);
-    if tree.len() < 2 {
-        return None;
+    let (mut lo, mut hi) = ([f32::MAX; 2], [f32::MIN; 2]);
+    for p in points {
+        for k in 0..2 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    // Cells 1.5 mean spacings wide: on a marker grid the nearest neighbour lies within one cell,
+    // and a neighbour found closer than one cell is the true nearest; otherwise a full scan
+    // settles it. (An extent beyond f32 gives one infinite cell: every query scans.)
+    let area = ((hi[0] - lo[0]) * (hi[1] - lo[1])).max(1.0);
+    let grid = CellGrid::new(points, 1.5 * (area / points.len() as f32).sqrt());
+    let cell2 = f64::from(grid.cell()) * f64::from(grid.cell());
+    fn nearest_distinct(
+        p: [f32; 2],
+        points: &[[f32; 2]],
+        within: impl Iterator<Item = usize>,
+    ) -> f64 {
+        within
+            .map(|j| dist2_f64(p, points[j]))
+            .filter(|&d| d > 0.0)
+            .fold(f64::INFINITY, f64::min)
     }
     let stride = points.len().div_ceil(PITCH_SAMPLES);
-    let mut nn: Vec<f64> = points
-        .iter()
-        .step_by(stride)
-        .filter_map(|&p| tree.nearest(p, f64::INFINITY, true))
-        .map(|(_, d2)| d2.sqrt())
-        .collect();
+    let mut nn: Vec<f64> = Vec::with_capacity(PITCH_SAMPLES);
+    for &p in points.iter().step_by(stride) {
+        let mut d = nearest_distinct(p, points, grid.candidates(p));
+        if d > cell2 {
+            d = nearest_distinct(p, points, 0..points.len());
+        }
+        if d.is_finite() {
+            nn.push(d.sqrt());
+        }
+    }
     if nn.is_empty() {
         return None;
     }

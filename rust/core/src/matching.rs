@@ -1,8 +1,8 @@
 //! Mutual nearest-neighbour marker matching with a distance gate.
 
 use crate::error::{CoreError, Result};
-use crate::geometry::{check_finite, estimate_pitch};
-use crate::kdtree::KdTree;
+use crate::geometry::{check_finite, estimate_pitch, CellGrid};
+use crate::kdtree::{dist2_f64, KdTree};
 
 /// Default gate as a fraction of the marker pitch: half a pitch can never reach the wrong marker
 /// of an undistorted grid.
@@ -53,14 +53,18 @@ pub fn match_markers(
     Ok(match_with_gate(reference, current, gate))
 }
 
+/// Points per grid cell above which matching switches from the cell grid to 2-d trees.
+const MAX_CELL_OCCUPANCY: usize = 32;
+
 /// [`match_markers`] for inputs already checked, with a resolved gate.
 ///
-/// `O((N + M) log(N + M))` time and `O(N + M)` memory for any layout: nearest neighbours come
-/// from 2-d trees over the distinct points of each side (exact duplicates collapse onto their
-/// lowest index, which is the one the tie rule would pick anyway), so a million copies of one
-/// point cost no more than one. Distances are compared in `f64`. A pair whose motion overflows
-/// `f32` (coordinates near `+-3.4e38` on opposite sides) is left unmatched rather than reported
-/// with an infinite motion.
+/// Bounded work for any input: a grid of gate-wide cells over the current points when no cell
+/// holds more than [`MAX_CELL_OCCUPANCY`] of them (marker layouts: the fastest path), else 2-d
+/// trees over the distinct points of each side (dense clusters, a million copies of one point,
+/// no gate), `O((N + M) log(N + M))`. Both give the same matches; exact duplicates match at
+/// most once (ties go to the lowest index). Distances are compared in `f64`. A pair whose motion
+/// overflows `f32` (coordinates near `+-3.4e38` on opposite sides) is left unmatched rather
+/// than reported with an infinite motion.
 pub fn match_with_gate(reference: &[[f32; 2]], current: &[[f32; 2]], gate: f32) -> Matches {
     let n = reference.len();
     let mut out = Matches {
@@ -73,12 +77,72 @@ pub fn match_with_gate(reference: &[[f32; 2]], current: &[[f32; 2]], gate: f32) 
         return out;
     }
     let g2 = f64::from(gate) * f64::from(gate);
+    let pairs = if gate.is_finite() {
+        let grid = CellGrid::new(current, gate);
+        (grid.max_occupancy() <= MAX_CELL_OCCUPANCY)
+            .then(|| mutual_in_grid(reference, current, g2, &grid))
+    } else {
+        None
+    };
+    let pairs = pairs.unwrap_or_else(|| mutual_in_trees(reference, current, g2));
+    for (i, j) in pairs {
+        let (p, q) = (reference[i], current[j as usize]);
+        let mv = [q[0] - p[0], q[1] - p[1]];
+        if mv[0].is_finite() && mv[1].is_finite() {
+            out.motion[i] = mv;
+            out.valid[i] = true;
+            out.index[i] = i64::from(j);
+        }
+    }
+    out
+}
+
+/// Mutual nearest pairs `(reference, current)` within `g2` by one pass over the grid's
+/// candidates: each reference keeps its nearest current point, each current point its nearest
+/// reference; a pair is kept when each is the other's.
+fn mutual_in_grid(
+    reference: &[[f32; 2]],
+    current: &[[f32; 2]],
+    g2: f64,
+    grid: &CellGrid,
+) -> Vec<(usize, u32)> {
+    let mut ref_best = vec![(u32::MAX, f64::INFINITY); reference.len()];
+    let mut cur_best = vec![(u32::MAX, f64::INFINITY); current.len()];
+    for (i, &p) in reference.iter().enumerate() {
+        for j in grid.candidates(p) {
+            let d = dist2_f64(p, current[j]);
+            if d > g2 {
+                continue;
+            }
+            // Ties go to the lowest index on both sides (candidates may come in any order).
+            let rb = &mut ref_best[i];
+            if d < rb.1 || (d == rb.1 && (j as u32) < rb.0) {
+                *rb = (j as u32, d);
+            }
+            let cb = &mut cur_best[j];
+            if d < cb.1 || (d == cb.1 && (i as u32) < cb.0) {
+                *cb = (i as u32, d);
+            }
+        }
+    }
+    ref_best
+        .iter()
+        .enumerate()
+        .filter(|&(i, &(j, _))| j != u32::MAX && cur_best[j as usize].0 == i as u32)
+        .map(|(i, &(j, _))| (i, j))
+        .collect()
+}
+
+/// [`mutual_in_grid`] with nearest neighbours from 2-d trees over the distinct points of each
+/// side (a duplicate is never nearer, nor a lower index, than the first copy of its point).
+fn mutual_in_trees(reference: &[[f32; 2]], current: &[[f32; 2]], g2: f64) -> Vec<(usize, u32)> {
     let cur_tree = KdTree::unique(current);
     let ref_tree = KdTree::unique(reference);
     // Nearest reference of each current point, computed once per current point that is some
-    // reference's nearest (u32::MAX - 1: not computed yet).
+    // reference's nearest.
     const UNKNOWN: u32 = u32::MAX - 1;
     let mut cur_best = vec![UNKNOWN; current.len()];
+    let mut pairs = Vec::new();
     for (i, &p) in reference.iter().enumerate() {
         let Some((j, _)) = cur_tree.nearest(p, g2, false) else {
             continue;
@@ -89,18 +153,11 @@ pub fn match_with_gate(reference: &[[f32; 2]], current: &[[f32; 2]], gate: f32) 
                 .nearest(current[ju], g2, false)
                 .map_or(u32::MAX, |(r, _)| r);
         }
-        if cur_best[ju] != i as u32 {
-            continue;
-        }
-        let q = current[ju];
-        let mv = [q[0] - p[0], q[1] - p[1]];
-        if mv[0].is_finite() && mv[1].is_finite() {
-            out.motion[i] = mv;
-            out.valid[i] = true;
-            out.index[i] = i64::from(j);
+        if cur_best[ju] == i as u32 {
+            pairs.push((i, j));
         }
     }
-    out
+    pairs
 }
 
 #[cfg(test)]
@@ -192,7 +249,8 @@ mod tests {
                 .collect()
         };
         let (r, c) = (pts(300, 0.0), pts(280, 0.3));
-        for gate in [1.5f32, 4.0, f32::INFINITY] {
+        // 1.5 and 4 px take the grid, 40 px (cells of 40+ points) and no gate the trees.
+        for gate in [1.5f32, 4.0, 40.0, f32::INFINITY] {
             let m = match_with_gate(&r, &c, gate);
             let best = |a: &[[f32; 2]], b: &[[f32; 2]], i: usize| {
                 let mut best: Option<(usize, f32)> = None;

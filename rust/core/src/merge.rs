@@ -495,9 +495,45 @@ impl<T: Sample> Geometry<'_, T> {
                         } else {
                             ws
                         };
-                        o.write(narrow(r, wide(r), s / div));
+                        o.write(narrow64(r, wide(r), s / div));
                     }
                 }
+            }
+            if T::FLOAT && (2..=MAX_FUSED).contains(&seg.cover.len()) {
+                self.redo_overflow(seg, y, out);
+            }
+        }
+    }
+
+    /// Recomputes in `f64` the values of a fused segment that came out non-finite: the `f32`
+    /// differences of samples near `+-3.4e38` overflow although their weighted mean is finite.
+    /// A pass over the segment just written (in cache); taken only for float samples.
+    #[cold]
+    #[inline(never)]
+    fn redo_overflow_at(&self, seg: &Segment, y: usize, e: usize) -> T {
+        let (a, b) = (seg.x0, seg.x1);
+        let r = self.span(seg.cover[0], y, a, b)[e];
+        let rv = wide(r);
+        let (mut s, mut ws) = (0.0f64, 0.0f64);
+        for &k in &seg.cover {
+            let wgt = match self.mode {
+                MergeMode::Average => 1.0,
+                MergeMode::Feather => {
+                    f64::from(self.wy[y - self.origins[k][1]] * self.col_weights(k, a, b)[e])
+                }
+            };
+            ws += wgt;
+            s += wgt * (wide(self.span(k, y, a, b)[e]) - rv);
+        }
+        narrow64(r, rv, s / ws)
+    }
+
+    fn redo_overflow(&self, seg: &Segment, y: usize, out: &mut [MaybeUninit<T>]) {
+        for (e, o) in out.iter_mut().enumerate() {
+            // SAFETY: every value of the segment was written by the fused kernel just before.
+            let v = unsafe { o.assume_init_ref() };
+            if !v.is_finite() {
+                o.write(self.redo_overflow_at(seg, y, e));
             }
         }
     }
@@ -505,32 +541,53 @@ impl<T: Sample> Geometry<'_, T> {
 
 /// `r + sum_k (v_k - r) / (K + 1)` per value, in one pass (`r` the first covering patch).
 /// A power-of-two count divides by multiplying with its reciprocal, which is exact.
-/// Differences are taken in `f64` ([`wide`]), so float patches near `+-3.4e38` cannot overflow.
+/// In `f32` (fast); a value that overflows is redone in `f64` by [`Geometry::redo_overflow`].
 #[inline(always)]
 fn average<T: Sample, const K: usize>(out: &mut [MaybeUninit<T>], r: &[T], rest: [&[T]; K]) {
     let n = out.len();
     let r = &r[..n];
     let rest = rest.map(|v| &v[..n]);
-    let count = (K + 1) as f64;
+    let count = (K + 1) as f32;
     if (K + 1).is_power_of_two() {
         let inv = 1.0 / count;
         for (e, o) in out.iter_mut().enumerate() {
-            let rv = wide(r[e]);
-            let mut s = 0.0f64;
+            let rv = r[e].to_f32();
+            let mut s = 0.0f32;
             for v in &rest {
-                s += wide(v[e]) - rv;
+                s += v[e].to_f32() - rv;
             }
             o.write(narrow(r[e], rv, s * inv));
         }
     } else {
         for (e, o) in out.iter_mut().enumerate() {
-            let rv = wide(r[e]);
-            let mut s = 0.0f64;
+            let rv = r[e].to_f32();
+            let mut s = 0.0f32;
             for v in &rest {
-                s += wide(v[e]) - rv;
+                s += v[e].to_f32() - rv;
             }
             o.write(narrow(r[e], rv, s / count));
         }
+    }
+}
+
+/// `rv + delta` as a sample; a zero `delta` returns `r` itself, bit for bit (so `-0.0` stays
+/// `-0.0`: `-0.0 + 0.0` would be `+0.0`).
+#[inline(always)]
+fn narrow<T: Sample>(r: T, rv: f32, delta: f32) -> T {
+    if delta == 0.0 {
+        r
+    } else {
+        T::from_f32(rv + delta)
+    }
+}
+
+/// [`narrow`] from `f64`.
+#[inline(always)]
+fn narrow64<T: Sample>(r: T, rv: f64, delta: f64) -> T {
+    if delta == 0.0 {
+        r
+    } else {
+        T::from_f32((rv + delta) as f32)
     }
 }
 
@@ -540,19 +597,8 @@ fn wide<T: Sample>(v: T) -> f64 {
     f64::from(v.to_f32())
 }
 
-/// `rv + delta` as a sample; a zero `delta` returns `r` itself, bit for bit (so `-0.0` stays
-/// `-0.0`: `-0.0 + 0.0` would be `+0.0`).
-#[inline(always)]
-fn narrow<T: Sample>(r: T, rv: f64, delta: f64) -> T {
-    if delta == 0.0 {
-        r
-    } else {
-        T::from_f32((rv + delta) as f32)
-    }
-}
-
 /// `r + sum_k w_k (v_k - r) / sum_k w_k` per value, in one pass; `w_k` is the patch's row
-/// weight times its column weight, `r = v_0`.
+/// weight times its column weight, `r = v_0`. In `f32`; overflow as in [`average`].
 #[inline(always)]
 fn feather<T: Sample, const K: usize>(
     out: &mut [MaybeUninit<T>],
@@ -564,12 +610,12 @@ fn feather<T: Sample, const K: usize>(
     let cols = weights.map(|(w, _)| &w[..n]);
     let rows = weights.map(|(_, w)| w);
     for (e, o) in out.iter_mut().enumerate() {
-        let rv = wide(vals[0][e]);
-        let (mut s, mut ws) = (0.0f64, 0.0f64);
+        let rv = vals[0][e].to_f32();
+        let (mut s, mut ws) = (0.0f32, 0.0f32);
         for k in 0..K {
-            let wgt = f64::from(rows[k] * cols[k][e]);
+            let wgt = rows[k] * cols[k][e];
             ws += wgt;
-            s += wgt * (wide(vals[k][e]) - rv);
+            s += wgt * (vals[k][e].to_f32() - rv);
         }
         o.write(narrow(vals[0][e], rv, s / ws));
     }

@@ -5,8 +5,8 @@ figure reported is the peak growth over the process's state just before the trac
 Points: a jittered square grid of pitch 10 px; each frame moves every marker by (2, 1) px plus
 0.3 px noise, shuffled (as detections come); per-frame times are the best of the frames (the
 machine is shared, so the best is the least disturbed), match_markers of the first frame
-(2.2 px motion) with a 5 px gate, repeated as often. ``--python PATH`` runs the same measurement under
-another interpreter (e.g. a venv holding an older build) for a before/after comparison.
+(2.2 px motion) with a 5 px gate, repeated as often. ``--python PATH`` runs the same
+measurement under another interpreter (e.g. a venv holding an older build): before/after.
 
     python benches/bench_tracker_scaling.py [--quick] [--max-n 100000] [--publish]
 """

@@ -69,7 +69,8 @@ def test_markers_command_writes_csv_json_and_overlay(tmp_path: Path, grasp) -> N
 
 def test_slip_on_a_folder_detects_the_slip(tmp_path: Path, frame_folder: Path, grasp) -> None:
     log = tmp_path / "log.csv"
-    assert main(["slip", str(frame_folder), "--log", str(log), "-q"]) == 0
+    # The folder starts in the established grasp (no contact onset to find): --start 0.
+    assert main(["slip", str(frame_folder), "--log", str(log), "-q", "--start", "0"]) == 0
     with open(log) as fh:
         rows = list(csv.DictReader(fh))
     assert len(rows) == len(grasp.frames) - grasp.grasp_start + 1
@@ -81,12 +82,19 @@ def test_slip_on_a_folder_detects_the_slip(tmp_path: Path, frame_folder: Path, g
 def test_slip_rigid_only_still_detects_the_slip(tmp_path: Path, frame_folder: Path) -> None:
     log = tmp_path / "log.csv"
     args = ["slip", str(frame_folder), "--log", str(log), "-q", "--rigid-threshold-px", "auto",
-            "--rigid-only"]
+            "--rigid-only", "--start", "0"]
     assert main(args) == 0
     with open(log) as fh:
         rows = list(csv.DictReader(fh))
     assert any(r["slip"] == "1" and r["criterion"] == "rigid" for r in rows)
-    assert main(["slip", str(frame_folder), "--log", str(log), "-q", "--rigid-only"]) == 1
+
+def test_slip_rigid_only_without_its_threshold_names_the_flags(
+        tmp_path: Path, frame_folder: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = tmp_path / "log.csv"
+    assert main(["slip", str(frame_folder), "--log", str(log), "-q", "--rigid-only"]) == 2
+    err = capsys.readouterr().err
+    assert "--rigid-only" in err and "--rigid-threshold-px" in err
+    assert "use_displacement" not in err and err.count("\n") == 1
 
 
 def test_slip_survives_corrupt_frames(tmp_path: Path, frame_folder: Path) -> None:
@@ -129,6 +137,7 @@ def test_progress_bars_go_to_stderr_and_quiet_silences_them(
     from tacswitch.cli import progress
 
     monkeypatch.setattr(progress, "DELAY_S", 0.0)  # draw at once (the real runs wait 1 s)
+    monkeypatch.setattr(progress, "stderr_is_terminal", lambda: True)  # as on a terminal
     n_folder = len(list(frame_folder.iterdir()))
     runs = {
         "remove-markers": (["remove-markers", str(frame_folder), "-o", str(tmp_path / "rm"),
@@ -148,6 +157,24 @@ def test_progress_bars_go_to_stderr_and_quiet_silences_them(
         assert quiet.err == "" and quiet.out == "", name
     with open(tmp_path / "t.csv") as fh:
         assert next(csv.reader(fh)) == ["frame", "marker", "x_ref", "y_ref", "dx", "dy", "valid"]
+    # stderr redirected to a file or a pipe: no bar at all (the summary is on stdout).
+    monkeypatch.setattr(progress, "stderr_is_terminal", lambda: False)
+    for name, (args, _) in runs.items():
+        assert main(args) == 0, name
+        assert capsys.readouterr().err == "", name
+
+
+def test_no_bar_for_a_short_job(tmp_path: Path, frame_folder: Path,
+                                monkeypatch: pytest.MonkeyPatch,
+                                capsys: pytest.CaptureFixture[str]) -> None:
+    from tacswitch.cli import progress
+
+    monkeypatch.setattr(progress, "stderr_is_terminal", lambda: True)
+    one = tmp_path / "one"
+    one.mkdir()
+    (one / "a.png").write_bytes((frame_folder / "0001.png").read_bytes())
+    assert main(["markers", str(one), "-o", str(tmp_path / "m")]) == 0  # well under 1 s
+    assert capsys.readouterr().err == ""
 
 
 def test_user_mistakes_are_one_line_errors(tmp_path: Path) -> None:

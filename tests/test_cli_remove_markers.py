@@ -202,6 +202,7 @@ def test_hybrid_video_uses_its_first_frame_as_the_reference(
 
 def test_an_output_never_replaces_its_input(tmp_path: Path, video: Path) -> None:
     before = video.read_bytes()
+    # An unusable --out is a usage error (exit code 2, as argparse's).
     assert main(["remove-markers", str(video), "-o", str(video.parent), "--overwrite",
-                 "-q"]) == 1
+                 "-q"]) == 2
     assert video.read_bytes() == before

@@ -158,3 +158,87 @@ def test_grasp_sequence_labels() -> None:
     for f in slip.frames:
         assert np.array_equal(f.image[~f.marker_mask], f.image_markers[~f.marker_mask])
     assert base.image.shape == (240, 320, 3)
+
+
+# --- gel-attached grain (issue 15): measured on real presses, carried by the gel's motion -------
+
+
+def _hp(img: np.ndarray, sigma: float = 2.0) -> np.ndarray:
+    import cv2
+
+    g = img.astype(np.float32).mean(-1)
+    return g - cv2.GaussianBlur(g, (0, 0), sigma)
+
+
+@pytest.mark.parametrize("name", ["gelsight", "gelsight_mini"])
+def test_grain_statistics_in_the_range_measured_on_real_presses(name: str) -> None:
+    """No-contact frames of a scene at the real frames' scale (640 x 480, 0.0295 mm/px): the
+    fixed pattern's strength and the shape of its radial spectrum match the real presses'."""
+    import dataclasses
+
+    from tacswitch.sim import grain
+
+    p = dataclasses.replace(sim.get_preset(name), height=480, width=640, mm_per_px=0.0295)
+    real = np.log(np.asarray(grain.REAL_RADIAL_PSD[name])[1:7])
+    for seed in (0, 1):
+        sc = sim.Scene(p, seed, label="none", appearance="random")
+        frames = np.stack([sc.render(k).image for k in range(4)])
+        s = grain.measure_grain(frames)
+        # Real: fixed pattern 0.27 / 0.36 grey levels, correlation 0.19 / 0.41 between frames.
+        assert 0.18 < s.fixed_std < 0.6, s
+        assert 0.05 < s.corr < 0.5, s
+        assert np.corrcoef(np.log(s.radial_psd[1:7]), real)[0, 1] > 0.97, s.radial_psd
+    # Without the grain layer the fixed pattern is (nearly) gone: the statistic can fail.
+    sc = sim.Scene(p, 0, label="none", appearance="random", grain=False)
+    s = grain.measure_grain(np.stack([sc.render(k).image for k in range(4)]))
+    assert s.fixed_std < 0.15, s
+
+
+@pytest.mark.skipif(importlib.util.find_spec("taxim") is None, reason="taxim not installed")
+def test_grain_constants_are_the_real_measurement() -> None:
+    from tacswitch.sim import grain
+
+    imgs, use = grain.taxim_presses("gelsight_mini")
+    s = grain.measure_grain(imgs, use)
+    assert 0.3 < s.fixed_std < 0.42 and 0.3 < s.corr < 0.5
+    np.testing.assert_allclose(s.radial_psd, grain.REAL_RADIAL_PSD["gelsight_mini"], rtol=0.02,
+                               atol=2e-4)
+
+
+def test_grain_moves_with_the_displacement_field() -> None:
+    """Away from the contact (no shading), frame t's grain is the rest grain carried by the
+    field: warped by it, the rest frame's high-pass matches; unwarped, it does not."""
+    import cv2
+
+    from tacswitch.sim import grain
+
+    sc = sim.Scene("gelsight_mini", 3, label="sphere")
+    sc.noise_sigma[:] = 0.0
+    rest = sc.render(0, depth=0.0)
+    f = sc.render(0, shear_px=(8.0, 3.0), load_ratio=0.2)
+    assert f.field is not None and rest.field is not None
+    assert np.abs(rest.field).max() == 0
+    a, b = _hp(rest.image), _hp(f.image)
+    near = cv2.dilate(f.contact_mask.astype(np.uint8), np.ones((31, 31), np.uint8)) > 0
+    m = ~near & (np.hypot(f.field[..., 0], f.field[..., 1]) > 1.0)
+    m[:10], m[-10:], m[:, :10], m[:, -10:] = False, False, False, False
+    assert m.sum() > 1000
+    moved = grain.warp_layer(a, f.field)
+    c_moved = np.corrcoef(moved[m], b[m])[0, 1]
+    c_fixed = np.corrcoef(a[m], b[m])[0, 1]
+    assert c_moved > 0.7 and c_moved > c_fixed + 0.2, (c_moved, c_fixed)
+    # The markers and the field agree: the field at a marker's rest centre is its displacement.
+    xy = np.round(sc.rest).astype(int)
+    ok = (xy[:, 0] >= 0) & (xy[:, 0] < 320) & (xy[:, 1] >= 0) & (xy[:, 1] < 240)
+    fd = f.field[xy[ok, 1], xy[ok, 0]]
+    assert np.abs(fd - f.displacement[ok]).max() < 0.35
+
+
+def test_random_appearance_differs_and_keeps_pairing() -> None:
+    a = sim.render_sample("gelsight_mini", 5, label="sphere")
+    b = sim.render_sample("gelsight_mini", 5, label="sphere", appearance="random")
+    assert b.params["appearance"] == "random" and b.params["look"]
+    assert np.abs(a.image.astype(float).mean((0, 1)) - b.image.astype(float).mean((0, 1))).max() > 1
+    assert np.array_equal(b.image[~b.marker_mask], b.image_markers[~b.marker_mask])
+    with pytest.raises(ValueError, match="appearance"):
+        sim.Scene("gelsight_mini", 0, appearance="odd")  # type: ignore[arg-type]

@@ -22,7 +22,7 @@ def marker_frames() -> list[np.ndarray]:
 
 
 def test_marker_offset_pairs_follow_the_paper(marker_frames):
-    pairs = tdata.marker_offset_pairs(marker_frames)
+    pairs = tdata.marker_offset_pairs(marker_frames, transplant=False)
     orig = ts.extract_markers(marker_frames[0], dilate=2, exclude_border=False).mask
     mask, loss = pairs["mask"][0], pairs["loss_mask"][0]
     # Shifted by half the pitch (28.5 px / 2 -> 14) on both axes; pixels shifted out are dropped.

@@ -50,14 +50,62 @@ def write_image(path: str | os.PathLike[str], img: NDArray[np.uint8]) -> Path:
     return target
 
 
-def read_image(path: str | os.PathLike[str]) -> NDArray[np.uint8]:
-    """Reads an image file as BGR uint8 (``cv2.IMREAD_COLOR``); ``ValueError`` if unreadable."""
+@contextmanager
+def stderr_silenced() -> Iterator[None]:
+    """Sends the process's file descriptor 2 to the null device for the block.
+
+    libpng prints ``libpng error: ...`` on stderr itself when OpenCV decodes a damaged PNG,
+    past OpenCV's log level; the callers report unreadable files in their own words. Use it
+    on one thread, around the call that may print (not around work that reports errors).
+    """
+    import sys
+
+    try:
+        fd = sys.__stderr__.fileno() if sys.__stderr__ is not None else 2
+    except (AttributeError, OSError, ValueError):
+        fd = 2
+    try:
+        saved = os.dup(fd)
+    except OSError:  # no descriptor 2 (a detached process): nothing to silence
+        yield
+        return
+    try:
+        if sys.stderr is not None:
+            sys.stderr.flush()
+        null = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(null, fd)
+        finally:
+            os.close(null)
+        yield
+    finally:
+        os.dup2(saved, fd)
+        os.close(saved)
+
+
+def try_read_image(path: str | os.PathLike[str], *,
+                   quiet: bool = False) -> NDArray[np.uint8] | None:
+    """Reads an image file as BGR uint8 (``cv2.IMREAD_COLOR``), or None if it is missing,
+    damaged or not an image. ``quiet``: keep the decoder's own messages off the terminal
+    (:func:`stderr_silenced`; the command line, which reads on one thread)."""
     import cv2
 
-    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if not quiet:
+        return cast("NDArray[np.uint8] | None", cv2.imread(str(path), cv2.IMREAD_COLOR))
+    with stderr_silenced():
+        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    return cast("NDArray[np.uint8] | None", img)
+
+
+def read_image(path: str | os.PathLike[str], name: str = "path", *,
+               quiet: bool = False) -> NDArray[np.uint8]:
+    """Reads an image file as BGR uint8 (``cv2.IMREAD_COLOR``); ``ValueError`` naming ``name``
+    if it cannot be read (missing, damaged, not an image). ``quiet``: as
+    :func:`try_read_image`."""
+    img = try_read_image(path, quiet=quiet)
     if img is None:
-        raise ValueError(f"path: cannot read an image from {str(path)!r}")
-    return cast("NDArray[np.uint8]", img)  # IMREAD_COLOR always decodes to uint8
+        raise ValueError(f"{name}: cannot read an image from {str(path)!r}")
+    return img
 
 
 def write_onnx(tmp: Path, target: str | os.PathLike[str], meta: dict[str, str],

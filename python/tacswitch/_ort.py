@@ -33,16 +33,47 @@ def session_options(threads: int | None = None) -> Any:
     return so
 
 
-def open_session(path: Path, threads: int | None = None) -> tuple[Any, dict[str, str]]:
-    """A CPU session of the ONNX file ``path`` and its custom metadata; ``FileNotFoundError``
-    naming the ``model`` argument when the file is missing."""
+#: What each export writes as ``tacswitch.kind``, for the error messages.
+KINDS = {"tacdiff": "a TacDiff marker-removal model", "motion": "a marker-motion model"}
+
+
+def model_kind(meta: dict[str, str]) -> str | None:
+    """The kind of a tacswitch ONNX model from its metadata: ``tacswitch.kind`` when recorded
+    (``"tacdiff"``, ``"motion"``), ``"motion"`` for motion models exported before the kind was
+    recorded (they carry ``tacswitch.arch`` only), None for any other ONNX file."""
+    kind = meta.get("tacswitch.kind")
+    if kind:
+        return kind
+    return "motion" if "tacswitch.arch" in meta else None
+
+
+def open_session(path: Path, threads: int | None = None,
+                 kind: str | None = None) -> tuple[Any, dict[str, str]]:
+    """A CPU session of the ONNX file ``path`` and its custom metadata.
+
+    Every failure is a one-line error naming the ``model`` argument: ``FileNotFoundError`` when
+    the file is missing, ``ValueError`` when it is not an ONNX model onnxruntime can load (an
+    image, a truncated download) or, with ``kind`` given, when its metadata says it is another
+    kind of model (a TacDiff model given to motion prediction, or the reverse).
+    """
     import onnxruntime as ort
 
     if not path.is_file():
         raise FileNotFoundError(f"model: no ONNX file at {str(path)!r}")
-    session = ort.InferenceSession(str(path), session_options(threads),
-                                   providers=["CPUExecutionProvider"])
-    return session, dict(session.get_modelmeta().custom_metadata_map)
+    try:
+        session = ort.InferenceSession(str(path), session_options(threads),
+                                       providers=["CPUExecutionProvider"])
+    except Exception as exc:  # onnxruntime raises its own classes (InvalidProtobuf, Fail, ...)
+        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ValueError(f"model: {str(path)!r} is not an ONNX model onnxruntime can load "
+                         f"({type(exc).__name__}: {reason[:160]})") from None
+    meta = dict(session.get_modelmeta().custom_metadata_map)
+    if kind is not None:
+        found = model_kind(meta)
+        if found != kind:
+            what = KINDS.get(found or "", "not a tacswitch model (no tacswitch.kind metadata)")
+            raise ValueError(f"model: {str(path)!r} is {what}; expected {KINDS.get(kind, kind)}")
+    return session, meta
 
 
 def cached(factory: Callable[[Path], T], path: Path) -> T:

@@ -1,9 +1,10 @@
 """Speed/accuracy trade-off of marker-removal methods: every knob on both axes, one table.
 
-Frames come with the truth (simulated pairs: the markerless image is known), so quality is the
-error against the true pixels under the marker mask, overall and where the gel is in contact
-(where texture and edges make inpainting hard). Time is the median per 640x480 frame on one
-thread, measured alternately with the other methods.
+Frames come with the truth, so quality is the error against the true pixels under the marker
+mask, overall and where the gel is in contact (where texture and edges make inpainting hard):
+simulated pairs (:func:`simulated_frames`), or the real-frame proxy (:func:`proxy_frames`: real
+markerless presses with realistic markers painted on and captured lossless, MJPEG or H.264).
+Time is the median per 640x480 frame on one thread, measured alternately with the other methods.
 """
 
 from __future__ import annotations
@@ -142,6 +143,38 @@ def simulated_frames(n: int, preset: str = "gelsight", seed: int = 0,
                                exclude_border=False).mask
         frames.append(PairedFrame(s.image_markers, s.image, fill, s.contact_mask, s.reference,
                                   score=fill | true))
+    return frames
+
+
+#: Style/capture cases of the real-frame proxy rows (:mod:`tacswitch.realproxy`): crisp black
+#: dots as painted, and soft dots (black pasted, grey painted) as MJPEG and H.264 deliver them.
+PROXY_CASES: tuple[tuple[str, str], ...] = (
+    ("crisp", "lossless"), ("pasted", "lossless"), ("painted", "lossless"),
+    ("pasted", "mjpeg"), ("painted", "mjpeg"), ("pasted", "h264"), ("painted", "h264"))
+#: The cases ``--quick`` keeps: crisp, and soft grey dots through H.264.
+PROXY_QUICK_CASES: tuple[tuple[str, str], ...] = (("crisp", "lossless"), ("painted", "h264"))
+
+
+def proxy_frames(n: int, sensor: str = "gelsight", *,
+                 cases: Sequence[tuple[str, str]] = PROXY_CASES, seed: int = 0
+                 ) -> list[PairedFrame]:
+    """The real-frame proxy as paired frames: ``n`` of Taxim's real markerless presses of
+    ``sensor`` with markers painted and captured as ``cases`` say (style, capture;
+    :mod:`tacswitch.realproxy`). The fill mask is the one :func:`tacswitch.remove_markers`
+    builds from the frame (adaptive growth); errors are measured over the true marker
+    footprint, so whatever the mask misses counts. Needs the ``taxim`` package (and PyAV for
+    H.264)."""
+    from tacswitch import realproxy
+
+    styles = tuple(dict.fromkeys(s for s, _ in cases))
+    captures = tuple(dict.fromkeys(c for _, c in cases))
+    want = {f"{s}/{c}" for s, c in cases}
+    frames = []
+    for f in realproxy.proxy_frames(sensor, n, styles=styles, captures=captures, seed=seed):
+        if "/".join(f.name.split("/")[2:]) not in want:
+            continue
+        frames.append(PairedFrame(f.img, f.clean, realproxy.default_mask(f.img), f.contact,
+                                  f.reference, score=f.footprint))
     return frames
 
 

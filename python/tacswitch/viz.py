@@ -46,9 +46,38 @@ def draw_motion(
             continue
         end = (round(x + scale * dx), round(y + scale * dy))
         cv2.arrowedLine(out, start, end, colour, 1, cv2.LINE_AA, tipLength=0.25)
-    cv2.putText(out, f"arrows x{scale:g}", (6, out.shape[0] - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.45,
+    cv2.putText(out, f"arrows x{scale:g}", (6, out.shape[0] - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.55,
                 (255, 255, 255), 1, cv2.LINE_AA)
     return out
+
+
+#: Caption and plot text: Hershey simplex at this scale draws capitals about 14 px high.
+TEXT_SCALE = 0.62
+_FONT = 0  # cv2.FONT_HERSHEY_SIMPLEX
+
+
+def _text_width(text: str, scale: float, thickness: int = 1) -> int:
+    import cv2
+
+    return int(cv2.getTextSize(text, _FONT, scale, thickness)[0][0])
+
+
+def _wrap(text: str, width: int, scale: float) -> list[str]:
+    """``text`` broken at spaces into lines at most ``width`` px wide (a longer word stays)."""
+    lines: list[str] = []
+    for word in text.split():
+        if lines and _text_width(f"{lines[-1]} {word}", scale) <= width:
+            lines[-1] = f"{lines[-1]} {word}"
+        else:
+            lines.append(word)
+    return lines or [""]
+
+
+def _put(img: NDArray[np.uint8], text: str, org: tuple[int, int], colour=(0, 0, 0),
+         scale: float = TEXT_SCALE, thickness: int = 1) -> None:
+    import cv2
+
+    cv2.putText(img, text, org, _FONT, scale, colour, thickness, cv2.LINE_AA)
 
 
 def line_plot(
@@ -56,63 +85,117 @@ def line_plot(
     size: tuple[int, int] = (240, 640),
     *,
     hline: float | None = None,
+    hline_label: str | None = None,
     marks: NDArray | None = None,
+    marks_label: str | None = None,
+    spans: list[tuple[float, float, str]] | None = None,
+    events: list[tuple[float, str, int]] | None = None,
     title: str = "",
+    xlabel: str = "",
+    ylabel: str = "",
 ) -> NDArray[np.uint8]:
-    """A small line plot (white background) of named series against their index.
+    """A line plot (white background, BGR uint8) of named series against their index.
 
-    ``hline`` draws a dashed threshold; ``marks`` (bool per index) shades those samples.
+    Axes have ticks and labels (``xlabel`` under the x axis, ``ylabel`` above the y axis);
+    the legend names each series in its colour.
+
+    Args:
+        series: name -> values (NaN: not drawn).
+        size: ``(height, width)`` in pixels.
+        hline: a dashed horizontal line (e.g. a threshold), named ``hline_label``.
+        marks: bool per index: those samples are shaded red, named ``marks_label``.
+        spans: ``(first, last, text)`` index ranges shaded grey with ``text`` inside (e.g. a
+            phase where the series is not defined).
+        events: ``(index, text, series number)``: a vertical line in that series' colour
+            with ``text`` beside it (e.g. a detection).
     """
     import cv2
 
     h, w = size
     img = np.full((h, w, 3), 255, np.uint8)
-    left, right, top, bottom = 50, 10, 24, 24
+    small = 0.9 * TEXT_SCALE
+    left, right, top, bottom = 64, 16, 84, 50
     n = max(len(v) for v in series.values())
     values = np.concatenate([np.asarray(v, np.float64) for v in series.values()])
-    ymax = float(np.nanmax(np.append(values[np.isfinite(values)], [hline or 0.0, 1e-6])))
-    ymax *= 1.1
+    finite = values[np.isfinite(values)]
+    ymax = float(max(finite.max() if finite.size else 0.0, hline or 0.0, 1e-6)) * 1.1
+    x0, x1, y0, y1 = left, w - right, h - bottom, top  # plot box (y grows downwards)
 
-    def to_px(i: float, v: float) -> tuple[int, int]:
-        x = left + (w - left - right) * i / max(n - 1, 1)
-        y = h - bottom - (h - top - bottom) * v / ymax
+    def px(i: float, v: float) -> tuple[int, int]:
+        x = x0 + (x1 - x0) * (i + 0.5) / max(n, 1)
+        y = y0 - (y0 - y1) * v / ymax
         return round(x), round(y)
 
+    for first, last, text in spans or []:
+        a, b = px(first - 0.5, 0)[0], px(last + 0.5, 0)[0]
+        cv2.rectangle(img, (a, y1), (b, y0), (232, 232, 232), -1)
+        for k, line in enumerate(_wrap(text, b - a - 12, small)):
+            _put(img, line, (a + 6, y1 + 22 + 20 * k), (90, 90, 90), small)
     if marks is not None:
         for i in np.flatnonzero(np.asarray(marks, bool)):
-            x0, _ = to_px(i - 0.5, 0)
-            x1, _ = to_px(i + 0.5, 0)
-            cv2.rectangle(img, (x0, top), (x1, h - bottom), (220, 220, 255), -1)
-    cv2.line(img, (left, h - bottom), (w - right, h - bottom), (0, 0, 0), 1)
-    cv2.line(img, (left, top), (left, h - bottom), (0, 0, 0), 1)
-    for frac in (0.0, 0.5, 1.0):
-        tick = ymax * frac / 1.1
-        _, y = to_px(0, tick)
-        cv2.putText(img, f"{tick:.1f}", (4, y + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (0, 0, 0), 1)
+            cv2.rectangle(img, (px(i - 0.5, 0)[0], y1), (px(i + 0.5, 0)[0], y0),
+                          (215, 215, 255), -1)
+    # Axes, ticks and labels.
+    cv2.line(img, (x0, y0), (x1, y0), (0, 0, 0), 1)
+    cv2.line(img, (x0, y1), (x0, y0), (0, 0, 0), 1)
+    for frac in (0.0, 0.25, 0.5, 0.75, 1.0):
+        tick = ymax / 1.1 * frac
+        _, y = px(0, tick)
+        cv2.line(img, (x0 - 5, y), (x0, y), (0, 0, 0), 1)
+        text = f"{tick:.1f}" if ymax < 20 else f"{tick:.0f}"
+        _put(img, text, (x0 - 9 - _text_width(text, small), y + 6), scale=small)
+    step = max(1, int(np.ceil(n / 10 / 5)) * 5) if n > 10 else 1
+    for i in range(0, n, step):
+        x, _ = px(i, 0)
+        cv2.line(img, (x, y0), (x, y0 + 5), (0, 0, 0), 1)
+        _put(img, str(i), (x - _text_width(str(i), small) // 2, y0 + 24), scale=small)
+    if xlabel:
+        _put(img, xlabel, ((x0 + x1 - _text_width(xlabel, small)) // 2, h - 6), scale=small)
+    if ylabel:
+        _put(img, ylabel, (8, y1 - 12), scale=small)
     if hline is not None:
-        _, y = to_px(0, hline)
-        for x in range(left, w - right, 12):
-            cv2.line(img, (x, y), (min(x + 6, w - right), y), (0, 0, 200), 1)
+        _, y = px(0, hline)
+        for x in range(x0, x1, 12):
+            cv2.line(img, (x, y), (min(x + 6, x1), y), (0, 0, 200), 1)
+        if hline_label:
+            _put(img, hline_label, (x1 - _text_width(hline_label, small) - 4, y - 6),
+                 (0, 0, 200), small)
     palette = [(200, 80, 0), (0, 150, 0), (0, 0, 200), (120, 0, 120)]
-    for k, (name, v) in enumerate(series.items()):
-        v = np.asarray(v, np.float64)
-        pts = [to_px(i, val) for i, val in enumerate(v) if np.isfinite(val)]
-        colour = palette[k % len(palette)]
+    for k, (_name, v) in enumerate(series.items()):
+        pts = [px(i, val) for i, val in enumerate(np.asarray(v, np.float64)) if np.isfinite(val)]
         for a, b in itertools.pairwise(pts):
-            cv2.line(img, a, b, colour, 2, cv2.LINE_AA)
-        cv2.putText(img, name, (left + 8 + 160 * k, top - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
-                    colour, 1, cv2.LINE_AA)
+            cv2.line(img, a, b, palette[k % len(palette)], 2, cv2.LINE_AA)
+    for i, text, k in events or []:
+        x, _ = px(i, 0)
+        colour = palette[k % len(palette)]
+        for y in range(y1, y0, 8):
+            cv2.line(img, (x, y), (x, min(y + 4, y0)), colour, 2)
+        cv2.drawMarker(img, (x, y0), colour, cv2.MARKER_TRIANGLE_UP, 14, 2)
+        tw = _text_width(text, small)
+        tx = x + 6 if x + 6 + tw < x1 else x - 6 - tw
+        _put(img, text, (tx, y1 + 22 + 22 * (k + 1)), colour, small)
+    # Legend and title on the top band.
+    x = x0
+    entries = [(name, palette[k % len(palette)]) for k, name in enumerate(series)]
+    if marks_label:
+        entries.append((marks_label, (150, 150, 255)))
+    for name, colour in entries:
+        cv2.rectangle(img, (x, 40), (x + 14, 50), colour, -1)
+        _put(img, name, (x + 20, 50), (0, 0, 0), small)
+        x += 20 + _text_width(name, small) + 24
     if title:
-        cv2.putText(img, title, (w - 8 - 7 * len(title), top - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
-                    (0, 0, 0), 1, cv2.LINE_AA)
+        _put(img, title, (x0, 24))
     return img
 
 
-def label(img: NDArray[np.uint8], text: str) -> NDArray[np.uint8]:
-    """Copy of ``img`` with a caption bar on top."""
-    import cv2
-
-    bar = np.full((22, img.shape[1], 3), 40, np.uint8)
-    cv2.putText(bar, text, (6, 15), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1, cv2.LINE_AA)
+def label(img: NDArray[np.uint8], text: str, scale: float = TEXT_SCALE) -> NDArray[np.uint8]:
+    """Copy of ``img`` (grey images become BGR) with a caption bar on top: white text at
+    ``scale`` (:data:`TEXT_SCALE`: capitals ~14 px), wrapped onto more lines if it is wider
+    than the image."""
+    bar_line = round(36 * scale / TEXT_SCALE)
+    lines = _wrap(text, img.shape[1] - 12, scale)
+    bar = np.full((bar_line * len(lines) + 6, img.shape[1], 3), 40, np.uint8)
+    for k, line in enumerate(lines):
+        _put(bar, line, (6, bar_line * (k + 1) - 8), (255, 255, 255), scale)
     body = img if img.ndim == 3 else np.repeat(img[:, :, None], 3, axis=2)
     return np.vstack([bar, body])

@@ -57,17 +57,37 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Runs the CLI. User mistakes print one line on stderr and return 1, never a traceback."""
+    """Runs the CLI. User mistakes print one line on stderr, never a traceback: exit code 2 for
+    an option whose value cannot be used (as argparse's usage errors: a wrong ``--model``, an
+    output path under a file, a missing ``--centres`` file), 1 for inputs that cannot be
+    processed."""
+    from tacswitch.cli.options import UsageError
+    from tacswitch.cli.sources import quiet_opencv
+
     parser = build_parser()
     args = parser.parse_args(argv)
+    quiet_opencv()
     try:
         return int(args.run(args) or EXIT_OK)
-    except (ValueError, TypeError, FileNotFoundError, NotADirectoryError) as exc:
+    except UsageError as exc:
         print(f"tacswitch {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except (ValueError, TypeError, OSError) as exc:
+        print(f"tacswitch {args.command}: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_ERROR
     except KeyboardInterrupt:
         print(f"tacswitch {args.command}: interrupted", file=sys.stderr)
         return 130
+
+
+def _one_line(exc: BaseException) -> str:
+    """An error as one line; an OS error raised by the system (a disk full, a permission lost
+    mid-run) as words and the file, without the raw ``[Errno N]`` prefix."""
+    if isinstance(exc, OSError) and exc.errno is not None and exc.strerror:
+        where = f": {str(exc.filename)!r}" if exc.filename else ""
+        return f"{exc.strerror.lower()}{where}"
+    text = str(exc).strip() or type(exc).__name__
+    return " ".join(text.split())
 
 
 if __name__ == "__main__":

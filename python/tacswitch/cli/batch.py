@@ -52,18 +52,27 @@ def ordered_map(fn: Callable[[T], R], items: Iterable[T], workers: int) -> Itera
         pool.shutdown(wait=True, cancel_futures=True)
 
 
+#: Video codecs the commands write: fourcc, file suffix, and whether frames survive exactly.
+CODECS: dict[str, tuple[str, str, bool]] = {
+    "mp4v": ("mp4v", ".mp4", False),  # MPEG-4 Part 2: plays anywhere, lossy
+    "ffv1": ("FFV1", ".mkv", True),  # FFmpeg's FFV1 in Matroska: lossless, bit-exact frames
+}
+
+
 class AtomicVideoWriter:
-    """An mp4v ``cv2.VideoWriter`` on a hidden temporary file next to ``target``, renamed to
-    ``target`` by :meth:`commit`; :meth:`discard` (or an exception in a ``with`` block) removes
-    it. An interrupted run never leaves a partial video under the final name.
+    """A ``cv2.VideoWriter`` (``codec``, see :data:`CODECS`; default mp4v) on a hidden
+    temporary file next to ``target``, renamed to ``target`` by :meth:`commit`;
+    :meth:`discard` (or an exception in a ``with`` block) removes it. An interrupted run never
+    leaves a partial video under the final name.
 
     The frame size is taken from the first frame written; frames of another size are refused
     (``write`` returns False) instead of being dropped silently by OpenCV.
     """
 
-    FOURCC = "mp4v"
-
-    def __init__(self, target: str | os.PathLike[str], fps: float) -> None:
+    def __init__(self, target: str | os.PathLike[str], fps: float, codec: str = "mp4v") -> None:
+        if codec not in CODECS:
+            raise ValueError(f"codec: must be one of {sorted(CODECS)}; got {codec!r}")
+        self.fourcc = CODECS[codec][0]
         self.target = Path(target)
         self.fps = fps
         self.size: tuple[int, int] | None = None
@@ -78,19 +87,19 @@ class AtomicVideoWriter:
 
     def write(self, frame: np.ndarray) -> bool:
         """Appends a BGR uint8 frame; False (nothing written) if its size differs from the
-        first frame's. ``ValueError`` if this OpenCV build cannot encode mp4v."""
+        first frame's. ``ValueError`` if this OpenCV build cannot encode the codec."""
         import cv2
 
         h, w = frame.shape[:2]
         if self._writer is None:
             self.size = (w, h)
-            self._writer = cv2.VideoWriter(str(self._tmp), cv2.VideoWriter.fourcc(*self.FOURCC),
+            self._writer = cv2.VideoWriter(str(self._tmp), cv2.VideoWriter.fourcc(*self.fourcc),
                                            self.fps, (w, h))
             if not self._writer.isOpened():
                 self.discard()
-                raise ValueError(f"--out: this OpenCV build cannot write {self.FOURCC} video "
-                                 f"(codec unavailable) to {str(self.target)!r}; use --frames to "
-                                 "write PNG frames instead")
+                raise ValueError(f"--codec: this OpenCV build cannot write {self.fourcc} video "
+                                 f"to {str(self.target)!r}; use --frames to write PNG frames "
+                                 "instead")
         if (w, h) != self.size or frame.ndim != 3 or frame.dtype != np.uint8:
             return False
         self._writer.write(np.ascontiguousarray(frame))

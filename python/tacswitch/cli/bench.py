@@ -23,7 +23,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--steps", default="1,2,4,8,20",
                    help="TacDiff sampler steps K (default: 1,2,4,8,20; empty: no TacDiff rows)")
     p.add_argument("--model", default=None, help="TacDiff ONNX model (default: the shipped one)")
-    p.add_argument("--quick", action="store_true", help="2 frames, radii 3 and 5, 1 round")
+    p.add_argument("--real", type=int, default=1,
+                   help="real GelSight presses with painted, captured markers (the real-frame "
+                   "proxy; needs the taxim package): a second table and bench_real.png "
+                   "(default: 1, x 7 style/capture cases; 0: none)")
+    p.add_argument("--quick", action="store_true",
+                   help="2 frames, radii 3 and 5, 1 round, 2 real-frame cases")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(run=run)
 
@@ -43,32 +48,54 @@ def run(args: argparse.Namespace) -> int:
     except ValueError:
         raise ValueError(f"--radii: expected integers like 3,5,8; got {args.radii!r}") from None
     frames, rounds = args.frames, args.rounds
+    cases = tradeoff.PROXY_CASES
     if args.quick:
         frames, rounds, radii, args.steps = 2, 1, [3, 5], "1,2"
+        cases = tradeoff.PROXY_QUICK_CASES
     try:
         steps = [int(k) for k in args.steps.split(",") if k.strip()]
     except ValueError:
         raise ValueError(f"--steps: expected integers like 1,2,4; got {args.steps!r}") from None
     if frames < 1 or rounds < 1 or not radii or min(radii) < 1 or min(steps, default=1) < 1:
         raise ValueError("--frames, --rounds, --radii and --steps must be positive")
+    if args.real < 0:
+        raise ValueError(f"--real: must be >= 0; got {args.real}")
     data = tradeoff.simulated_frames(frames, args.preset)
     methods = tradeoff.default_methods(radii)
     if steps:
         methods |= tradeoff.tacdiff_methods(steps, hybrid_steps=steps[1:2] or steps[:1],
                                             model=args.model)
     rows = tradeoff.evaluate(data, methods, rounds=rounds)
+    real_rows = []
+    if args.real:
+        # The real-frame proxy: every frame is scored over the true marker footprint with the
+        # mask remove_markers builds; one timing round (the simulated table times the knobs).
+        real = tradeoff.proxy_frames(args.real, cases=cases)
+        real_rows = tradeoff.evaluate(real, methods, rounds=1)
     out = Path(args.out)
     h, w = data[0].truth.shape[:2]
     table = tradeoff.markdown(rows)
+    real_table = tradeoff.markdown(real_rows) if real_rows else ""
     with atomic_open(out / "bench.md") as fh:
         fh.write(f"# Marker removal: speed vs accuracy\n\n{frames} simulated {args.preset} "
                  f"contacts ({w}x{h}), mask = true markers dilated once; TELEA and NS on one "
-                 f"thread, TacDiff on all cores (onnxruntime).\n\n"
-                 f"{table}\n\nCommand: `tacswitch bench --frames {frames} --preset "
+                 f"thread, TacDiff on all cores (onnxruntime).\n\n{table}\n\n")
+        if real_rows:
+            fh.write(f"## Real frames with painted markers (real-frame proxy)\n\n{args.real} "
+                     f"of Taxim's real GelSight presses (640x480) x {len(cases)} marker "
+                     "styles/captures (crisp; soft black and grey dots lossless, MJPEG q75, "
+                     "H.264 CRF 26), mask = the one remove_markers builds, error over the "
+                     f"true marker footprint; plot: bench_real.png.\n\n{real_table}\n\n")
+        fh.write(f"Command: `tacswitch bench --frames {frames} --preset "
                  f"{args.preset} --radii {','.join(map(str, radii))} --rounds {rounds} "
-                 f"--steps {','.join(map(str, steps))}`\n")
+                 f"--steps {','.join(map(str, steps))} --real {args.real}"
+                 f"{' --quick' if args.quick else ''}`\n")
     write_image(out / "bench.png", tradeoff.plot(rows))
+    if real_rows:
+        write_image(out / "bench_real.png", tradeoff.plot(real_rows))
     if not args.quiet:
         print(table)
+        if real_rows:
+            print("\nReal frames with painted markers:\n" + real_table)
     print(out / "bench.md")
     return 0

@@ -46,11 +46,31 @@ def _track(seq, detector_factory):
     return tracker, states, motions, valids, elapsed
 
 
-def _fit(row: np.ndarray, width: int) -> np.ndarray:
+def _row(panels: list[tuple[np.ndarray, str]], width: int, title: str = "") -> np.ndarray:
+    """Panels side by side, ``width`` px in all, each captioned *after* scaling (captions stay
+    readable however much a panel shrinks), under an optional ``title`` bar for the row."""
     import cv2
 
-    return np.asarray(cv2.resize(row, (width, round(row.shape[0] * width / row.shape[1])),
-                                 interpolation=cv2.INTER_AREA))
+    from tacswitch import viz
+
+    each = width // len(panels)
+    out = []
+    for img, caption in panels:
+        small = cv2.resize(img, (each, round(img.shape[0] * each / img.shape[1])),
+                           interpolation=cv2.INTER_AREA)
+        # Caption lines pad at the bottom of the bar, so every caption starts at the top.
+        bar = viz.label(np.zeros((0, each, 3), np.uint8), caption)
+        out.append((bar, np.asarray(small)))
+    tallest = max(bar.shape[0] for bar, _ in out)
+    cols = [np.vstack([bar, np.full((tallest - bar.shape[0], each, 3), 40, np.uint8), img])
+            for bar, img in out]
+    row = np.hstack(cols)
+    if row.shape[1] < width:  # integer division left a few columns
+        row = np.hstack([row, np.full((row.shape[0], width - row.shape[1], 3), 40, np.uint8)])
+    if title:
+        head = viz.label(np.zeros((0, width, 3), np.uint8), title, scale=1.2 * viz.TEXT_SCALE)
+        row = np.vstack([head, row])
+    return row
 
 
 def _marker_removal_panel(preset: str, seed: int, width: int) -> tuple[np.ndarray, list[str]]:
@@ -58,7 +78,7 @@ def _marker_removal_panel(preset: str, seed: int, width: int) -> tuple[np.ndarra
     the diffusion model near the contact only), with the error against the true markerless
     image."""
     import tacswitch as ts
-    from tacswitch import metrics, viz
+    from tacswitch import metrics
     from tacswitch.sim.scene import render_sample
 
     sample = render_sample(preset, seed)
@@ -78,11 +98,12 @@ def _marker_removal_panel(preset: str, seed: int, width: int) -> tuple[np.ndarra
         lines.append(f"marker removal ({name}) on a simulated {sample.label} contact: {ms:.0f} ms, "
                      f"error under the markers {mae:.2f} grey levels, in contact {mae_c:.2f}")
     error = np.clip(4 * np.abs(hybrid.astype(np.int16) - sample.image.astype(np.int16)), 0, 255)
-    panels = [viz.label(sample.image_markers, f"contact ({sample.label}) with markers"),
-              viz.label(telea, f"markers removed: TELEA ({ms_telea:.0f} ms)"),
-              viz.label(hybrid, f"markers removed: TacDiff hybrid ({ms_hybrid:.0f} ms)"),
-              viz.label(error.astype(np.uint8), "|TacDiff - true markerless| x4")]
-    return _fit(np.hstack(panels), width), lines
+    panels = [(sample.image_markers, "input (with markers)"),
+              (telea, f"TELEA, {ms_telea:.0f} ms"),
+              (hybrid, f"TacDiff hybrid, {ms_hybrid:.0f} ms"),
+              (error.astype(np.uint8), "|TacDiff - truth| x4")]
+    title = f"Marker removal on a simulated contact ({sample.label})"
+    return _row(panels, width, title), lines
 
 
 def _motion_panel(preset: str, seed: int, width: int) -> tuple[np.ndarray, str]:
@@ -101,16 +122,17 @@ def _motion_panel(preset: str, seed: int, width: int) -> tuple[np.ndarray, str]:
     ms = 1e3 * (time.perf_counter() - t0)
     err = np.hypot(*(pred - truth).T)
     scale = 3.0
-    panels = [viz.label(viz.draw_motion(last.image, rest + start.displacement, truth,
-                                        np.ones(len(rest), bool), scale=scale),
-                        f"true marker motion since grasp start (x{scale:g})"),
-              viz.label(viz.draw_motion(last.image, rest + start.displacement, pred,
-                                        np.ones(len(rest), bool), scale=scale),
-                        f"predicted from markerless frames ({ms:.0f} ms)")]
+    panels = [(viz.draw_motion(last.image, rest + start.displacement, truth,
+                               np.ones(len(rest), bool), scale=scale),
+               f"true motion (arrows x{scale:g})"),
+              (viz.draw_motion(last.image, rest + start.displacement, pred,
+                               np.ones(len(rest), bool), scale=scale),
+               f"predicted from the markerless frames, {ms:.0f} ms")]
+    title = "Marker motion since the grasp start, on a markerless frame of a slip grasp"
     line = (f"motion from markerless frames (slip grasp, since grasp start): {ms:.1f} ms, "
             f"error median {np.median(err):.2f} px, mean {err.mean():.2f} px "
             f"(largest true motion {np.hypot(*truth.T).max():.1f} px)")
-    return _fit(np.hstack(panels), width), line
+    return _row(panels, width, title), line
 
 
 def run(args: argparse.Namespace) -> int:
@@ -143,23 +165,32 @@ def run(args: argparse.Namespace) -> int:
     hold_first = next((t for t, s in enumerate(results["hold"][2]) if s is not None and s.slip),
                       None)
 
-    top = np.hstack([
-        viz.label(viz.draw_markers(seq.reference, tracker.reference),
-                  f"reference: {len(tracker.reference)} markers"),
-        viz.label(viz.draw_motion(seq.frames[-1], tracker.reference, motions[-1], valids[-1],
-                                  scale=1.0), "last frame: tracked motion"),
-    ])
+    top = _row([
+        (viz.draw_markers(seq.reference, tracker.reference),
+         f"no-contact reference: {len(tracker.reference)} markers found"),
+        (viz.draw_motion(seq.frames[-1], tracker.reference, motions[-1], valids[-1], scale=1.0),
+         "last frame of the slip grasp: tracked motion"),
+    ], 2 * seq.reference.shape[1], f"Marker tracking on a simulated {preset.name} grasp")
     disp = {k: [np.nan if s is None else s.max_displacement for s in results[k][2]]
             for k in ("slip", "hold")}
+    events = [(first, f"slip detected: frame {first}", 0)] if first is not None else []
+    if hold_first is not None:
+        events.append((hold_first, f"hold: false alarm at frame {hold_first}", 1))
+    threshold = factory().threshold_px
     plot = viz.line_plot(
         {"slip grasp": np.array(disp["slip"]), "hold grasp": np.array(disp["hold"])},
-        size=(260, top.shape[1]), hline=factory().threshold_px, marks=np.array(seq.slip),
-        title="max displacement since grasp (px); red: true slip",
+        size=(380, top.shape[1]), hline=threshold,
+        hline_label=f"slip threshold {threshold:.2f} px", marks=np.array(seq.slip),
+        marks_label="true slip (slip grasp)",
+        spans=[(0, seq.grasp_start - 1, "loading: the press, then the shear ramp. The rule "
+                "is not run before the grasp start (the established contact), where "
+                "displacements are measured from")],
+        events=events, xlabel="frame", ylabel="largest marker displacement since the grasp "
+        "start, px", title="Slip rule on two simulated grasps: one slips, one holds",
     )
     removal, removal_lines = _marker_removal_panel(preset.name, args.seed, top.shape[1])
     motion_row, motion_line = _motion_panel(preset.name, args.seed, top.shape[1])
-    report = np.vstack([top, viz.label(plot, "slip rule (dashed: threshold)"), removal,
-                        motion_row])
+    report = np.vstack([top, plot, removal, motion_row])
     path = write_image(out / "report.png", report)
 
     say(f"preset {preset.name}: {preset.width}x{preset.height}, {len(seq.rest)} markers")

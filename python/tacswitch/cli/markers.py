@@ -1,4 +1,5 @@
-"""``tacswitch markers``: extract markers from images, write centres (CSV/JSON) and overlays."""
+"""``tacswitch markers``: extract markers from images and videos, write centres (CSV/JSON) and
+overlays."""
 
 from __future__ import annotations
 
@@ -7,48 +8,105 @@ import csv
 import io
 import json
 from pathlib import Path
+from typing import Any
 
-from tacswitch.cli.sources import collect_images
+import numpy as np
+
+from tacswitch.cli.sources import VIDEO_SUFFIXES, collect_inputs
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("markers", help="extract markers from images (CSV/JSON + overlay)",
-                       description="Extracts markers from image files or folders of images.")
-    p.add_argument("inputs", nargs="+", help="image files or folders")
+    from tacswitch.cli.options import add_extraction_options
+
+    p = sub.add_parser(
+        "markers", help="extract markers from images and videos (CSV/JSON + overlay)",
+        description="Extracts the markers of image files, of one frame of each video ("
+        + ", ".join(sorted(VIDEO_SUFFIXES)) + "; the first frame by default, --frame N "
+        "otherwise: on a recording that starts without contact these are the rest centres "
+        "`tacswitch motion --centres` takes), or of the images and videos found in folders. "
+        "Writes OUT/<stem>.csv (x, y, area, bounding box, contrast; or .json) per input. "
+        "Unreadable files are skipped, counted and named in a warning on stderr.",
+        epilog="Exit status: 0 when every readable input is done, 1 when no input could be "
+        "read, 2 for an unusable option value (e.g. --out under a file).")
+    p.add_argument("inputs", nargs="+", help="image files, video files or folders of them")
     p.add_argument("-o", "--out", default="markers-out",
                    help="output folder (default: %(default)s)")
     p.add_argument("--format", choices=("csv", "json"), default="csv")
-    p.add_argument("--overlay", action="store_true", help="also write an overlay PNG per image")
-    p.add_argument("--polarity", choices=("dark", "bright"), default="dark")
-    p.add_argument("--threshold", type=float, default=None,
-                   help="darkness threshold in grey levels (default: chosen per image)")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")
+    p.add_argument("--overlay", action="store_true", help="also write an overlay PNG per input")
+    p.add_argument("--frame", type=int, default=0, metavar="N",
+                   help="videos: the frame to extract from (0 = first, default)")
+    p.add_argument("-q", "--quiet", action="store_true",
+                   help="no progress bar or messages (warnings still go to stderr)")
+    add_extraction_options(p, border_default="exclude", dilate=False)
     p.set_defaults(run=run)
+
+
+def video_frame(path: Path, index: int) -> np.ndarray:
+    """Frame ``index`` (0-based, counting undecodable frames) of a video; ``ValueError`` naming
+    ``inputs`` if the video cannot be decoded, or ``--frame`` if it is shorter or that frame
+    does not decode."""
+    from tacswitch.cli.sources import video_frames
+
+    n = 0
+    for i, frame in enumerate(video_frames(path, "inputs")):
+        n = i + 1
+        if i == index:
+            if frame is None:
+                raise ValueError(f"--frame: frame {index} of {str(path)!r} does not decode")
+            return frame
+    raise ValueError(f"--frame: {str(path)!r} has {n} frames; frame {index} does not exist")
+
+
+def _rows(m: Any) -> list[dict[str, Any]]:
+    return [
+        {"x": round(float(c[0]), 3), "y": round(float(c[1]), 3), "area": int(a),
+         "bx": int(b[0]), "by": int(b[1]), "bw": int(b[2]), "bh": int(b[3]),
+         "contrast": round(float(k), 4)}
+        for c, a, b, k in zip(m.centres, m.areas, m.bboxes, m.contrast, strict=True)
+    ]
 
 
 def run(args: argparse.Namespace) -> int:
     import tacswitch as ts
     from tacswitch import viz
-    from tacswitch._io import atomic_open, read_image, write_image
-    from tacswitch.cli.progress import progress, say
+    from tacswitch._io import atomic_open, write_image
+    from tacswitch.cli.options import UsageError, extraction_options, output_dir
+    from tacswitch.cli.progress import progress, say, warn
+    from tacswitch.cli.sources import read_quiet
 
-    out = Path(args.out)
-    files = collect_images(args.inputs)
-    with progress(files, desc="markers", unit="img", quiet=args.quiet) as bar:
-        for path in bar:
-            img = read_image(path)
-            m = ts.extract_markers(img, polarity=args.polarity, threshold=args.threshold)
-            rows = [
-                {"x": round(float(c[0]), 3), "y": round(float(c[1]), 3), "area": int(a),
-                 "bx": int(b[0]), "by": int(b[1]), "bw": int(b[2]), "bh": int(b[3]),
-                 "contrast": round(float(k), 4)}
-                for c, a, b, k in zip(m.centres, m.areas, m.bboxes, m.contrast, strict=True)
-            ]
+    if args.frame < 0:
+        raise UsageError(f"--frame: must be >= 0; got {args.frame}")
+    images, videos = collect_inputs(args.inputs)
+    out = output_dir(args.out, "--out")
+    opts = extraction_options(args)
+    inputs = [(p, False) for p in images] + [(p, True) for p in videos]
+    failed: list[tuple[Path, str]] = []
+    done = 0
+    with progress(inputs, desc="markers", unit="file", quiet=args.quiet) as bar:
+        for path, is_video in bar:
+            if is_video:
+                try:
+                    img = video_frame(path, args.frame)
+                except ValueError as exc:
+                    failed.append((path, str(exc)))
+                    continue
+                source = f"{path} (frame {args.frame})"
+            else:
+                img = read_quiet(path)
+                if img is None:
+                    failed.append((path, f"inputs: cannot read an image from {str(path)!r}"))
+                    continue
+                source = str(path)
+            m = ts.extract_markers(img, **opts)
+            rows = _rows(m)
             target = out / f"{path.stem}.{args.format}"
             with atomic_open(target) as fh:
                 if args.format == "json":
-                    json.dump({"image": str(path), "threshold": m.threshold, "markers": rows}, fh,
-                              indent=1)
+                    record: dict[str, Any] = {"image": str(path)}
+                    if is_video:
+                        record["frame"] = args.frame
+                    record |= {"threshold": m.threshold, "markers": rows}
+                    json.dump(record, fh, indent=1)
                 else:
                     buf = io.StringIO()
                     writer = csv.DictWriter(buf, fieldnames=list(rows[0]) if rows else ["x", "y"])
@@ -57,5 +115,17 @@ def run(args: argparse.Namespace) -> int:
                     fh.write(buf.getvalue())
             if args.overlay:
                 write_image(out / f"{path.stem}_markers.png", viz.draw_markers(img, m.centres))
-            say(f"{path}: {len(m)} markers -> {target}", quiet=args.quiet)
+            done += 1
+            say(f"{source}: {len(m)} markers -> {target}", quiet=args.quiet)
+            if len(m) == 0:
+                warn("markers", f"no markers found in {source}; check --polarity and "
+                     "--threshold")
+    if failed and done == 0:
+        raise ValueError(failed[0][1] if len(failed) == 1 else
+                         f"inputs: none of the {len(failed)} inputs could be read")
+    if failed:
+        names = ", ".join(repr(str(p)) for p, _ in failed[:8])
+        more = f" and {len(failed) - 8} more" if len(failed) > 8 else ""
+        warn("markers", f"skipped {len(failed)} unreadable input"
+             f"{'s' if len(failed) > 1 else ''}: {names}{more}")
     return 0

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import csv
 import io
-from pathlib import Path
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -20,6 +19,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="CSV with x,y columns (e.g. from `tacswitch markers`); default: the "
                         "model's grid scaled to the frame")
     p.add_argument("--model", default=None, help="ONNX model (default: the shipped one)")
+    p.add_argument("--method", choices=("model", "flow", "outward"), default="model",
+                   help="model: the ONNX model (default); flow: dense optical flow from --ref "
+                        "(training-free, needs --ref); outward: the no-learning baseline "
+                        "(markers move outward from the contact)")
     p.add_argument("-o", "--out", default="motion-out", help="output folder (default: %(default)s)")
     p.add_argument("--scale", type=float, default=3.0, help="arrow length per px of motion")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")
@@ -48,20 +51,25 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from tacswitch._io import atomic_open, read_image, write_image
+    from tacswitch.cli.options import UsageError, input_file, load_model_option, output_dir
     from tacswitch.cli.progress import progress, say
     from tacswitch.cli.sources import collect_images
-    from tacswitch.motion.infer import load_model
+    from tacswitch.motion.infer import load_model, predict_motion
 
-    model = load_model(args.model)
-    ref = read_image(args.ref) if args.ref else None
-    centres = _read_centres(args.centres) if args.centres else None
-    out = Path(args.out)
+    if args.method == "flow" and not args.ref:
+        raise UsageError("--ref: --method flow measures motion from a reference frame; pass the "
+                         "markerless no-contact frame")
+    model = load_model_option(load_model, args.model)
+    ref = read_image(input_file(args.ref, "--ref"), "--ref", quiet=True) if args.ref else None
+    centres = _read_centres(str(input_file(args.centres, "--centres"))) if args.centres else None
     files = collect_images(args.inputs)
+    out = output_dir(args.out, "--out")
     with progress(files, desc="motion", unit="img", quiet=args.quiet) as bar:
         for path in bar:
-            img = read_image(path)
+            img = read_image(path, "inputs", quiet=True)
             pts = model.centres_for(*img.shape[:2]) if centres is None else centres
-            motion = model(img, ref=ref, centres=pts)
+            motion = (model(img, ref=ref, centres=pts) if args.method == "model" else
+                      predict_motion(img, ref, pts, method=args.method))
             buf = io.StringIO()
             w = csv.writer(buf)
             w.writerow(["x", "y", "dx", "dy"])

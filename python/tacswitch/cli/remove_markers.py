@@ -18,17 +18,26 @@ Remover = Callable[[np.ndarray], np.ndarray]
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
+    from tacswitch.cli.batch import CODECS
+    from tacswitch.cli.options import add_extraction_options
+
     p = sub.add_parser(
         "remove-markers",
         help="remove the painted markers from images and videos",
-        description="Extracts each frame's markers, dilates the mask twice (it must cover the "
-        "markers' soft edges) and "
+        description="Extracts each frame's markers, grows the mask over their soft edges and "
         "inpaints it. An image becomes OUT/<stem>.png; a video (" + ", ".join(
-            sorted(VIDEO_SUFFIXES)) + ") becomes OUT/<stem>.mp4 (mp4v, same size and fps; "
-        "frames that do not decode are skipped and counted), or with --frames a folder "
-        "OUT/<stem>/ of PNG frames named by frame index. Folders are searched for both. "
-        "Existing outputs are skipped, so an interrupted run resumes (a video file is redone, "
-        "a --frames folder resumes frame by frame); every write is atomic.",
+            sorted(VIDEO_SUFFIXES)) + ") becomes OUT/<stem>.mp4 (--codec mp4v, the default: "
+        "LOSSY, frames differ from the in-memory result by a few grey levels) or "
+        "OUT/<stem>.mkv (--codec ffv1: lossless, bit-exact frames), same size and fps, or "
+        "with --frames a folder OUT/<stem>/ of lossless PNG frames named by frame index. "
+        "Folders are searched for both. Frames that do not decode are skipped and counted; "
+        "unreadable images and videos are skipped, counted and named at the end. Existing "
+        "outputs are skipped, so an interrupted run resumes (a video file is redone, a "
+        "--frames folder resumes frame by frame); every write is atomic.",
+        epilog="Exit status: 0 when every readable input is done (unreadable ones are named "
+        "in a warning on stderr), 1 when no input could be read or an input cannot be "
+        "processed, 2 for an unusable option value (e.g. a file that is not a TacDiff "
+        "--model, an --out path under a file).",
     )
     p.add_argument("inputs", nargs="+", help="image files, video files or folders of them")
     p.add_argument("-o", "--out", required=True, help="output folder")
@@ -47,23 +56,30 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--model", default=None,
                    help="tacdiff/hybrid ONNX model, or 'fast' for the shipped narrow model "
                         "(default: the shipped model)")
+    p.add_argument("--codec", choices=tuple(CODECS), default="mp4v",
+                   help="video output: mp4v -> OUT/<stem>.mp4 (lossy, plays anywhere; "
+                        "default), ffv1 -> OUT/<stem>.mkv (lossless, bit-exact frames)")
     p.add_argument("--frames", action="store_true",
-                   help="write a video's frames as PNGs into OUT/<stem>/ instead of a video")
+                   help="write a video's frames as PNGs (lossless) into OUT/<stem>/ instead of "
+                        "a video")
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="telea/biharmonic/ns: threads over images and video frames (default: "
                         "all cores); tacdiff/hybrid run one item at a time, onnxruntime uses "
                         "all cores")
     p.add_argument("--overwrite", action="store_true", help="redo existing outputs")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress bars or messages")
+    p.add_argument("-q", "--quiet", action="store_true",
+                   help="no progress bars or messages (warnings still go to stderr)")
+    add_extraction_options(p, border_default="keep", dilate=True)
     p.set_defaults(run=run)
 
 
 def _remover(args: argparse.Namespace, ref: np.ndarray | None) -> Remover:
     import tacswitch as ts
+    from tacswitch.cli.options import extraction_options
 
-    opts: dict[str, Any] = {}
+    opts: dict[str, Any] = extraction_options(args)
     if args.method in MODEL_METHODS:
-        opts = {"steps": args.steps, "ref": ref, "model": args.model}
+        opts.update(steps=args.steps, ref=ref, model=args.model)
 
     def remove(img: np.ndarray) -> np.ndarray:
         return ts.remove_markers(img, method=args.method, radius=args.radius, **opts)
@@ -71,24 +87,25 @@ def _remover(args: argparse.Namespace, ref: np.ndarray | None) -> Remover:
     return remove
 
 
-def _read(path: Path) -> np.ndarray:
-    import cv2
+def _video_target(path: Path, out: Path, args: argparse.Namespace) -> Path:
+    """Where a video's output goes: a folder of PNGs (--frames) or a file of --codec."""
+    from tacswitch.cli.batch import CODECS
 
-    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if img is None:
-        raise ValueError(f"inputs: cannot read an image from {str(path)!r}")
-    return img
+    return out / path.stem if args.frames else out / f"{path.stem}{CODECS[args.codec][1]}"
 
 
-def _targets(images: list[Path], videos: list[Path], out: Path, frames: bool) -> None:
+def _targets(images: list[Path], videos: list[Path], out: Path,
+             args: argparse.Namespace) -> None:
     """``ValueError`` if two inputs would write the same output (same stem, same kind), or an
-    output would replace its own input."""
+    output would replace its own input (a :class:`UsageError` of ``--out``)."""
+    from tacswitch.cli.options import UsageError
+
     seen: dict[Path, Path] = {}
     named = [(p, out / f"{p.stem}.png") for p in images]
-    named += [(p, out / p.stem if frames else out / f"{p.stem}.mp4") for p in videos]
+    named += [(p, _video_target(p, out, args)) for p in videos]
     for path, target in named:
         if target.resolve() == path.resolve():
-            raise ValueError(f"--out: writing {str(target)!r} would replace its input; choose "
+            raise UsageError(f"--out: writing {str(target)!r} would replace its input; choose "
                              "another output folder")
         if target in seen:
             raise ValueError(f"inputs: {str(seen[target])!r} and {str(path)!r} would both "
@@ -96,76 +113,142 @@ def _targets(images: list[Path], videos: list[Path], out: Path, frames: bool) ->
         seen[target] = path
 
 
-def run(args: argparse.Namespace) -> int:
-    from tacswitch.cli.batch import default_workers
-    from tacswitch.cli.progress import say
+def _check_options(args: argparse.Namespace) -> None:
+    """Option values that cannot work, and options the method ignores (a warning)."""
+    from tacswitch.cli.options import UsageError, load_model_option
+    from tacswitch.cli.progress import warn
 
     if args.workers is not None and args.workers < 1:
-        raise ValueError(f"--workers: must be >= 1; got {args.workers}")
+        raise UsageError(f"--workers: must be >= 1; got {args.workers}")
+    if args.radius < 1:
+        raise UsageError(f"--radius: must be >= 1 px; got {args.radius}")
+    if args.steps is not None and args.steps < 1:
+        raise UsageError(f"--steps: must be >= 1; got {args.steps}")
+    ignored = [flag for flag, value, used_by in (
+        ("--steps", args.steps, MODEL_METHODS), ("--model", args.model, MODEL_METHODS),
+        ("--ref", args.ref, ("hybrid",))) if value is not None and args.method not in used_by]
+    if ignored:
+        users = {"--ref": "hybrid"}
+        warn("remove-markers", "; ".join(
+            f"{flag} is ignored by --method {args.method} (used by "
+            f"{users.get(flag, 'tacdiff and hybrid')})" for flag in ignored))
+    if args.method in MODEL_METHODS:
+        from tacswitch.tacdiff.infer import load_model
+
+        load_model_option(load_model, args.model)  # a wrong file fails here, in one line
+
+
+def run(args: argparse.Namespace) -> int:
+    from tacswitch.cli.batch import default_workers
+    from tacswitch.cli.options import input_file, output_dir
+    from tacswitch.cli.progress import say, warn
+    from tacswitch.cli.sources import read_quiet
+
+    _check_options(args)
     images, videos = collect_inputs(args.inputs)
     out = Path(args.out)
-    _targets(images, videos, out, args.frames)
+    _targets(images, videos, out, args)
     ref = None
-    if args.ref is not None:
-        if not Path(args.ref).is_file():
-            raise FileNotFoundError(f"--ref: no file at {args.ref!r}")
-        ref = _read(Path(args.ref))
+    if args.ref is not None and args.method == "hybrid":
+        ref = read_quiet(input_file(args.ref, "--ref"))
+        if ref is None:
+            raise ValueError(f"--ref: cannot read an image from {args.ref!r}")
+    output_dir(out, "--out")
     workers = 1 if args.method in MODEL_METHODS else (args.workers or default_workers())
-    done, skipped = _images(images, out, _remover(args, ref), workers, args)
+    done, skipped, failed = _images(images, out, _remover(args, ref), workers, args)
     bad = 0
     for path in videos:
-        d, s, b = _video(path, out, ref, workers, args)
+        try:
+            d, s, b = _video(path, out, ref, workers, args)
+        except _Unreadable as exc:
+            failed.append((path, str(exc)))
+            continue
         done, skipped, bad = done + d, skipped + s, bad + b
+    if failed and done + skipped == 0:
+        raise ValueError(failed[0][1] if len(failed) == 1 else
+                         f"inputs: none of the {len(failed)} inputs could be read "
+                         f"({_names(failed)})")
+    if failed:
+        warn("remove-markers", f"skipped {len(failed)} unreadable input"
+             f"{'s' if len(failed) > 1 else ''}: {_names(failed)}")
     say(f"{done} written, {skipped} already done"
+        + (f", {len(failed)} unreadable skipped" if failed else "")
         + (f", {bad} unreadable video frames skipped" if bad else "") + f", in {out}",
         quiet=args.quiet)
     return 0
 
 
+class _Unreadable(ValueError):
+    """An input (image or video) that cannot be decoded at all: skipped and counted."""
+
+
+def _names(failed: list[tuple[Path, str]], limit: int = 8) -> str:
+    """The first ``limit`` skipped inputs, quoted, and how many more."""
+    names = ", ".join(repr(str(p)) for p, _ in failed[:limit])
+    return names + (f" and {len(failed) - limit} more" if len(failed) > limit else "")
+
+
 def _images(images: list[Path], out: Path, remove: Remover, workers: int,
-            args: argparse.Namespace) -> tuple[int, int]:
-    """Marker removal on image files, ``workers`` at a time; (written, already done)."""
+            args: argparse.Namespace) -> tuple[int, int, list[tuple[Path, str]]]:
+    """Marker removal on image files, ``workers`` at a time; (written, already done,
+    unreadable files with the reason). Files are decoded on this thread (quietly: libpng's
+    own messages are kept off the terminal), filled and written on the workers."""
     from tacswitch._io import write_image
     from tacswitch.cli.batch import ordered_map
     from tacswitch.cli.progress import progress, say
+    from tacswitch.cli.sources import read_quiet
 
     jobs = [(p, out / f"{p.stem}.png") for p in images]
     todo = [(p, t) for p, t in jobs if args.overwrite or not t.exists()]
+    failed: list[tuple[Path, str]] = []
 
-    def one(job: tuple[Path, Path]) -> tuple[Path, Path]:
-        path, target = job
-        write_image(target, remove(_read(path)))
-        return job
+    def decoded() -> Iterator[tuple[Path, Path, np.ndarray | None]]:
+        for path, target in todo:
+            yield path, target, read_quiet(path)
+
+    def one(job: tuple[Path, Path, np.ndarray | None]) -> tuple[Path, Path, bool]:
+        path, target, img = job
+        if img is None:
+            return path, target, False
+        write_image(target, remove(img))
+        return path, target, True
 
     with progress(total=len(todo), desc="images", unit="img", quiet=args.quiet) as bar, \
-            ordered_map(one, todo, workers) as results:
-        for path, target in results:
+            ordered_map(one, decoded(), workers) as results:
+        for path, target, ok in results:
             bar.update()
-            say(f"{path} -> {target}", quiet=args.quiet)
-    return len(todo), len(jobs) - len(todo)
+            if ok:
+                say(f"{path} -> {target}", quiet=args.quiet)
+            else:
+                failed.append((path, f"inputs: cannot read an image from {str(path)!r}"))
+    return len(todo) - len(failed), len(jobs) - len(todo), failed
 
 
 def _stale_parts(out: Path, stem: str) -> None:
     """Removes temporary files a killed run left for this video (one run per OUT at a time)."""
     import glob
 
-    for part in out.glob(f".{glob.escape(stem)}.*.part.mp4"):
+    for part in out.glob(f".{glob.escape(stem)}.*.part.*"):
         part.unlink(missing_ok=True)
 
 
 def _video(path: Path, out: Path, ref: np.ndarray | None, workers: int,
            args: argparse.Namespace) -> tuple[int, int, int]:
-    """One video: a markerless ``OUT/<stem>.mp4`` or, with ``--frames``, PNG frames in
-    ``OUT/<stem>/``. Returns (outputs written, outputs already done, unreadable frames)."""
+    """One video: a markerless ``OUT/<stem>.mp4`` (``.mkv`` for ffv1) or, with ``--frames``,
+    PNG frames in ``OUT/<stem>/``. Returns (outputs written, outputs already done, unreadable
+    frames); :class:`_Unreadable` if not one frame decodes."""
     from tacswitch._io import write_image
     from tacswitch.cli.batch import AtomicVideoWriter, ordered_map
     from tacswitch.cli.progress import progress, say
     from tacswitch.cli.sources import video_frames, video_info
 
-    target = out / path.stem if args.frames else out / f"{path.stem}.mp4"
+    target = _video_target(path, out, args)
     if not args.frames and target.exists() and not args.overwrite:
         return 0, 1, 0
-    fps, count = video_info(path, "inputs")
+    try:
+        fps, count = video_info(path, "inputs")
+    except ValueError as exc:
+        raise _Unreadable(str(exc)) from None
     remove: Remover | None = None
     quiet = args.quiet
 
@@ -200,7 +283,7 @@ def _video(path: Path, out: Path, ref: np.ndarray | None, workers: int,
                 tally[status] += 1
                 bar.update()
         if tally["done"] + tally["skip"] == 0:
-            raise ValueError(f"inputs: no readable frame in video {str(path)!r}")
+            raise _Unreadable(f"inputs: no readable frame in video {str(path)!r}")
         say(f"{path} -> {target}/ ({tally['done']} frames written, {tally['skip']} already "
             f"done, {tally['bad']} unreadable skipped)", quiet=quiet)
         return tally["done"], tally["skip"], tally["bad"]
@@ -214,14 +297,14 @@ def _video(path: Path, out: Path, ref: np.ndarray | None, workers: int,
 
     _stale_parts(out, path.stem)
     bad = 0
-    with bar, AtomicVideoWriter(target, fps or 30.0) as writer, \
+    with bar, AtomicVideoWriter(target, fps or 30.0, args.codec) as writer, \
             ordered_map(clean, items(), workers) as cleaned:
         for out_frame in cleaned:
             if out_frame is None or not writer.write(out_frame):
                 bad += 1
             bar.update()
         if writer.frames == 0:
-            raise ValueError(f"inputs: no readable frame in video {str(path)!r}")
+            raise _Unreadable(f"inputs: no readable frame in video {str(path)!r}")
         writer.commit()
     say(f"{path} -> {target} ({writer.frames} frames, {bad} unreadable skipped)", quiet=quiet)
     return 1, 0, bad

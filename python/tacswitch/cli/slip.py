@@ -7,7 +7,6 @@ import csv
 import os
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -19,8 +18,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "slip",
         help="run the slip loop on a video, an image folder or a camera",
         description="Tracks markers frame by frame (the first frame is the no-contact "
-        "reference and the start of the grasp) and applies the slip rule. A CSV log is "
-        "written and flushed every frame, so an interruption never loses it.",
+        "reference of the markers' rest positions) and applies the slip rule from the start "
+        "of each grasp: by default the frame where the contact is established, found from "
+        "the marker motion (contact onset: the markers leave their rest positions; "
+        "established: they stop moving; release: they return), or --start FRAME. Frames "
+        "outside a grasp are never flagged. The start is printed and logged. A CSV log (frame, "
+        "phase, grasp, grasp_start, slip, ...) is written and flushed every frame, so an "
+        "interruption never loses it.",
+        epilog="A recording that starts in contact has no onset to detect: pass --start 0 "
+        "(or the frame where the grasp is established).",
     )
     p.add_argument("source", help="video file, folder of images, or camera index (0, 1, ...)")
     p.add_argument("--log", default="slip-log.csv", help="CSV log (default: %(default)s)")
@@ -32,7 +38,24 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--rigid-only", action="store_true",
                    help="use only the rigid criterion (ignores rigid vibration; needs "
                    "--rigid-threshold-px)")
+    p.add_argument("--start", type=int, default=None, metavar="FRAME",
+                   help="the grasp starts at this frame (0-based; default: detected from the "
+                        "contact onset)")
     p.add_argument("--max-frames", type=int, default=None, help="stop after this many frames")
+    m = p.add_argument_group("markerless sensor (motion predicted instead of tracked)")
+    m.add_argument("--markerless", action="store_true",
+                   help="the frames have no markers: predict each frame's marker motion from "
+                        "the reference frame with tacswitch.predict_motion")
+    m.add_argument("--ref", default=None, metavar="IMG",
+                   help="markerless no-contact reference frame (default: the first frame)")
+    m.add_argument("--centres", default=None, metavar="CSV",
+                   help="marker rest centres, a CSV with x,y columns (e.g. `tacswitch markers` "
+                        "on a frame with markers); default: the motion model's grid scaled to "
+                        "the frame")
+    m.add_argument("--method", choices=("flow", "model", "outward"), default="flow",
+                   help="how motion is predicted (default: %(default)s, dense optical flow "
+                        "from the reference)")
+    m.add_argument("--model", default=None, help="ONNX motion model for --method model")
     p.add_argument("--show", action="store_true", help="show an overlay window (needs a display)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(run=run)
@@ -47,24 +70,54 @@ def _px_or_auto(text: str) -> float | str:
         raise argparse.ArgumentTypeError(f"expected pixels or 'auto', got {text!r}") from None
 
 
+LOG_COLUMNS = ["frame", "phase", "grasp", "grasp_start", "slip", "criterion",
+               "max_displacement_px", "marker", "rigid_residual_px", "valid_markers", "time_s"]
+
+
+def _check(args: argparse.Namespace) -> None:
+    """Option values that cannot work: one line naming the flag."""
+    from tacswitch.cli.options import UsageError
+
+    if args.max_frames is not None and args.max_frames < 1:
+        raise UsageError(f"--max-frames: must be >= 1; got {args.max_frames}")
+    if args.start is not None and args.start < 0:
+        raise UsageError(f"--start: must be >= 0; got {args.start}")
+    if args.start is not None and args.max_frames is not None and args.start >= args.max_frames:
+        raise UsageError(f"--start: frame {args.start} is past --max-frames {args.max_frames}")
+    if args.threshold_px is not None and not args.threshold_px > 0:
+        raise UsageError(f"--threshold-px: must be > 0; got {args.threshold_px}")
+    if not args.markerless:
+        for flag, value in (("--ref", args.ref), ("--centres", args.centres),
+                            ("--model", args.model)):
+            if value is not None:
+                raise UsageError(f"{flag}: applies to --markerless only")
+    if args.rigid_only and args.rigid_threshold_px is None:
+        raise UsageError("--rigid-only: needs --rigid-threshold-px (pixels or 'auto'), or "
+                         "nothing is checked")
+
+
 def run(args: argparse.Namespace) -> int:
     import tacswitch as ts
+    from tacswitch.cli.contact import GRASP, GraspSegmenter
+    from tacswitch.cli.options import output_file
     from tacswitch.cli.progress import progress
 
+    _check(args)
     show = args.show and (sys.platform == "win32" or bool(os.environ.get("DISPLAY")))
+    tracker: ts.MarkerTracker | MarkerlessMotion | None = None
     detector: ts.SlipDetector | None = None
+    segmenter: GraspSegmenter | None = None
     n = skipped = slips = 0
+    starts: list[int] = []
     t0 = time.perf_counter()
-    log_path = Path(args.log)
-    log_path.parent.mkdir(parents=True, exist_ok=True)
+    log_path = output_file(args.log, "--log")
     status = 0
     total = frame_count(args.source, args.max_frames)
     # The window shows the state; the bar (frames/s) is for runs without it.
     with open(log_path, "w", newline="") as fh, \
             progress(total=total, desc="slip", unit="frame", quiet=args.quiet or show) as bar:
         writer = csv.writer(fh)
-        writer.writerow(["frame", "slip", "criterion", "max_displacement_px", "marker",
-                         "rigid_residual_px", "valid_markers", "time_s"])
+        writer.writerow(LOG_COLUMNS)
         try:
             for frame in frames(args.source):
                 if args.max_frames is not None and n >= args.max_frames:
@@ -73,26 +126,42 @@ def run(args: argparse.Namespace) -> int:
                 if frame is None or frame.ndim != 3:
                     skipped += 1
                     continue
-                if detector is None:
+                if tracker is None:
+                    tracker = (MarkerlessMotion(frame, args) if args.markerless
+                               else ts.MarkerTracker(frame))
+                    if len(tracker) == 0:
+                        raise ValueError(f"source: no markers found in the first frame of "
+                                         f"{args.source!r} (a blank or markerless frame?)")
                     detector = ts.SlipDetector(args.threshold_px,
                                                rigid_threshold_px=args.rigid_threshold_px,
-                                               use_displacement=not args.rigid_only)
-                    shape = frame.shape
-                elif frame.shape != shape:
+                                               use_displacement=not args.rigid_only,
+                                               points=tracker.reference,
+                                               image_width=frame.shape[1])
+                    segmenter = GraspSegmenter(_epsilon(args, frame.shape[1]), start=args.start)
+                elif frame.shape[:2] != tracker.reference_shape:
                     skipped += 1
                     continue
-                state = detector.update(frame)
-                if state.slip and not slips:
-                    bar.set_postfix_str(f"slip at frame {n}", refresh=False)
-                slips += state.slip
-                writer.writerow([n, int(state.slip), state.criterion or "",
-                                 f"{state.max_displacement:.3f}", state.marker,
-                                 f"{state.rigid_residual:.3f}", state.n_compared,
-                                 f"{time.perf_counter() - t0:.4f}"])
+                assert detector is not None and segmenter is not None
+                motion, valid = tracker.update(frame)
+                step = segmenter.update(motion, valid)
+                state = None
+                if step.starts:
+                    detector.reset()
+                    starts.append(n)
+                    bar.set_postfix_str(f"grasp start at frame {n}", refresh=False)
+                if step.phase == GRASP:
+                    if isinstance(tracker, MarkerlessMotion):
+                        # Slip is measured from the grasp start: predict from that frame.
+                        motion, valid = tracker.since_grasp(frame, restart=step.starts)
+                    state = detector.update(motion, valid)
+                    if state.slip and not slips:
+                        bar.set_postfix_str(f"slip at frame {n}", refresh=False)
+                    slips += state.slip
+                writer.writerow(_row(n, step, state, int(valid.sum()), time.perf_counter() - t0))
                 fh.flush()
                 n += 1
                 if show:
-                    _show(frame, detector, state)
+                    _show(frame, tracker, state)
         except ConnectionError as exc:
             print(f"tacswitch slip: {exc}; log kept at {log_path}", file=sys.stderr)
             status = 1
@@ -100,21 +169,104 @@ def run(args: argparse.Namespace) -> int:
     if n == 0:
         raise ValueError(f"source: no readable frames in {args.source!r}")
     if not args.quiet:
-        print(f"{n} frames ({skipped} skipped), {slips} with slip, {n / elapsed:.0f} frames/s; "
-              f"log: {log_path}")
+        print(f"{n} frames ({skipped} skipped), {_starts_text(starts, args, segmenter)}, "
+              f"{slips} with slip, {n / elapsed:.0f} frames/s; log: {log_path}")
     return status
 
 
-def _show(frame: np.ndarray, detector, state) -> None:
+class MarkerlessMotion:
+    """Stands in for the marker tracker on a markerless sensor: each frame's marker motion from
+    the reference frame by :func:`tacswitch.predict_motion` (``--method``), at fixed rest centres
+    (``--centres`` or the model's grid); no marker is ever lost. The contact onset is found from
+    the motion since the no-contact reference; during a grasp the slip rule gets the motion since
+    the grasp-start frame (:meth:`since_grasp`): against the no-contact frame the imprint
+    appears, which optical flow cannot follow (on simulated grasps its error is 2-3 px there,
+    0.4 px from the grasp start)."""
+
+    def __init__(self, first: np.ndarray, args: argparse.Namespace) -> None:
+        from tacswitch._io import read_image
+        from tacswitch.cli.motion import _read_centres
+        from tacswitch.cli.options import input_file, load_model_option
+        from tacswitch.motion.infer import load_model
+
+        self.ref = (read_image(input_file(args.ref, "--ref"), "--ref", quiet=True) if args.ref
+                    else first)
+        if self.ref.shape != first.shape:
+            raise ValueError(f"--ref: shape {self.ref.shape} does not match the frames "
+                             f"{first.shape}")
+        self.reference_shape = first.shape[:2]
+        self.method, self.model = args.method, args.model
+        self.reference = (_read_centres(str(input_file(args.centres, "--centres")))
+                          if args.centres else
+                          load_model_option(load_model, args.model).centres_for(
+                              *first.shape[:2]))
+        self.positions = self.reference.copy()
+        self.grasp_ref: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.reference)
+
+    def update(self, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(motion N x 2, valid N)`` of this frame."""
+        from tacswitch.motion.infer import predict_motion
+
+        motion = predict_motion(frame, self.ref, self.reference, method=self.method,
+                                model=self.model)
+        self.positions = self.reference + motion
+        return motion, np.ones(len(motion), bool)
+
+    def since_grasp(self, frame: np.ndarray, restart: bool) -> tuple[np.ndarray, np.ndarray]:
+        """``(motion, valid)`` of this frame since the grasp start (``restart``: this frame is
+        the start; its motion is exactly zero)."""
+        from tacswitch.motion.infer import predict_motion
+
+        if restart or self.grasp_ref is None:
+            self.grasp_ref = frame.copy()
+        motion = predict_motion(frame, self.grasp_ref, self.reference, method=self.method,
+                                model=self.model)
+        return motion, np.ones(len(motion), bool)
+
+
+def _epsilon(args: argparse.Namespace, width: int) -> float:
+    """The displacement threshold in force, px (given, or the paper's scaled to the width)."""
+    from tacswitch.slip import scaled_threshold
+
+    return float(args.threshold_px) if args.threshold_px is not None else scaled_threshold(width)
+
+
+def _row(n: int, step, state, n_valid: int, t: float) -> list:  # type: ignore[no-untyped-def]
+    """One log row; the rule's columns are empty outside a grasp (the rule did not run)."""
+    head = [n, step.phase, step.grasp or "", "" if step.start is None else step.start]
+    if state is None:
+        return [*head, 0, "", "", "", "", n_valid, f"{t:.4f}"]
+    return [*head, int(state.slip), state.criterion or "", f"{state.max_displacement:.3f}",
+            state.marker, f"{state.rigid_residual:.3f}", state.n_compared, f"{t:.4f}"]
+
+
+def _starts_text(starts: list[int], args: argparse.Namespace, segmenter) -> str:  # type: ignore[no-untyped-def]
+    """How the grasp start(s) were found, for the summary line."""
+    if args.start is not None:
+        return (f"grasp start: frame {args.start} (--start)" if starts else
+                f"grasp start --start {args.start} not reached")
+    if not starts:
+        where = ("contact onset at frame " + str(segmenter.onset) + " never settled"
+                 if segmenter is not None and segmenter.onset is not None else "no contact onset")
+        return f"no grasp detected ({where}; pass --start FRAME)"
+    shown = ", ".join(str(s) for s in starts[:10]) + (" ..." if len(starts) > 10 else "")
+    plural = "s" if len(starts) > 1 else ""
+    return f"grasp start{plural}: frame{plural} {shown} (contact onset detected)"
+
+
+def _show(frame: np.ndarray, tracker, state) -> None:  # type: ignore[no-untyped-def]
     import cv2
 
     from tacswitch import viz
 
-    tracker = detector.tracker
     motion = tracker.positions - tracker.reference
     vis = viz.draw_motion(frame, tracker.reference, motion, scale=2.0)
-    text = f"SLIP ({state.criterion})" if state.slip else f"max {state.max_displacement:.1f} px"
+    text = ("no grasp" if state is None else f"SLIP ({state.criterion})" if state.slip
+            else f"max {state.max_displacement:.1f} px")
     cv2.putText(vis, text, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.7,
-                (0, 0, 255) if state.slip else (0, 200, 0), 2, cv2.LINE_AA)
+                (0, 0, 255) if state is not None and state.slip else (0, 200, 0), 2, cv2.LINE_AA)
     cv2.imshow("tacswitch slip", vis)
     cv2.waitKey(1)

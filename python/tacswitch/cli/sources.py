@@ -24,6 +24,33 @@ def _quiet_decoder() -> None:
     os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
 
 
+def quiet_opencv() -> None:
+    """Keeps OpenCV's own log lines ("VIDEOIO WARN", "imread_ ... can't open", PNG chunk
+    warnings) off the terminal: the commands report unreadable files and frames themselves.
+    Set ``OPENCV_LOG_LEVEL`` (e.g. ``WARNING``) to see them. libpng's own "libpng error"
+    lines bypass this log; the commands read images through
+    :func:`tacswitch._io.try_read_image` with ``quiet=True`` for those."""
+    import os
+
+    os.environ.setdefault("OPENCV_LOG_LEVEL", "SILENT")
+    _quiet_decoder()
+    import cv2
+
+    levels = {"SILENT": 0, "FATAL": 1, "ERROR": 2, "WARNING": 3, "INFO": 4, "DEBUG": 5,
+              "VERBOSE": 6}
+    level = levels.get(os.environ["OPENCV_LOG_LEVEL"].upper())
+    logging = getattr(getattr(cv2, "utils", None), "logging", None)
+    if level is not None and logging is not None:
+        logging.setLogLevel(level)  # cv2 may have been imported before the variable was set
+
+
+def read_quiet(path: str | Path) -> np.ndarray | None:
+    """A BGR uint8 image, or None when the file cannot be decoded (no decoder noise)."""
+    from tacswitch._io import try_read_image
+
+    return try_read_image(path, quiet=True)
+
+
 def collect_images(inputs: list[str]) -> list[Path]:
     """Image files named or found (sorted) in the named folders; ``FileNotFoundError`` if none."""
     files: list[Path] = []
@@ -150,7 +177,7 @@ def frames(source: str) -> Iterator[np.ndarray | None]:
         if not files:
             raise FileNotFoundError(f"source: no images in folder {source!r}")
         for f in files:
-            yield cv2.imread(str(f), cv2.IMREAD_COLOR)
+            yield read_quiet(f)
         return
     if not source.isdigit():
         if not path.is_file():

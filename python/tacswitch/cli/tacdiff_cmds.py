@@ -21,7 +21,8 @@ def add_train_parser(what: argparse._SubParsersAction) -> None:
     m.add_argument("--steps", type=int, default=3000, help="training steps (default: 3000)")
     m.add_argument("--batch", type=int, default=12)
     m.add_argument("--crop", type=int, default=96, help="crop side, multiple of 16")
-    m.add_argument("--base", type=int, default=24, help="U-Net width (default: 24)")
+    m.add_argument("--base", type=int, default=None,
+                   help="U-Net width (default: 24, or that of --init)")
     m.add_argument("--lr", type=float, default=5e-4)
     m.add_argument("--contact-share", type=float, default=0.5,
                    help="share of crops centred on a marker in contact, where TELEA is weakest "
@@ -32,6 +33,17 @@ def add_train_parser(what: argparse._SubParsersAction) -> None:
     m.add_argument("--terminal-fraction", type=float, default=0.3,
                    help="share of crops trained at pure noise, the first step of every sampler "
                         "and all of K=1 (default: %(default)s)")
+    m.add_argument("--init", default=None, metavar="WEIGHTS",
+                   help="continue from these weights instead of random ones: 'default' or "
+                        "'fast' (a shipped model), or a .safetensors, checkpoint or TacDiff "
+                        ".onnx file (its architecture and prior are kept)")
+    m.add_argument("--prior", default=None,
+                   help="classical fill the network refines (tacswitch.tacdiff.prior.PRIORS; "
+                        "default: that of --init, else the library default); with --init it "
+                        "must take the same inputs as the init's")
+    m.add_argument("--no-realism", dest="realism", action="store_false",
+                   help="render the 0.2 data with --simulate (no camera/recorder capture, "
+                        "masks = true markers dilated once)")
     m.add_argument("--seed", type=int, default=0)
     m.add_argument("-q", "--quiet", action="store_true")
     m.set_defaults(run=run_train)
@@ -45,11 +57,12 @@ def run_train(args: argparse.Namespace) -> int:
     from tacswitch.tacdiff.data import load_pairs, render_pairs
     from tacswitch.tacdiff.export import export_onnx
     from tacswitch.tacdiff.model import MULTIPLE
+    from tacswitch.tacdiff.prior import DEFAULT_PRIOR, check_prior, input_channels
     from tacswitch.tacdiff.train import TrainConfig, train
 
     if args.crop % MULTIPLE or args.crop < MULTIPLE:
         raise ValueError(f"--crop: must be a positive multiple of {MULTIPLE}; got {args.crop}")
-    if args.steps < 1 or args.batch < 1 or args.base < 4:
+    if args.steps < 1 or args.batch < 1 or (args.base is not None and args.base < 4):
         raise ValueError("--steps and --batch must be >= 1, --base >= 4")
     for name in ("contact_share", "hole_share", "terminal_fraction"):
         if not 0 <= getattr(args, name) <= 1:
@@ -58,13 +71,33 @@ def run_train(args: argparse.Namespace) -> int:
     if args.contact_share + args.hole_share > 1:
         raise ValueError("--contact-share + --hole-share: must be <= 1; got "
                          f"{args.contact_share + args.hole_share}")
+    init, arch = None, None
+    if args.init is not None:
+        from tacswitch.tacdiff.infer import model_path
+        from tacswitch.tacdiff.train import load_network
+
+        # A shipped model's ONNX holds its float32 weights (its .safetensors are float16).
+        init = model_path(args.init)
+        if not init.is_file():
+            raise ValueError(f"--init: no weights file at {str(init)!r}")
+        arch = load_network(init).cfg
+        if args.base is not None and args.base != arch.base:
+            raise ValueError(f"--base: {args.base} differs from --init's {arch.base}")
+    prior = args.prior if args.prior is not None else arch.prior if arch else DEFAULT_PRIOR
+    check_prior(prior)
+    if arch is not None and input_channels(prior) != input_channels(arch.prior):
+        raise ValueError(f"--prior: {prior!r} takes other inputs than --init's {arch.prior!r}")
     if args.simulate:
-        render_pairs(args.data, args.simulate, seed=args.seed, progress=not args.quiet)
+        render_pairs(args.data, args.simulate, seed=args.seed, progress=not args.quiet,
+                     realism=args.realism)
     shards = load_pairs(args.data)
-    cfg = TrainConfig(base=args.base, steps=args.steps, batch=args.batch, crop=args.crop,
+    shape = {} if arch is None else {"mults": arch.mults, "attention": arch.attention}
+    cfg = TrainConfig(base=args.base or (arch.base if arch else 24), **shape, prior=prior,
+                      steps=args.steps, batch=args.batch, crop=args.crop,
                       lr=args.lr, seed=args.seed, contact_share=args.contact_share,
-                      hole_share=args.hole_share, terminal_fraction=args.terminal_fraction)
-    net = train(shards, args.out, cfg, progress=not args.quiet)
+                      hole_share=args.hole_share, terminal_fraction=args.terminal_fraction,
+                      extra={"init": str(init)} if init is not None else {})
+    net = train(shards, args.out, cfg, progress=not args.quiet, init=init)
     path = export_onnx(net, Path(args.out) / "model.onnx",
                        metadata={"steps": args.steps, "seed": args.seed,
                                  "frames": sum(len(s["cond"]) for s in shards)})

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-from pathlib import Path
 
 from tacswitch.cli.sources import frame_count, frames
 
@@ -31,10 +30,12 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     import tacswitch as ts
+    from tacswitch.cli.options import UsageError, output_file
     from tacswitch.cli.progress import progress
 
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
+    if args.max_frames is not None and args.max_frames < 1:
+        raise UsageError(f"--max-frames: must be >= 1; got {args.max_frames}")
+    out = output_file(args.out, "--out")
     tracker: ts.MarkerTracker | None = None
     n = skipped = 0
     total = frame_count(args.source, args.max_frames)
@@ -53,7 +54,8 @@ def run(args: argparse.Namespace) -> int:
                 tracker = ts.MarkerTracker(frame, args.max_dist, polarity=args.polarity)
                 if len(tracker) == 0:
                     raise ValueError(f"source: no markers found in the first frame of "
-                                     f"{args.source!r}")
+                                     f"{args.source!r} (a blank or markerless frame?); check "
+                                     "--polarity")
             if frame.shape[:2] != tracker.reference_shape:
                 skipped += 1
                 continue

@@ -7,7 +7,10 @@ Metrics over the markers of every sample (px, in the frames' own pixels):
 - ``e_mag``: magnitude error ``| |pred| - |true| |``, mean and median;
 - ``nan_pct``: share of markers without a prediction (a tracker's lost markers; 0 for the
   regressor by construction); the errors are over the markers that have one;
-- ``orient``: angle between predicted and true motion, degrees, on markers moving >= 3 px.
+- ``orient``: angle between predicted and true motion, degrees, on markers moving >= 3 px;
+- ``cos_mean``: mean cosine between predicted and true motion over the same markers (a zero
+  prediction counts as cosine 0), and ``within30_pct``: their share within 30 degrees (the
+  scale-free figures of issue 15).
 
 Methods compared on the same markers (the painted ones): the regressor, a zero-motion baseline,
 and the marker tracker on the true marker images (the upper reference a markerless sensor gives
@@ -29,8 +32,10 @@ from numpy.typing import NDArray
 ORIENT_MIN_PX = 3.0
 
 
-def motion_metrics(pred: NDArray[Any], true: NDArray[Any]) -> dict[str, float]:
-    """The paper's metrics for stacked ``M x 2`` predictions and truths (NaN rows = missing)."""
+def motion_metrics(pred: NDArray[Any], true: NDArray[Any], *,
+                   min_px: float = ORIENT_MIN_PX) -> dict[str, float]:
+    """The paper's metrics plus the direction cosine for stacked ``M x 2`` predictions and truths
+    (NaN rows = missing); the angle and cosine figures use markers moving at least ``min_px``."""
     pred = np.asarray(pred, np.float64).reshape(-1, 2)
     true = np.asarray(true, np.float64).reshape(-1, 2)
     have = np.isfinite(pred).all(1)
@@ -38,10 +43,12 @@ def motion_metrics(pred: NDArray[Any], true: NDArray[Any]) -> dict[str, float]:
     e = np.linalg.norm(p - t, axis=1)
     mag = np.abs(np.linalg.norm(p, axis=1) - np.linalg.norm(t, axis=1))
     tn = np.linalg.norm(t, axis=1)
-    big = tn >= ORIENT_MIN_PX
-    cos = np.sum(p[big] * t[big], 1) / np.maximum(np.linalg.norm(p[big], axis=1) * tn[big],
-                                                   1e-12)
-    ang = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+    big = tn >= min_px
+    pn = np.linalg.norm(p[big], axis=1)
+    # A zero prediction has no direction: cosine 0 (90 degrees), not a division by zero.
+    cos = np.where(pn > 1e-9, np.sum(p[big] * t[big], 1) / np.maximum(pn * tn[big], 1e-12), 0.0)
+    cos = np.clip(cos, -1.0, 1.0)
+    ang = np.degrees(np.arccos(cos))
 
     def stat(x: NDArray[Any], f: Callable[[NDArray[Any]], Any]) -> float:
         return float(f(x)) if x.size else float("nan")
@@ -50,6 +57,8 @@ def motion_metrics(pred: NDArray[Any], true: NDArray[Any]) -> dict[str, float]:
             "e_mag_mean": stat(mag, np.mean), "e_mag_median": stat(mag, np.median),
             "nan_pct": 100.0 * float((~have).mean()) if have.size else 0.0,
             "orient_mean_deg": stat(ang, np.mean), "orient_median_deg": stat(ang, np.median),
+            "cos_mean": stat(cos, np.mean),
+            "within30_pct": stat(100.0 * (ang <= 30.0), np.mean),
             "n_markers": int(have.size), "n_orient": int(big.sum())}
 
 
@@ -162,4 +171,98 @@ def evaluate_slip(predict: Callable[..., NDArray[np.float32]], *, preset: str = 
         r["accuracy"] = r["correct"] / max(r["n"], 1)
         d = r["delays"]
         r["delay_mean"] = float(np.mean(d)) if d else float("nan")
+    return res
+
+
+#: Slip criteria compared on markerless motion: SlipDetector options.
+SLIP_CRITERIA: dict[str, dict[str, Any]] = {
+    "displacement": {},
+    "rigid": {"rigid_threshold_px": "auto", "use_displacement": False},
+    "both": {"rigid_threshold_px": "auto"},
+}
+
+
+def slip_on_grasps(sources: dict[str, Callable[..., NDArray[np.float32]]], *,
+                   preset: str = "gelsight_mini", n_per_kind: int = 6, n_frames: int = 30,
+                   seed: int = 100, ref_frame: str = "grasp_start",
+                   criteria: dict[str, dict[str, Any]] | None = None
+                   ) -> dict[tuple[str, str], dict[str, Any]]:
+    """Slip detection on rendered grasps (hold / slip / vibration) from markerless motion.
+
+    Every source ``predict(img, ref, rest)`` gets each markerless frame from the grasp start on
+    with ``ref`` = the markerless grasp-start frame (``ref_frame="grasp_start"``) or the
+    markerless no-contact frame (``"no_contact"``); ``"tracked"`` (the marker tracker on the
+    marker images, followed from the first frame) is always added as the upper reference. Each
+    criterion (:data:`SLIP_CRITERIA`, the paper's threshold scaled to the width) starts at the
+    grasp start, as in the paper.
+
+    Returns per ``(source, criterion)``: ``correct``, ``n``, ``accuracy``, ``slips_found`` /
+    ``n_slip``, false alarms on ``hold`` / ``vibration`` (and their counts), the delays (frames
+    after the slip onset) of the detections and ``ms`` per predicted frame.
+    """
+    import time
+
+    import tacswitch as ts
+    from tacswitch.sim.grasp import render_grasp
+
+    if ref_frame not in ("grasp_start", "no_contact"):
+        raise ValueError(f"ref_frame: unknown {ref_frame!r}; use 'grasp_start' or 'no_contact'")
+    crit = SLIP_CRITERIA if criteria is None else criteria
+    names = [*sources, "tracked"]
+    res: dict[tuple[str, str], dict[str, Any]] = {
+        (s, c): {"correct": 0, "n": 0, "n_slip": 0, "slips_found": 0, "fa_hold": 0,
+                 "n_hold": 0, "fa_vibration": 0, "n_vibration": 0, "delays": [], "t": 0.0,
+                 "frames": 0} for s in names for c in crit}
+    kinds = ("slip", "hold", "vibration")
+    for kind in kinds:
+        for k in range(n_per_kind):
+            seq = render_grasp(preset, kind, n_frames=n_frames,
+                               seed=np.random.SeedSequence([seed, kinds.index(kind), k]))
+            rest = seq.scene.rest
+            w = seq.reference.shape[1]
+            g0 = seq.grasp_start
+            ref = (seq.frames[g0].image if ref_frame == "grasp_start"
+                   else seq.scene.render(np.random.default_rng([seed, 1, k]), depth=0.0).image)
+            onset = int(seq.params["onset"])
+            motions: dict[str, list[tuple[NDArray[np.float32], Any]]] = {}
+            times: dict[str, float] = {}
+            for name, predict in sources.items():
+                t0 = time.perf_counter()
+                motions[name] = [(predict(seq.frames[t].image, ref, rest), None)
+                                 for t in range(g0, len(seq))]
+                times[name] = time.perf_counter() - t0
+            tracker = ts.MarkerTracker(seq.reference)
+            tracked = []
+            pts = tracker.reference
+            for t in range(len(seq)):
+                m, v = tracker.update(seq.frames[t].image_markers)
+                if t >= g0:
+                    tracked.append((m, v))
+            motions["tracked"] = tracked
+            for name in names:
+                for cname, opts in crit.items():
+                    det = ts.SlipDetector(image_width=w, points=pts if name == "tracked"
+                                          else rest, **opts)
+                    first = None
+                    for j, (m, v) in enumerate(motions[name]):
+                        if det.update(m, v).slip and first is None:
+                            first = g0 + j
+                    r = res[(name, cname)]
+                    r["n"] += 1
+                    if name in times:
+                        r["t"] += times[name]
+                        r["frames"] += len(motions[name])
+                    if kind == "slip":
+                        r["n_slip"] += 1
+                        r["slips_found"] += int(first is not None)
+                        r["correct"] += int(first is not None)
+                        if first is not None:
+                            r["delays"].append(first - onset)
+                    else:
+                        r[f"n_{kind}"] += 1
+                        r[f"fa_{kind}"] += int(first is not None)
+                        r["correct"] += int(first is None)
+    for r in res.values():
+        r["accuracy"] = r["correct"] / max(r["n"], 1)
+        r["ms"] = 1e3 * r["t"] / r["frames"] if r["frames"] else float("nan")
     return res

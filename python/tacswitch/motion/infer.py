@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from tacswitch._checks import as_image_u8, as_points, check_downsampled_size, check_model_arg
 from tacswitch._ort import cached, open_session, session_options
 
-__all__ = ["MotionModel", "default_model_path", "load_model", "predict_motion",
+__all__ = ["METHODS", "MotionModel", "default_model_path", "load_model", "predict_motion",
            "session_options"]
 
 #: File name of the shipped default model under ``tacswitch/models``.
@@ -61,7 +61,7 @@ class MotionModel:
     def __init__(self, path: str | os.PathLike[str] | None = None, *,
                  threads: int | None = None) -> None:
         self.path = Path(path) if path is not None else default_model_path()
-        self.session, meta = open_session(self.path, threads)
+        self.session, meta = open_session(self.path, threads, kind="motion")
         self.metadata = dict(meta)
         self.arch = meta.get("tacswitch.arch", "?")
         self.use_ref = json.loads(meta.get("tacswitch.use_ref", "false"))
@@ -140,26 +140,68 @@ def load_model(path: str | os.PathLike[str] | None = None) -> MotionModel:
     return cached(MotionModel, Path(path) if path is not None else default_model_path())
 
 
-def predict_motion(img: Any, ref: Any = None, centres: Any = None, *,
-                   model: str | os.PathLike[str] | None = None) -> NDArray[np.float32]:
+#: Methods of :func:`predict_motion`.
+METHODS = ("model", "flow", "outward")
+
+
+def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: str = "model",
+                   model: str | os.PathLike[str] | None = None, algorithm: str | None = None,
+                   preset: str | None = None) -> NDArray[np.float32]:
     """The 2D motion each marker would have had, from a markerless frame.
 
     Args:
         img: markerless frame, ``H x W x 3`` uint8 **BGR** (OpenCV order).
         ref: a markerless reference frame of the same sensor (same shape): the motion returned
-            is the markers' motion from ``ref`` to ``img``. The shipped model needs it
-            (``MotionModel.use_ref``) and was trained with two kinds of reference: an earlier
-            frame of the same contact (e.g. the grasp start, what slip and shear control measure
-            from) and the no-contact frame. Models trained without it ignore it.
+            is the markers' motion from ``ref`` to ``img``. ``method="flow"`` needs it; the
+            shipped model uses it when its metadata says so (``MotionModel.use_ref``: an earlier
+            frame of the same contact, e.g. the grasp start, or the no-contact frame).
         centres: ``N x 2`` float32 marker rest centres ``(x, y)`` px in ``img``'s pixels (pixel
-            centres at integers). Default: the model's training grid (the GelSight Mini preset's
-            9 x 11 grid, pitch 28.5 px at 320 x 240) scaled to the frame; pass your sensor's own
-            centres (e.g. ``tacswitch.extract_markers(ref_with_markers).centres``) otherwise.
+            centres at integers; with ``ref``, positions in ``ref``). Default: the model's
+            training grid (the GelSight Mini preset's 9 x 11 grid, pitch 28.5 px at 320 x 240)
+            scaled to the frame, for every method; pass your sensor's own centres (e.g.
+            ``tacswitch.extract_markers(ref_with_markers).centres``) otherwise.
+        method: ``"model"`` (the ONNX model), ``"flow"`` (training-free dense optical flow
+            ``ref -> img`` read at the centres, :mod:`tacswitch.motion.flow`; exactly zero for
+            identical frames, insensitive to a global brightness change) or ``"outward"`` (the
+            no-learning baseline: outward from the contact by the local image change,
+            :mod:`tacswitch.motion.heuristic`; works with or without ``ref``).
         model: ONNX model path (default: the shipped model); sessions are cached per path.
+            Other methods use it only for the default centres.
+        algorithm: ``method="flow"`` only: ``"dis"`` (default), ``"farneback"``, ``"deepflow"``,
+            ``"pcaflow"`` or ``"rlof"`` (the last three from opencv-contrib, 10-100x slower).
+        preset: ``method="flow"`` with DIS only: ``"ultrafast"``, ``"fast"`` or ``"medium"``
+            (default).
 
     Returns:
         ``N x 2`` float32 ``(dx, dy)`` px in ``img``'s pixels, one row per centre, never NaN
         (a centre outside the frame gets the motion at the nearest border).
     """
     check_model_arg(model)
-    return load_model(model)(img, ref=ref, centres=centres)
+    if method not in METHODS:
+        raise ValueError(f"method: unknown {method!r}; choose from {list(METHODS)}")
+    if method != "flow":
+        for name, value in (("algorithm", algorithm), ("preset", preset)):
+            if value is not None:
+                raise ValueError(f"{name}: applies to method='flow' only; got method={method!r}")
+    if method == "model":
+        return load_model(model)(img, ref=ref, centres=centres)
+    frame = _bgr(img, "img")
+    ref_arr = None
+    if ref is not None:
+        ref_arr = _bgr(ref, "ref")
+        if ref_arr.shape != frame.shape:
+            raise ValueError(f"ref: shape {ref_arr.shape} does not match img {frame.shape}")
+    elif method == "flow":
+        raise ValueError("ref: method='flow' measures the motion between two frames; pass the "
+                         "markerless no-contact frame (or the frame at the grasp start)")
+    pts = (load_model(model).centres_for(*frame.shape[:2]) if centres is None
+           else as_points(centres, "centres"))
+    if method == "flow":
+        from tacswitch.motion.flow import flow_motion
+
+        assert ref_arr is not None
+        return flow_motion(frame, ref_arr, pts, algorithm=algorithm or "dis",
+                           preset=preset or "medium")
+    from tacswitch.motion.heuristic import outward_motion
+
+    return outward_motion(frame, ref_arr, pts)

@@ -72,7 +72,8 @@ def generate_item(out: Path, index: int, seed: int, preset: str, sequences: bool
 
         s = render_sample(preset, rng, optics=options.get("optics", "auto"),
                           vary_grid=options.get("vary_grid", False),
-                          jpeg_quality=options.get("jpeg_quality"))
+                          jpeg_quality=options.get("jpeg_quality"),
+                          appearance=options.get("appearance", "preset"))
         files = {"image": "image.png", "image_markers": "image_markers.png",
                  "reference": "reference.png", "marker_mask": "marker_mask.png",
                  "contact_mask": "contact_mask.png"}
@@ -94,7 +95,8 @@ def generate_item(out: Path, index: int, seed: int, preset: str, sequences: bool
         kind = kinds[int(rng.integers(len(kinds)))]
         g = render_grasp(preset, kind, n_frames=options.get("frames", 30), seed=rng,
                          optics=options.get("optics", "auto"),
-                         jpeg_quality=options.get("jpeg_quality"))
+                         jpeg_quality=options.get("jpeg_quality"),
+                         appearance=options.get("appearance", "preset"))
         write_image(d / "reference.png", g.reference)
         frames = []
         for t, f in enumerate(g.frames):
@@ -147,7 +149,8 @@ def generate_dataset(out: str | Path, *, preset: str = "gelsight", n: int = 100,
         preset: sensor preset name. n: number of samples (or sequences). seed: dataset seed.
         sequences: grasp sequences instead of single contacts.
         workers: processes (results do not depend on it).
-        options: ``optics``, ``vary_grid``, ``jpeg_quality``, ``frames``, ``kinds``.
+        options: ``optics``, ``vary_grid``, ``jpeg_quality``, ``appearance``, ``frames``,
+            ``kinds``.
 
     Returns:
         A summary: ``{"generated", "skipped", "seconds", "items_per_s"}``.

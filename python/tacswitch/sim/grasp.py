@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from tacswitch.sim.presets import SensorPreset
-from tacswitch.sim.scene import Frame, Optics, Scene, _as_rng
+from tacswitch.sim.scene import Appearance, Frame, Optics, Scene, _as_rng
 from tacswitch.sim.sequences import SLIP_ONSET_FRAMES, Kind
 
 
@@ -41,8 +41,12 @@ class SimSequence:
 
 def render_grasp(preset: str | SensorPreset = "gelsight_mini", kind: Kind = "slip", *,
                  n_frames: int = 30, seed: Any = 0, label: str | None = None,
-                 optics: Optics = "auto", jpeg_quality: int | None = None) -> SimSequence:
-    """Renders a grasp sequence (see the module docstring); deterministic given ``seed``."""
+                 optics: Optics = "auto", jpeg_quality: int | None = None,
+                 appearance: Appearance = "preset") -> SimSequence:
+    """Renders a grasp sequence (see the module docstring); deterministic given ``seed``.
+
+    The gel-attached grain and dust move with the gel in every frame (the scene's field);
+    ``appearance="random"`` draws a random sensor look (:class:`~tacswitch.sim.scene.Scene`)."""
     if kind not in ("hold", "slip", "vibration"):
         raise ValueError(f"kind: must be 'hold', 'slip' or 'vibration'; got {kind!r}")
     if n_frames < 8:
@@ -52,7 +56,8 @@ def render_grasp(preset: str | SensorPreset = "gelsight_mini", kind: Kind = "sli
         from tacswitch.sim.indenters import CLASSES
 
         label = CLASSES[1 + int(rng.integers(len(CLASSES) - 1))]  # a grasp touches something
-    scene = Scene(preset, rng, label=label, optics=optics, jpeg_quality=jpeg_quality)
+    scene = Scene(preset, rng, label=label, optics=optics, jpeg_quality=jpeg_quality,
+                  appearance=appearance)
     pitch, fps = scene.pitch, scene.preset.fps
     ang = rng.uniform(0, 2 * np.pi)
     e = np.array([np.cos(ang), np.sin(ang)])

@@ -7,8 +7,15 @@ random scene and load and renders it once.
 
 Pipeline of a frame: object surface -> gel deformation (:mod:`~tacswitch.sim.deform`) -> colour
 (:mod:`~tacswitch.sim.optics`, real Taxim tables or Phong) -> marker motion (elastic fields,
-:mod:`~tacswitch.sim.motion`) -> markers painted as transmittance (:func:`marker_layer`) -> the
-same camera noise added to both images. Hence ``I_w == I_wo`` wherever ``marker_mask`` is False.
+:mod:`~tacswitch.sim.motion`) -> the gel-attached layer (coating grain with the real grain's
+contrast and spectrum, dust and fibres; :mod:`~tacswitch.sim.grain`) carried by the same
+displacement field as the markers -> markers painted as transmittance (:func:`marker_layer`) ->
+the same camera noise added to both images. Hence ``I_w == I_wo`` wherever ``marker_mask`` is
+False.
+
+``appearance="random"`` draws the look of a different sensor for every scene (exposure, white
+balance, shading strength, illumination gradient, the gel background, camera noise): real sensors
+differ far more than the presets.
 """
 
 from __future__ import annotations
@@ -19,11 +26,20 @@ from typing import Any, Literal, cast
 import numpy as np
 from numpy.typing import NDArray
 
+from tacswitch.sim import deform
 from tacswitch.sim.deform import deform_gel
+from tacswitch.sim.grain import (
+    GRAIN_STD_RANGE,
+    REAL_RADIAL_PSD,
+    dense_field,
+    grain_texture,
+    warp_layer,
+)
 from tacswitch.sim.indenters import CLASSES, ObjectSpec, depth_range, random_object
 from tacswitch.sim.markers import gel_background, marker_layer
 from tacswitch.sim.motion import contact_displacement, sample_field
 from tacswitch.sim.optics import (
+    CALIBRATIONS,
     Calibration,
     background_image,
     load_calibration,
@@ -33,11 +49,17 @@ from tacswitch.sim.optics import (
 from tacswitch.sim.presets import SensorPreset, get_preset
 
 Optics = Literal["auto", "taxim", "phong"]
+Appearance = Literal["preset", "random"]
 
 #: Marker grids (rows, cols) a scene may draw with ``vary_grid=True``: 6x8 to 10x14.
 GRIDS: tuple[tuple[int, int], ...] = ((6, 8), (7, 9), (8, 10), (9, 11), (10, 14))
 #: Camera temporal noise, grey levels per channel (real sensors: 1.3-2.1).
 NOISE_SIGMA_RANGE = (1.3, 2.1)
+#: ... with ``appearance="random"``: taxim's real presses have 0.7-1.4 (FOTS Mini frames more).
+RANDOM_NOISE_SIGMA_RANGE = (0.6, 1.8)
+#: Background blur, mm: removes the real background frame's own grain (fixed in that frame, not
+#: attached to the simulated gel); the moving grain layer replaces it.
+BACKGROUND_DEGRAIN_MM = 0.09
 #: Transmittance at a marker's centre (real dots keep 0.25-0.30 of the background).
 CENTRE_TRANSMITTANCE = (0.22, 0.32)
 #: Principal stretches a marker may take from the gel's local strain.
@@ -63,6 +85,9 @@ class Frame:
     contact_mask: NDArray[np.bool_]
     displacement: NDArray[np.float32]
     stick_fraction: float
+    #: ``H x W x 2`` lateral displacement (dx, dy) px of the gel point at rest at each pixel
+    #: (what moves the markers and the gel-attached grain and dust).
+    field: NDArray[np.float32] | None = None
 
 
 @dataclass
@@ -105,17 +130,23 @@ class Scene:
         vary_grid: draw the marker grid from :data:`GRIDS` (pitch fitted to the frame) instead of
             the preset's.
         jpeg_quality: JPEG-compress frames at this quality (None: lossless).
+        appearance: ``"preset"`` (the calibration's look) or ``"random"`` (see the module
+            docstring).
+        grain: render the gel-attached grain (False: only dust and fibres, as before it).
     """
 
     def __init__(self, preset: str | SensorPreset = "gelsight", seed: Any = None, *,
                  label: str | None = None, optics: Optics = "auto", vary_grid: bool = False,
-                 jpeg_quality: int | None = None) -> None:
+                 jpeg_quality: int | None = None, appearance: Appearance = "preset",
+                 grain: bool = True) -> None:
         p = get_preset(preset) if isinstance(preset, str) else preset
         rng = _as_rng(seed)
         self.preset = p
         h, w = p.height, p.width
         if optics not in ("auto", "taxim", "phong"):
             raise ValueError(f"optics: must be 'auto', 'taxim' or 'phong'; got {optics!r}")
+        if appearance not in ("preset", "random"):
+            raise ValueError(f"appearance: must be 'preset' or 'random'; got {appearance!r}")
         if optics == "taxim" and p.calib is None:
             raise ValueError(f"optics: preset {p.name!r} has no Taxim calibration; use 'phong'")
         self.optics = "taxim" if (optics != "phong" and p.calib is not None) else "phong"
@@ -165,6 +196,58 @@ class Scene:
         self.noise_sigma = rng.uniform(*NOISE_SIGMA_RANGE, 3)
         self.jpeg_quality = jpeg_quality
         self.step = max(2, round(w / 80))
+        # --- drawn last, so the draws above (and existing seeds' scenes) stay as they were ---
+        self.appearance = appearance
+        self.look = self._draw_look(rng) if appearance == "random" else {}
+        if self.look:
+            self.noise_sigma = rng.uniform(*RANDOM_NOISE_SIGMA_RANGE, 3)
+            self.background = self._look_background(rng)
+        if self.calib is not None:
+            # The real background frame carries its own gel's grain, fixed in the image.
+            self.background = deform.gaussian_blur(
+                np.ascontiguousarray(self.background, np.float32),
+                BACKGROUND_DEGRAIN_MM / p.mm_per_px)
+        self.grain_std = float(rng.uniform(*GRAIN_STD_RANGE)) if grain else 0.0
+        self.grain_profile = str(rng.choice(sorted(REAL_RADIAL_PSD)))
+        self.grain = grain_texture(h, w, p.mm_per_px, rng, std_grey=self.grain_std,
+                                   mean_grey=float(self.background.mean()),
+                                   profile=self.grain_profile) if grain else \
+            np.zeros((h, w), np.float32)
+
+    @staticmethod
+    def _draw_look(rng: np.random.Generator) -> dict[str, Any]:
+        """Exposure, white balance, shading gain, illumination gradient of a random sensor."""
+        return {"exposure": float(rng.uniform(0.7, 1.3)),
+                "white_balance": rng.uniform(0.85, 1.15, 3).tolist(),
+                "shade_gain": float(rng.uniform(0.6, 1.4)),
+                "gradient": rng.uniform(-0.15, 0.15, 2).tolist(),
+                "vignette": float(rng.uniform(0.0, 0.25)),
+                "background": str(rng.choice(["own", "own", "other", "synthetic"]))}
+
+    def _look_background(self, rng: np.random.Generator) -> NDArray[np.float32]:
+        """The background of a random look: the preset's, another sensor's real one, or a
+        synthetic gel; then exposure, white balance and the illumination gradient."""
+        h, w = self.preset.height, self.preset.width
+        kind = self.look["background"]
+        bg = self.background
+        if kind == "other" or (kind == "own" and self.calib is None):
+            names = [c for c in CALIBRATIONS if self.calib is None or c != self.calib.name]
+            bg = background_image(load_calibration(names[int(rng.integers(len(names)))]), h, w)
+        elif kind == "synthetic":
+            base = tuple(float(v) for v in rng.uniform(80, 190, 3))
+            bg = gel_background(h, w, seed=rng, base=base)  # type: ignore[arg-type]
+        return np.asarray(bg, np.float32) * self._illumination()
+
+    def _illumination(self) -> NDArray[np.float32]:
+        """``H x W x 3`` gain: exposure x white balance x a linear gradient x a vignette."""
+        h, w = self.preset.height, self.preset.width
+        lk = self.look
+        yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+        u, v = (xx - w / 2) / w, (yy - h / 2) / h
+        g = 1.0 + lk["gradient"][0] * 2 * u + lk["gradient"][1] * 2 * v \
+            - lk["vignette"] * (u * u + v * v) * 2
+        wb = np.asarray(lk["white_balance"], np.float32) * lk["exposure"]
+        return (g[..., None] * wb).astype(np.float32)
 
     @staticmethod
     def _dirt(h: int, w: int, rng: np.random.Generator) -> NDArray[np.float32]:
@@ -217,7 +300,8 @@ class Scene:
             shade = shade_taxim(gel, p.mm_per_px, self.calib)
         else:
             shade = shade_phong(gel, p.mm_per_px)
-        clean = (self.background + shade) * self.dirt[..., None]
+        if self.look:
+            shade = shade * self._illumination() * np.float32(self.look["shade_gain"])
         # --- marker motion on the coarse grid --------------------------------------------
         st = self.step
         gh, gw = -(-h // st), -(-w // st)
@@ -230,6 +314,10 @@ class Scene:
             load_ratio=load_ratio, twist_rad=twist_rad, dilation=self.dilation, gel=gel_c)
         # Coarse cell (i, j) covers pixels [j*st, (j+1)*st): its centre is at (j + 0.5) st - 0.5.
         disp, jac = sample_field(fld, st, self.rest + (0.5 - 0.5 * st))
+        # The grain, dust and fibres are on the gel: the same field carries them.
+        dense = dense_field(fld, st, h, w)
+        layer = warp_layer((1.0 + self.grain) * self.dirt, dense, border=1.0)
+        clean = (self.background + shade) * layer[..., None]
         pos = self.rest + disp
         strain = np.eye(2, dtype=np.float32) + jac
         # The coarse field's gradient overstates strain at a contact's rim; painted dots on real
@@ -252,7 +340,7 @@ class Scene:
         i_wo, i_w = self._camera(clean, trans, mask, rng)
         n_contact = max(int((pres > 0).sum()), 1)
         return Frame(i_wo, i_w, mask, contact, disp.astype(np.float32),
-                     float(stick.sum() / n_contact) if (pres > 0).any() else 1.0)
+                     float(stick.sum() / n_contact) if (pres > 0).any() else 1.0, dense)
 
     def _camera(self, clean: NDArray, trans: NDArray, mask: NDArray, rng: np.random.Generator
                 ) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
@@ -292,12 +380,14 @@ class Scene:
             "jpeg_quality": self.jpeg_quality, "object": self.object.params,
             "centre": [round(c, 3) for c in self.centre], "angle": round(self.angle, 4),
             "depth_mm": round(self.depth, 4), "dilation": round(self.dilation, 4),
+            "appearance": self.appearance, "look": self.look,
+            "grain_std": round(self.grain_std, 4), "grain_profile": self.grain_profile,
         }
 
 
 def render_sample(preset: str | SensorPreset = "gelsight", seed: Any = None, *,
                   label: str | None = None, optics: Optics = "auto", vary_grid: bool = False,
-                  jpeg_quality: int | None = None) -> Sample:
+                  jpeg_quality: int | None = None, appearance: Appearance = "preset") -> Sample:
     """A random scene under a random load, rendered once (one dataset sample).
 
     Load: stuck-zone shear up to 0.9 marker pitch in a random direction, load ratio
@@ -305,7 +395,7 @@ def render_sample(preset: str | SensorPreset = "gelsight", seed: Any = None, *,
     """
     rng = _as_rng(seed)
     scene = Scene(preset, rng, label=label, optics=optics, vary_grid=vary_grid,
-                  jpeg_quality=jpeg_quality)
+                  jpeg_quality=jpeg_quality, appearance=appearance)
     mag = scene.pitch * rng.uniform(0.0, 0.9) ** 1.5
     ang = rng.uniform(0, 2 * np.pi)
     shear = (float(mag * np.cos(ang)), float(mag * np.sin(ang)))

@@ -9,11 +9,14 @@ bool: pixels to fill at inference, i.e. markers dilated as the paper does) and `
   Presets are mixed (GelSight 640x480, GelSight Mini, DIGIT, a dense grid; grids varied) so the
   model meets 8-25 px dots of different darkness on both Taxim-calibrated and Phong optics.
 - A user's sensor with markers only (:func:`marker_offset_pairs`, the paper's marker-offset
-  strategy): ``target`` = the frame with its markers removed by our TELEA (a pseudo ground truth,
-  only ever used *outside* the loss), ``mask`` = the marker mask shifted by about half the pitch,
-  ``cond`` = the TELEA frame (markers gone) so the network sees real pixels around the shifted
-  holes, ``loss_mask`` = shifted pixels that land on real (not TELEA-filled) gel and inside the
-  frame. The loss is thus computed on real pixels only.
+  strategy): holes placed about half a pitch away from the markers, on real gel. By default
+  each real marker's measured appearance (its darkening, soft edge and codec ring included) is
+  transplanted there (:mod:`~tacswitch.tacdiff.transplant`): ``cond`` = the frame with its own
+  markers removed by TELEA and the moved markers painted in, ``target`` = the frame itself,
+  ``mask`` = the moved markers' removal mask, ``loss_mask`` = its pixels off every original
+  marker's footprint (real gel). ``transplant=False`` gives the paper's variant: clean
+  shifted holes cut into the TELEA frame. Either way the loss is computed on real pixels
+  only, never on TELEA's fill.
 """
 
 from __future__ import annotations
@@ -26,8 +29,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tacswitch.markers import Markers
 from tacswitch.tacdiff.prior import DEFAULT_PRIOR, check_prior, combine, fills, has_spread
 from tacswitch.tacdiff.prior import to_net as prior_to_net
+from tacswitch.tacdiff.transplant import DEFAULT_RING
 
 #: Default mix of simulator presets (name, share of samples).
 PRESET_MIX: tuple[tuple[str, float], ...] = (
@@ -35,24 +40,108 @@ PRESET_MIX: tuple[tuple[str, float], ...] = (
 #: Dilations of the *true* marker mask of simulated pairs (it already holds the soft edges; the
 #: paper dilates once with a 3x3 ellipse). Extracted masks use ``inpaint.DEFAULT_DILATE``.
 MASK_DILATE = 1
+#: Share of realistic pairs captured losslessly and sharp (crisp markers must stay right).
+CRISP_SHARE = 0.15
+#: Share of realistic pairs whose markers are repainted in a random real look (pasted black or
+#: painted grey, :func:`tacswitch.sim.markers.sample_style`) instead of the scene's own dots.
+REPAINT_SHARE = 0.5
 
 
-def render_pair(preset: str, seed: Any) -> dict[str, Any]:
-    """One simulated contact as a training pair (see the module docstring)."""
+def render_pair(preset: str, seed: Any, *, realism: bool = True) -> dict[str, Any]:
+    """One simulated contact as a training pair (see the module docstring).
+
+    With ``realism`` (the default since 0.3) half of the pairs get their markers repainted in a
+    random real look (:data:`REPAINT_SHARE`), and the frame WITH markers goes through a random
+    camera and recorder (:func:`tacswitch.sim.capture.sample_profile`: blur, noise,
+    exposure/white-balance drift, MJPEG or H.264; :data:`CRISP_SHARE` of the pairs lossless and
+    sharp), the target is the markerless frame through the same optics and colour drift but
+    without noise or codec (what the gel looks like through that camera), gel appearance is
+    randomised half of the time, and the mask is the one inference will use
+    (:func:`removal_markers` on the captured frame), so the soft edges and codec rings it
+    covers are supervised against the clean target. Without ``realism``: the 0.2 data (the
+    true markers dilated once, 15 % JPEG on the markers only).
+    """
     from tacswitch.markers import dilate_mask
     from tacswitch.sim.scene import render_sample
 
     rng = np.random.default_rng(seed)
-    s = render_sample(preset, rng, vary_grid=bool(rng.random() < 0.5),
-                      jpeg_quality=int(rng.integers(80, 96)) if rng.random() < 0.15 else None)
-    mask = dilate_mask(s.marker_mask, MASK_DILATE)
-    return {"cond": s.image_markers, "target": s.image, "mask": mask, "loss_mask": mask,
-            "contact": s.contact_mask}
+    if not realism:
+        s = render_sample(preset, rng, vary_grid=bool(rng.random() < 0.5),
+                          jpeg_quality=int(rng.integers(80, 96)) if rng.random() < 0.15
+                          else None)
+        mask = dilate_mask(s.marker_mask, MASK_DILATE)
+        return {"cond": s.image_markers, "target": s.image, "mask": mask, "loss_mask": mask,
+                "contact": s.contact_mask}
+    from dataclasses import replace
+
+    from tacswitch.sim import capture
+
+    scene, s = _render_contact(preset, rng)
+    image_markers, footprint = s.image_markers, s.marker_mask
+    if rng.random() < REPAINT_SHARE:
+        from tacswitch.sim.markers import paint_markers, sample_style
+
+        # Pasted black or painted grey dots (tacswitch.sim.markers' looks fitted to real
+        # frames) at the same moved positions, on the same noisy markerless frame.
+        present = scene.present
+        image_markers, footprint = paint_markers(
+            s.image, scene.rest[present], sample_style(rng, diameter=float(
+                np.median(scene.diameters[present]))),
+            displacement=s.displacement[present], diameters=scene.diameters[present],
+            rng=int(rng.integers(2**31)))
+    crisp = rng.random() < CRISP_SHARE
+    profile = capture.CRISP if crisp else capture.sample_profile(rng)
+    cond = capture.apply(image_markers, profile, rng)
+    target = capture.apply(s.image, replace(profile, read_noise=0.0, shot_noise=0.0,
+                                            codec="none"), rng)
+    mask = removal_markers(cond).mask
+    return {"cond": cond, "target": target, "mask": mask, "loss_mask": mask.copy(),
+            "contact": s.contact_mask, "footprint": footprint}
+
+
+def _render_contact(preset: str, rng: np.random.Generator) -> Any:
+    """``(scene, frame)``: one contact (:class:`tacswitch.sim.scene.Frame`); half the time a
+    varied marker grid and randomised gel appearance, the load drawn as
+    :func:`~tacswitch.sim.scene.render_sample` draws it; no reference frame is rendered
+    (training pairs do not use it, and it would double the rendering time)."""
+    from tacswitch.sim.scene import Scene
+
+    scene = Scene(preset, rng, vary_grid=bool(rng.random() < 0.5),
+                  appearance="random" if rng.random() < 0.5 else "preset")
+    mag = scene.pitch * rng.uniform(0.0, 0.9) ** 1.5
+    ang = rng.uniform(0, 2 * np.pi)
+    frame = scene.render(rng, shear_px=(float(mag * np.cos(ang)), float(mag * np.sin(ang))),
+                         load_ratio=float(rng.uniform(0.0, 0.95)),
+                         twist_rad=float(rng.uniform(-0.08, 0.08)))
+    return scene, frame
+
+
+def remask(root: str | Path, progress: bool = True) -> int:
+    """Recomputes ``mask`` and ``loss_mask`` of realistic shards under ``root`` (those with a
+    ``footprint``) with the current :func:`removal_markers`, e.g. after the extraction changed;
+    rewrites only shards whose mask changes. Returns the number of shards rewritten."""
+    from tacswitch._io import atomic_open
+
+    done = 0
+    for path in sorted(Path(root).glob("pairs_*.npz")):
+        arrays = dict(np.load(path))
+        if "footprint" not in arrays:
+            continue
+        mask = np.stack([removal_markers(c).mask for c in arrays["cond"]])
+        if np.array_equal(mask, arrays["mask"]):
+            continue
+        arrays["mask"], arrays["loss_mask"] = mask, mask.copy()
+        with atomic_open(path, "wb") as fh:
+            np.savez(fh, **arrays)  # type: ignore[arg-type]
+        done += 1
+        if progress:
+            print(f"{path.name}: new masks", flush=True)
+    return done
 
 
 def render_pairs(out: str | Path, n: int, *, seed: int = 0,
                  mix: Sequence[tuple[str, float]] = PRESET_MIX, shard: int = 64,
-                 progress: bool = True) -> list[Path]:
+                 progress: bool = True, realism: bool = True) -> list[Path]:
     """Renders ``n`` simulated pairs into ``out/pairs_{preset}_{k:03d}.npz`` (resumable: finished
     shards are skipped; writes are atomic). Sample ``i`` of a preset is seeded by
     ``SeedSequence([seed, preset_index, i])``, so a rerun renders the same pairs."""
@@ -70,7 +159,7 @@ def render_pairs(out: str | Path, n: int, *, seed: int = 0,
             paths.append(path)
             if path.is_file():
                 continue
-            items = [render_pair(preset, np.random.SeedSequence([seed, pi, i]))
+            items = [render_pair(preset, np.random.SeedSequence([seed, pi, i]), realism=realism)
                      for i in range(start, min(count, start + shard))]
             arrays = {key: np.stack([it[key] for it in items]) for key in items[0]}
             with atomic_open(path, "wb") as fh:
@@ -90,66 +179,89 @@ def load_pairs(root: str | Path) -> list[dict[str, NDArray[Any]]]:
     return [dict(np.load(p)) for p in paths]
 
 
+def removal_markers(frame: NDArray[np.uint8], **extract_opts: Any) -> Markers:
+    """The markers :func:`tacswitch.remove_markers` would find on ``frame``; their ``mask`` is
+    what it fills (grown as its default does, border-cut markers kept). ``extract_opts``
+    override the defaults."""
+    from tacswitch.inpaint import DEFAULT_DILATE
+    from tacswitch.markers import extract_markers
+
+    extract_opts.setdefault("exclude_border", False)
+    extract_opts.setdefault("dilate", DEFAULT_DILATE)
+    return extract_markers(frame, **extract_opts)
+
+
 def marker_offset_pairs(frames: Sequence[NDArray[np.uint8]], *, offset: tuple[int, int] | None
-                        = None, radius: int = 3, **extract_opts: Any
+                        = None, radius: int = 3, transplant: bool = True,
+                        ring: int = DEFAULT_RING, **extract_opts: Any
                         ) -> dict[str, NDArray[Any]]:
     """Training pairs from a sensor with markers only (the paper's marker-offset strategy).
 
     Args:
         frames: ``H x W x 3`` uint8 BGR frames with markers, all the same size.
         offset: mask shift ``(dx, dy)`` px; default: half the marker pitch estimated from the
-            first frame, on both axes (the paper: (+36, +36) px on its 83 px-pitch GelSight).
+            first frame, on both axes (the paper: (+36, +36) px on its 83 px-pitch GelSight),
+            rounded to a multiple of 8 px when ``transplant`` (codec block phase, see
+            :mod:`~tacswitch.tacdiff.transplant`).
         radius: TELEA radius of the pseudo-markerless frames.
-        **extract_opts: passed to :func:`tacswitch.extract_markers`.
+        transplant: move each frame's real markers (their measured darkening, ring and codec
+            artefacts included) to the shifted holes, so the network sees what it meets at
+            inference (default); False: the paper's clean shifted holes in the TELEA frame.
+        ring: px beyond the removal mask over which a marker's darkening is measured
+            (``transplant`` only).
+        **extract_opts: passed to :func:`tacswitch.extract_markers` (see :func:`removal_markers`).
 
     Returns:
         arrays ``cond``, ``target``, ``mask``, ``loss_mask`` (``B x H x W [x 3]``) as in the
-        module docstring.
+        module docstring; with ``transplant``, ``target`` is the frame itself (its pixels under
+        the moved markers are real gel) and ``mask`` holds the moved markers only.
     """
-    from tacswitch.inpaint import DEFAULT_DILATE, inpaint_telea
-    from tacswitch.markers import extract_markers
+    from tacswitch.inpaint import inpaint_telea
+    from tacswitch.tacdiff.transplant import default_offset
+    from tacswitch.tacdiff.transplant import transplant as move_markers
     from tacswitch.tracking import estimate_pitch
 
     if len(frames) == 0:
         raise ValueError("frames: need at least one frame")
     shape = frames[0].shape
-    extract_opts.setdefault("exclude_border", False)
-    conds, masks, losses = [], [], []
+    conds, targets, masks, losses = [], [], [], []
     shift = offset
     for i, f in enumerate(frames):
         if f.shape != shape or f.dtype != np.uint8 or f.ndim != 3 or f.shape[2] != 3:
             raise ValueError(f"frames[{i}]: expected {shape} uint8 BGR like frames[0]; got "
                              f"{f.shape} {f.dtype}")
-        m = extract_markers(f, dilate=DEFAULT_DILATE, **extract_opts)
+        found = removal_markers(f, **extract_opts)
+        mask = found.mask
         if shift is None:
-            pitch = estimate_pitch(m.centres)
+            pitch = estimate_pitch(found.centres)
             if pitch is None:
                 raise ValueError("frames: too few markers found to estimate the pitch; pass "
                                  "offset=(dx, dy)")
             half = round(pitch / 2)
-            shift = (half, half)
-        pseudo = inpaint_telea(f, m.mask, radius)
-        moved = _shift(m.mask, shift)
+            shift = default_offset(pitch) if transplant else (half, half)
+        if transplant:
+            cond, moved, real, _ = move_markers(f, mask, shift, ring=ring, radius=radius)
+            conds.append(cond)
+            targets.append(f)
+            masks.append(moved)
+            losses.append(real)
+            continue
+        pseudo = inpaint_telea(f, mask, radius)
+        moved = _shift(mask, shift)
         conds.append(pseudo)
+        targets.append(pseudo)
         masks.append(moved)
         # Real pixels only: the shifted hole must not land on an original (TELEA-filled) marker.
-        losses.append(moved & ~m.mask)
-    cond = np.stack(conds)
-    return {"cond": cond, "target": cond.copy(), "mask": np.stack(masks),
+        losses.append(moved & ~mask)
+    return {"cond": np.stack(conds), "target": np.stack(targets), "mask": np.stack(masks),
             "loss_mask": np.stack(losses)}
 
 
 def _shift(mask: NDArray[np.bool_], offset: tuple[int, int]) -> NDArray[np.bool_]:
     """``mask`` moved by ``(dx, dy)`` px; pixels shifted out of the frame are dropped."""
-    dx, dy = int(offset[0]), int(offset[1])
-    h, w = mask.shape
-    out = np.zeros_like(mask)
-    ys, yd = (slice(0, max(0, h - dy)), slice(dy, h)) if dy >= 0 else \
-        (slice(-dy, h), slice(0, h + dy))
-    xs, xd = (slice(0, max(0, w - dx)), slice(dx, w)) if dx >= 0 else \
-        (slice(-dx, w), slice(0, w + dx))
-    out[yd, xd] = mask[ys, xs]
-    return out
+    from tacswitch.tacdiff.transplant import shift
+
+    return shift(mask, offset, False)
 
 
 class CropSampler:

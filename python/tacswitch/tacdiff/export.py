@@ -89,3 +89,51 @@ def export_onnx(net: DenoiserUNet, path: str | Path, *, metadata: dict[str, Any]
             "tacswitch.schedule": "cosine-ztsnr", "tacswitch.colour_order": "BGR",
             "tacswitch.multiple": str(MULTIPLE), "tacswitch.unet": json.dumps(net.cfg.to_dict())}
     return write_onnx(tmp, target, meta, metadata)
+
+
+def network_from_onnx(path: str | Path) -> DenoiserUNet:
+    """The :class:`DenoiserUNet` (eval mode) of an ONNX file written by :func:`export_onnx`,
+    its weights read back from the graph, so a model shipped without torch weights (the fast
+    one) can be fine-tuned or trained further.
+
+    The exporter keeps every weight under its parameter name (``net.`` + the state-dict key)
+    except the GroupNorm scales and shifts, which it folds into anonymous ``Mul``/``Add``
+    constants; those are matched to the remaining parameters in graph order, shape by shape.
+    """
+    import onnx
+    from onnx import numpy_helper
+
+    from tacswitch.tacdiff.model import UNetConfig
+
+    model = onnx.load(str(path))
+    meta = {p.key: p.value for p in model.metadata_props}
+    if meta.get("tacswitch.kind") != "tacdiff" or "tacswitch.unet" not in meta:
+        raise ValueError(f"path: {str(path)!r} is not a TacDiff ONNX model")
+    cfg = json.loads(meta["tacswitch.unet"])
+    net = DenoiserUNet(UNetConfig(base=cfg["base"], mults=tuple(cfg["mults"]),
+                                  attention=cfg["attention"], emb=cfg["emb"],
+                                  prior=cfg["prior"]))
+    named, anonymous = {}, []
+    for init in model.graph.initializer:
+        arr = numpy_helper.to_array(init)
+        if init.name.startswith("net."):
+            named[init.name[4:]] = arr
+        else:
+            anonymous.append((int(init.name.rsplit("_", 1)[-1]), arr))
+    anonymous.sort(key=lambda kv: kv[0])
+    state = net.state_dict()
+    rest = iter(a for _, a in anonymous if a.ndim == 3 and a.shape[1:] == (1, 1))
+    new = {}
+    for key, ref in state.items():
+        arr = named.get(key)
+        if arr is None:
+            arr = next(rest, None)
+            if arr is None:
+                raise ValueError(f"path: {str(path)!r} has no weight for {key!r}")
+            arr = arr.reshape(-1)
+        if tuple(arr.shape) != tuple(ref.shape):
+            raise ValueError(f"path: {str(path)!r}: weight {key!r} has shape {arr.shape}, "
+                             f"expected {tuple(ref.shape)}")
+        new[key] = torch.from_numpy(arr.copy())
+    net.load_state_dict(new)
+    return net.eval()

@@ -89,7 +89,7 @@ class TacDiffModel:
     def __init__(self, path: str | os.PathLike[str] | None = None, *,
                  threads: int | None = None) -> None:
         self.path = model_path(path)
-        self.session, meta = open_session(self.path, threads)
+        self.session, meta = open_session(self.path, threads, kind="tacdiff")
         if meta.get("tacswitch.kind") != "tacdiff":
             raise ValueError(f"model: {str(self.path)!r} is not a TacDiff model")
         if meta.get("tacswitch.colour_order", "BGR") != "BGR":

@@ -1,15 +1,21 @@
 """The classical fill TacDiff refines: what the network adds its residual to (numpy; no torch).
 
-Two kinds, recorded in the model (``UNetConfig.prior``, ONNX metadata ``tacswitch.prior``):
+Three kinds, recorded in the model (``UNetConfig.prior``, ONNX metadata ``tacswitch.prior``):
 
 - ``"telea"`` (models before 0.2): the holes filled by our TELEA, r = 3.
-- ``"telea+biharmonic"`` (the default): the mean of TELEA (r = 3) and the biharmonic fill
+- ``"telea+biharmonic"`` (models of 0.2): the mean of TELEA (r = 3) and the biharmonic fill
   (:func:`tacswitch.inpaint_biharmonic`), plus their difference as a second input. TELEA's
   weighted mean is robust to camera noise on flat gel but flattens contact shading; the
   biharmonic surface continues gradients and curvature but carries the noise of the ring it
-  starts from. On held-out simulated contacts their mean already cuts TELEA's masked error in
-  contact by 7-13 %; the difference tells the network where the two disagree, i.e. where the
-  hole hides structure. Both cost a few ms per frame on a CPU.
+  starts from. On held-out simulated contacts their mean cut TELEA's masked error in contact
+  by 7-13 %; the difference tells the network where the two disagree. On real frames it is
+  poisoned: the biharmonic surface extrapolates the darkened ring real markers leave around
+  them (soft paint edges, halo, codec ringing), a grey ghost dot in every hole.
+- ``"telea+biharmonic-grown"``: the same mean and difference, but the biharmonic fill is
+  solved on each hole grown by :data:`PRIOR_GROW` px (within its own Voronoi cell, so
+  neighbouring holes never merge) and kept on the hole only: its boundary values and slopes
+  come from gel further out, past the ring. Chosen on the real-frame proxy
+  (:mod:`tacswitch.realproxy`, BENCHMARKS.md).
 
 Images here are float32 in [-1, 1] (``x / 127.5 - 1``), ``H x W x 3`` BGR.
 """
@@ -21,12 +27,14 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-PriorKind = Literal["telea", "telea+biharmonic"]
-PRIORS: tuple[str, ...] = ("telea", "telea+biharmonic")
+PriorKind = Literal["telea", "telea+biharmonic", "telea+biharmonic-grown"]
+PRIORS: tuple[str, ...] = ("telea", "telea+biharmonic", "telea+biharmonic-grown")
 #: Prior of newly trained models.
 DEFAULT_PRIOR: PriorKind = "telea+biharmonic"
 #: TELEA radius of the prior (training and inference alike).
 PRIOR_RADIUS = 3
+#: Growth of each hole (px) before the biharmonic solve of ``"telea+biharmonic-grown"``.
+PRIOR_GROW = 4
 
 
 def check_prior(kind: str) -> PriorKind:
@@ -38,7 +46,31 @@ def check_prior(kind: str) -> PriorKind:
 
 def has_spread(kind: str) -> bool:
     """Whether models with this prior take the ``spread`` input (TELEA minus biharmonic)."""
-    return check_prior(kind) == "telea+biharmonic"
+    return check_prior(kind) != "telea"
+
+
+def grow_holes(mask: NDArray[np.bool_], px: float) -> NDArray[np.bool_]:
+    """Each hole (connected component of ``mask``) grown by ``px`` (Euclidean), but only
+    within its own Voronoi cell and leaving a two-pixel wall of known pixels where two cells
+    meet, so holes never merge (a merged hole would lose the gel between markers as data, and
+    the biharmonic system grows with the square of a hole's size)."""
+    import cv2
+
+    m = np.asarray(mask, bool)
+    if px <= 0 or not m.any():
+        return m.copy()
+    # Distance to, and label of, the nearest hole for every pixel.
+    dist, lab = cv2.distanceTransformWithLabels(np.where(m, 0, 1).astype(np.uint8), cv2.DIST_L2,
+                                                5, labelType=cv2.DIST_LABEL_CCOMP)
+    wall = np.zeros_like(m)
+    dx = lab[:, 1:] != lab[:, :-1]
+    dy = lab[1:, :] != lab[:-1, :]
+    wall[:, 1:] |= dx
+    wall[:, :-1] |= dx
+    wall[1:, :] |= dy
+    wall[:-1, :] |= dy
+    out: NDArray[np.bool_] = ((dist <= px) & ~wall) | m
+    return out
 
 
 def input_channels(kind: str) -> int:
@@ -50,11 +82,18 @@ def input_channels(kind: str) -> int:
 def fills(img: NDArray[np.uint8], mask: NDArray[np.bool_], kind: str
           ) -> tuple[NDArray[np.uint8], NDArray[np.uint8] | None]:
     """The classical fills of one uint8 BGR frame: TELEA, and the biharmonic fill when ``kind``
-    uses it (else None)."""
+    uses it (else None; for ``"telea+biharmonic-grown"`` solved on the grown holes, the pixels
+    outside ``mask`` left as in ``img``)."""
     from tacswitch.inpaint import inpaint_biharmonic, inpaint_telea
 
     telea = inpaint_telea(img, mask, PRIOR_RADIUS)
-    smooth = inpaint_biharmonic(img, mask) if has_spread(kind) else None
+    if not has_spread(kind):
+        return telea, None
+    if kind != "telea+biharmonic-grown":
+        return telea, inpaint_biharmonic(img, mask)
+    m = np.asarray(mask, bool)
+    smooth = img.copy()
+    smooth[m] = inpaint_biharmonic(img, grow_holes(m, PRIOR_GROW))[m]
     return telea, smooth
 
 

@@ -209,12 +209,17 @@ def save_weights(net: Any, path: str | Path, config: dict[str, Any], *,
 
 
 def load_weights(path: str | Path) -> dict[str, Any]:
-    """A state dict from a ``.safetensors`` file or a training checkpoint (its EMA weights)."""
+    """A state dict from a ``.safetensors`` file, a training checkpoint (its EMA weights) or a
+    TacDiff ``.onnx`` file (:func:`~tacswitch.tacdiff.export.network_from_onnx`)."""
     import torch
 
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"init: no file at {str(p)!r}")
+    if p.suffix == ".onnx":
+        from tacswitch.tacdiff.export import network_from_onnx
+
+        return dict(network_from_onnx(p).state_dict())
     if p.suffix == ".safetensors":
         from safetensors.torch import load_file
 
@@ -226,8 +231,8 @@ def load_weights(path: str | Path) -> dict[str, Any]:
 
 def load_network(path: str | Path) -> Any:
     """A :class:`DenoiserUNet` (eval mode) from a ``.safetensors`` file written by :func:`train`
-    or :func:`save_weights`, or from a training checkpoint (its EMA weights); the architecture
-    comes from the file's recorded configuration."""
+    or :func:`save_weights`, a training checkpoint (its EMA weights) or a TacDiff ``.onnx``
+    file; the architecture comes from the file's recorded configuration."""
     import torch
 
     from tacswitch.tacdiff.model import DenoiserUNet, UNetConfig
@@ -235,6 +240,10 @@ def load_network(path: str | Path) -> Any:
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"path: no file at {str(p)!r}")
+    if p.suffix == ".onnx":
+        from tacswitch.tacdiff.export import network_from_onnx
+
+        return network_from_onnx(p)
     if p.suffix == ".safetensors":
         from safetensors import safe_open
 

@@ -1,0 +1,163 @@
+"""Where a grasp starts in a recording: contact onset and the established contact.
+
+The slip rule measures marker displacement since the start of the grasp, the frame where the
+contact is *established* (the paper's baseline). A recording usually begins before that: no
+contact, then a press that moves the markers by several pixels. Taking frame 0 as the start
+flags the whole press and hold as slip. :class:`GraspSegmenter` reads the marker motion field
+of each frame (measured from the first frame, which shows no contact) and finds:
+
+- **contact onset**: the markers leave their rest positions, i.e. the motion statistic ``m``
+  (the k-th largest marker displacement since the first frame, k = 2 % of the markers, at least
+  2, so one mistracked marker does not count) exceeds ``ON_FRACTION`` of the slip threshold,
+  and twice the tracker's frame-to-frame jitter without contact (a jittering tracker moves
+  ``m`` about as much as one frame's jitter; a press accumulates), for :data:`ON_FRAMES`
+  frames in a row;
+- **established contact** (the grasp start): the first frame after onset where the markers stop
+  moving, i.e. the per-frame motion statistic ``v`` (the same k-th largest, of the motion since
+  the previous frame) falls below ``SETTLE_FRACTION`` of the slip threshold (or 3x the
+  no-contact jitter): at that speed the contact would need ten frames to cover the threshold.
+  A contact that keeps moving for ``max_wait`` frames starts anyway (a grasp that slips while
+  it is being pressed is still evaluated);
+- **release**: ``m`` falls back below the onset level for :data:`ON_FRAMES` frames; the next
+  onset starts a new grasp.
+
+The fractions are defined relative to the slip threshold (so they scale with the frame width
+like the rule itself), not fitted to a data set. A recording that starts in contact has no
+onset to find: the motion stays near zero and the grasp starts at the first frame where the
+markers move and settle, or never; pass an explicit start (``--start``) for such recordings.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+#: Onset: the motion statistic above this fraction of the slip threshold ...
+ON_FRACTION = 0.25
+#: ... for this many frames in a row (one glitch is not a contact).
+ON_FRAMES = 2
+#: Established: per-frame motion below this fraction of the slip threshold.
+SETTLE_FRACTION = 0.1
+
+NO_CONTACT, PRESSING, GRASP, BEFORE_START = "no contact", "pressing", "grasp", "before start"
+
+
+def top_statistic(values: NDArray[np.floating]) -> float:
+    """The k-th largest of ``values`` (k = 2 % of them, at least 2; the smallest if fewer):
+    a motion that a few markers share, robust to one mistracked marker. 0 for no values."""
+    v = np.asarray(values, np.float64)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return 0.0
+    k = min(max(2, int(np.ceil(0.02 * v.size))), v.size)
+    return float(np.partition(v, v.size - k)[v.size - k])
+
+
+@dataclass(frozen=True)
+class Step:
+    """What :meth:`GraspSegmenter.update` concluded for one frame.
+
+    Attributes:
+        phase: ``"no contact"``, ``"pressing"`` (onset seen, not settled), ``"grasp"`` or
+            ``"before start"`` (an explicit start not reached yet).
+        starts: this frame is the start of a grasp (the slip rule's baseline).
+        grasp: 1-based number of the current grasp, 0 before the first.
+        start: frame index where the current grasp started, None outside a grasp.
+        onset: frame index of the current contact's onset, None if not detected.
+        moving: the motion statistic since the first frame, px.
+        speed: the per-frame motion statistic, px.
+    """
+
+    phase: str
+    starts: bool
+    grasp: int
+    start: int | None
+    onset: int | None
+    moving: float
+    speed: float
+
+
+class GraspSegmenter:
+    """Contact onset, grasp start and release from a stream of marker motion fields.
+
+    Args:
+        threshold_px: the slip rule's displacement threshold, px (the levels scale with it).
+        start: an explicit grasp start (frame index): no detection, the grasp starts there and
+            lasts to the end.
+        max_wait: frames after onset after which a contact that is still moving starts the
+            grasp anyway.
+    """
+
+    def __init__(self, threshold_px: float, *, start: int | None = None,
+                 max_wait: int = 30) -> None:
+        if not threshold_px > 0:
+            raise ValueError(f"threshold_px: must be > 0; got {threshold_px!r}")
+        if start is not None and start < 0:
+            raise ValueError(f"start: must be >= 0; got {start}")
+        self.threshold_px = float(threshold_px)
+        self.fixed_start = start
+        self.max_wait = max(1, int(max_wait))
+        self.frame = -1
+        self.phase = NO_CONTACT if start is None else BEFORE_START
+        self.grasp = 0
+        self.start: int | None = None
+        self.onset: int | None = None
+        self._above = 0  # frames in a row above the onset level (no contact) or below it (grasp)
+        self._noise_v: list[float] = []  # per-frame motion statistics without contact
+        self._prev: NDArray[np.float64] | None = None
+
+    def _jitter(self, extra: float | None = None) -> float:
+        """Median per-frame motion statistic of the no-contact frames (and ``extra``), px."""
+        values = self._noise_v + ([] if extra is None else [extra])
+        return float(np.median(values)) if values else 0.0
+
+    @property
+    def on_level(self) -> float:
+        """The onset level, px: ``ON_FRACTION`` of the threshold, or twice the no-contact
+        jitter."""
+        return max(ON_FRACTION * self.threshold_px, 2.0 * self._jitter())
+
+    @property
+    def settle_level(self) -> float:
+        """The settling speed, px per frame: ``SETTLE_FRACTION`` of the threshold, or 3x the
+        no-contact per-frame noise."""
+        return max(SETTLE_FRACTION * self.threshold_px, 3.0 * self._jitter())
+
+    def update(self, motion: NDArray[np.floating], valid: NDArray[np.bool_]) -> Step:
+        """Feeds the motion field of the next frame (``N x 2`` px since the first frame, and
+        its ``N`` valid flags) and returns the frame's :class:`Step`."""
+        self.frame += 1
+        t = self.frame
+        mv = np.where(np.asarray(valid, bool)[:, None], np.asarray(motion, np.float64), np.nan)
+        moving = top_statistic(np.hypot(mv[:, 0], mv[:, 1]))
+        speed = 0.0 if self._prev is None else top_statistic(
+            np.hypot(*(mv - self._prev).T))
+        self._prev = mv
+        starts = False
+        if self.fixed_start is not None:
+            if t == self.fixed_start:
+                self.phase, self.grasp, self.start, starts = GRASP, 1, t, True
+        elif self.phase == NO_CONTACT:
+            # This frame's own speed counts towards the jitter: without a lead-in, the first
+            # frames of a press are judged against each other, not against nothing.
+            level = max(ON_FRACTION * self.threshold_px,
+                        2.0 * self._jitter(speed if t > 0 else None))
+            if moving > level:
+                self._above += 1
+                if self._above >= ON_FRAMES:
+                    self.phase, self.onset, self._above = PRESSING, t - ON_FRAMES + 1, 0
+            else:
+                self._above = 0
+                if t > 0:
+                    self._noise_v.append(speed)
+        if self.fixed_start is None and self.phase == PRESSING and (
+                speed < self.settle_level or t - (self.onset or t) >= self.max_wait):
+            self.phase, self.start, starts = GRASP, t, True
+            self.grasp += 1
+        elif self.fixed_start is None and self.phase == GRASP and not starts:
+            self._above = self._above + 1 if moving <= self.on_level else 0
+            if self._above >= ON_FRAMES:  # released: back to no contact, a new grasp may come
+                self.phase, self.start, self.onset, self._above = NO_CONTACT, None, None, 0
+        return Step(self.phase, starts, self.grasp, self.start, self.onset, moving, speed)

@@ -1,0 +1,206 @@
+"""Option checks shared by the commands: usage errors, output paths, models, extraction options.
+
+A value an option names that cannot be used (a missing ``--centres`` file, an ``-o`` path under
+a file, an image given as ``--model``) is a :class:`UsageError`: one line naming the option,
+exit code 2 (as argparse's own usage errors). Problems with the inputs' contents stay
+``ValueError`` (exit code 1).
+"""
+
+from __future__ import annotations
+
+import argparse
+import errno
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, TypeVar
+
+T = TypeVar("T")
+
+
+class UsageError(ValueError):
+    """An option's value cannot be used; the message starts with the option's name."""
+
+
+def _blocking_file(path: Path) -> Path | None:
+    """The nearest existing ancestor of ``path`` that is not a folder (what stops a mkdir)."""
+    for parent in path.parents:
+        if parent.exists():
+            return None if parent.is_dir() else parent
+    return None
+
+
+def _os_reason(exc: OSError) -> str:
+    """An OS error as words, without the raw ``[Errno N]`` prefix."""
+    if exc.errno in (errno.EACCES, errno.EPERM):
+        return "permission denied"
+    if exc.errno == errno.EROFS:
+        return "read-only file system"
+    if exc.errno == errno.ENOSPC:
+        return "no space left on the device"
+    return (exc.strerror or type(exc).__name__).lower()
+
+
+def _make_dir(folder: Path, option: str, what: str) -> None:
+    """Creates ``folder`` (and its parents); :class:`UsageError` ``"{option}: {what}: why"``."""
+    blocker = _blocking_file(folder / "x")
+    if blocker is not None:
+        raise UsageError(f"{option}: {what}: {str(blocker)!r} is a file, not a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(f"{option}: {what}: {_os_reason(exc)}") from None
+
+
+def output_dir(path: str | os.PathLike[str], option: str) -> Path:
+    """The output folder ``path``, created if missing; :class:`UsageError` naming ``option``
+    if it is a file or cannot be created (a file on the way, no permission)."""
+    folder = Path(path)
+    if folder.exists() and not folder.is_dir():
+        raise UsageError(f"{option}: {str(folder)!r} is a file; give a folder")
+    _make_dir(folder, option, f"cannot create folder {str(folder)!r}")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise UsageError(f"{option}: cannot write in {str(folder)!r}: permission denied")
+    return folder
+
+
+def output_file(path: str | os.PathLike[str], option: str) -> Path:
+    """The output file ``path``, its parent folders created; :class:`UsageError` naming
+    ``option`` if it is a folder or its folder cannot be made or written."""
+    target = Path(path)
+    if target.is_dir():
+        raise UsageError(f"{option}: {str(target)!r} is a folder; give a file name")
+    parent = target.parent
+    _make_dir(parent, option, f"cannot write {str(target)!r}")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise UsageError(f"{option}: cannot write in {str(parent)!r}: permission denied")
+    if target.exists() and not os.access(target, os.W_OK):
+        raise UsageError(f"{option}: cannot overwrite {str(target)!r}: permission denied")
+    return target
+
+
+def input_file(path: str | os.PathLike[str], option: str) -> Path:
+    """``path`` if it is an existing file; :class:`UsageError` naming ``option`` otherwise."""
+    p = Path(path)
+    if p.is_dir():
+        raise UsageError(f"{option}: {str(p)!r} is a folder; give a file")
+    if not p.is_file():
+        raise UsageError(f"{option}: no file at {str(p)!r}")
+    if not os.access(p, os.R_OK):
+        raise UsageError(f"{option}: cannot read {str(p)!r}: permission denied")
+    return p
+
+
+def load_model_option(loader: Callable[[Any], T], value: str | None,
+                      option: str = "--model") -> T:
+    """``loader(value)`` with the library's ``model: ...`` errors (missing file, not an ONNX
+    model, a model of the wrong kind) turned into :class:`UsageError` naming ``option``."""
+    try:
+        return loader(value)
+    except (ValueError, FileNotFoundError) as exc:
+        text = str(exc)
+        if text.startswith("model:"):
+            raise UsageError(f"{option}:{text[len('model:'):]}") from None
+        raise
+
+
+# --- marker extraction options (tacswitch.extract_markers keyword arguments) -----------------
+
+def _odd_size(text: str) -> int:
+    value = _count(text)
+    if value < 3 or value % 2 == 0:
+        raise argparse.ArgumentTypeError(f"expected an odd number of pixels >= 3, got {text!r}")
+    return value
+
+
+def _count(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
+    return value
+
+
+def _dilate(text: str) -> int | str:
+    if text == "auto":
+        return text
+    try:
+        return _count(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0 or 'auto', "
+                                         f"got {text!r}") from None
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (value > 0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
+def _fraction(text: str) -> float:
+    value = _positive(text)
+    if value > 1:
+        raise argparse.ArgumentTypeError(f"expected a number in (0, 1], got {text!r}")
+    return value
+
+
+#: (flag, extract_markers keyword, argparse keywords) of each extraction option.
+EXTRACTION_OPTIONS: tuple[tuple[str, str, dict[str, Any]], ...] = (
+    ("--polarity", "polarity", {"choices": ("dark", "bright"),
+                                "help": "markers darker (painted dots, default) or brighter "
+                                        "(pins) than the gel"}),
+    ("--threshold", "threshold", {"type": _positive, "metavar": "GREY",
+                                  "help": "marker contrast threshold in grey levels (default: "
+                                          "chosen per image)"}),
+    ("--block-size", "block_size", {"type": _odd_size, "metavar": "PX",
+                                    "help": "odd box size for the local background, px "
+                                            "(default: max(15, min(H, W) // 8))"}),
+    ("--min-area", "min_area", {"type": _count, "metavar": "PX",
+                                "help": "smallest marker, px (default: max(4, 5e-5 * H * W))"}),
+    ("--max-area", "max_area", {"type": _count, "metavar": "PX",
+                                "help": "largest marker, px (default: 0.02 * H * W)"}),
+    ("--min-fill", "min_fill", {"type": _fraction, "metavar": "F",
+                                "help": "smallest area / bounding-box area (default: 0.35; "
+                                        "a disc has 0.785)"}),
+    ("--max-aspect", "max_aspect", {"type": _positive, "metavar": "R",
+                                    "help": "largest bounding-box aspect ratio (default: 3)"}),
+)
+
+
+def add_extraction_options(p: argparse.ArgumentParser, *, border_default: str,
+                           dilate: bool) -> None:
+    """Adds :data:`EXTRACTION_OPTIONS`, ``--exclude-border/--keep-border`` (the default named
+    by ``border_default``) and, if ``dilate``, ``--dilate`` to ``p`` in their own group; every
+    default is None, so :func:`extraction_options` passes only what the user set."""
+    group = p.add_argument_group(
+        "marker extraction", "options of tacswitch.extract_markers; unset options keep the "
+        "library's defaults (chosen per image)")
+    for flag, dest, kw in EXTRACTION_OPTIONS:
+        group.add_argument(flag, dest=f"x_{dest}", default=None, **kw)
+    if dilate:
+        group.add_argument("--dilate", dest="x_dilate", type=_dilate, default=None,
+                           metavar="N|auto",
+                           help="grow the marker mask before filling: N 3x3-cross dilations, "
+                                "or 'auto' (per marker, until the ring around it matches the "
+                                "local background: soft edges and codec rings inside); "
+                                "default: the library's")
+    border = group.add_mutually_exclusive_group()
+    border.add_argument("--exclude-border", dest="x_exclude_border", action="store_const",
+                        const=True, default=None,
+                        help="drop markers cut by the frame edge"
+                             + (" (default)" if border_default == "exclude" else ""))
+    border.add_argument("--keep-border", dest="x_exclude_border", action="store_const",
+                        const=False,
+                        help="keep markers cut by the frame edge"
+                             + (" (default)" if border_default == "keep" else ""))
+
+
+def extraction_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The extraction keyword arguments the user set (``x_*`` attributes that are not None)."""
+    return {k[2:]: v for k, v in vars(args).items() if k.startswith("x_") and v is not None}

@@ -1,0 +1,160 @@
+"""Training-free marker motion: dense optical flow from a reference frame, read at the markers.
+
+The motion of a marker from ``ref`` to ``img`` is the forward flow ``ref -> img`` read
+bilinearly at the marker's rest centre (a position in ``ref``): OpenCV's convention is
+``ref(y, x) ~ img(y + flow_y, x + flow_x)``, so the flow at a ``ref`` pixel is where that piece of
+gel went. Works on whatever moves between the two frames: the contact imprint's shading and edges,
+the object's texture, and the coating's fixed-pattern grain and dust (weak on real gels, about
+0.3 grey levels under 0.5 of temporal noise on taxim's real presses).
+
+Brightness: both frames are turned into local contrast ``(g - G*g) / G*g`` of their grey level
+``g`` (``G*``: a wide Gaussian, sigma ``BG_SIGMA_REL`` of the frame width), which removes a global
+gain and any smooth illumination change, then mapped to 8 bits with one shared, compressive scale
+(``tanh``) so the faint grain keeps a few grey levels while the strong imprint does not saturate.
+Identical frames return exactly zero (checked before any flow is computed).
+
+Algorithms (OpenCV 4.x/5.x, ``opencv-contrib`` for the ``optflow`` ones): ``"dis"`` (DIS, presets
+``ultrafast``/``fast``/``medium``), ``"farneback"``, ``"deepflow"``, ``"pcaflow"``, ``"rlof"``
+(dense RLOF).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["ALGORITHMS", "DIS_PRESETS", "dense_flow", "flow_motion", "normalise_pair",
+           "sample_field"]
+
+#: Flow algorithms accepted by :func:`flow_motion`.
+ALGORITHMS = ("dis", "farneback", "deepflow", "pcaflow", "rlof")
+#: DIS presets (``preset=``); only DIS has presets.
+DIS_PRESETS = ("ultrafast", "fast", "medium")
+#: Background blur sigma as a fraction of the frame width (the illumination model's scale).
+BG_SIGMA_REL = 1.0 / 24.0
+#: Local-contrast value (in units of the reference's robust spread) mapped to ~76 grey levels.
+CONTRAST_GAIN = 3.0
+#: Smallest contrast scale: below it the mapping would amplify the camera's noise and the
+#: requantisation of a brightness change into fake texture.
+MIN_SCALE = 0.0
+
+
+def _grey(img: NDArray[np.uint8]) -> NDArray[np.float32]:
+    import cv2
+
+    if img.ndim == 2:
+        return img.astype(np.float32)
+    code = cv2.COLOR_BGRA2GRAY if img.shape[2] == 4 else cv2.COLOR_BGR2GRAY
+    # Grey from float BGR keeps the sub-grey-level detail the uint8 conversion would round away.
+    return np.asarray(cv2.cvtColor(img.astype(np.float32), code), np.float32)
+
+
+def _background(g: NDArray[np.float32], sigma: float) -> NDArray[np.float32]:
+    """Wide Gaussian blur of ``g``: computed at 1/k size (k ~ sigma / 4) and upsampled, ~20x
+    cheaper than a full-size blur at this width and equal to it within the smooth field's
+    interpolation error."""
+    import cv2
+
+    h, w = g.shape
+    k = max(1, int(sigma // 4))
+    if k == 1:
+        return np.asarray(cv2.GaussianBlur(g, (0, 0), sigma, borderType=cv2.BORDER_REFLECT),
+                          np.float32)
+    small = cv2.resize(g, (max(1, w // k), max(1, h // k)), interpolation=cv2.INTER_AREA)
+    small = cv2.GaussianBlur(small, (0, 0), sigma / k, borderType=cv2.BORDER_REFLECT)
+    return np.asarray(cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR), np.float32)
+
+
+def _local_contrast(g: NDArray[np.float32], sigma: float) -> NDArray[np.float32]:
+    bg = _background(g, sigma)
+    return np.asarray((g - bg) / np.maximum(bg, 4.0), np.float32)
+
+
+def normalise_pair(img: NDArray[np.uint8], ref: NDArray[np.uint8]
+                   ) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+    """``(img, ref)`` as 8-bit grey local contrast on one shared scale (see the module doc).
+
+    The scale is the reference's robust spread (median absolute deviation) of local contrast, so a
+    brightness change of ``img`` alone changes neither frame's mapping.
+    """
+    w = img.shape[1]
+    sigma = max(2.0, BG_SIGMA_REL * w)
+    ci = _local_contrast(_grey(img), sigma)
+    cr = _local_contrast(_grey(ref), sigma)
+    # The spread from every other pixel in each direction: same statistic, a quarter the work.
+    sub = cr[::2, ::2]
+    mad = float(np.median(np.abs(sub - np.median(sub))))
+    scale = max(CONTRAST_GAIN * 1.4826 * mad, MIN_SCALE, 1e-3)
+    out = []
+    for c in (ci, cr):
+        u = 128.0 + 127.0 * np.tanh(c / scale)
+        out.append(np.clip(np.rint(u), 0, 255).astype(np.uint8))
+    return out[0], out[1]
+
+
+def _dis(preset: str) -> Any:
+    import cv2
+
+    code = {"ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST,
+            "fast": cv2.DISOPTICAL_FLOW_PRESET_FAST,
+            "medium": cv2.DISOPTICAL_FLOW_PRESET_MEDIUM}[preset]
+    return cv2.DISOpticalFlow_create(code)
+
+
+def dense_flow(ref8: NDArray[np.uint8], img8: NDArray[np.uint8], algorithm: str = "dis",
+               preset: str = "medium") -> NDArray[np.float32]:
+    """Forward flow ``ref8 -> img8`` (``H x W x 2`` float32, ``(dx, dy)`` px at ``ref8``'s
+    pixels) between two 8-bit grey frames of the same size."""
+    import cv2
+
+    if algorithm == "dis":
+        flow = _dis(preset).calc(ref8, img8, None)
+    elif algorithm == "farneback":
+        # A 15 px Gaussian window, 5 levels: smooth gel fields, motions up to a marker pitch.
+        flow = cv2.calcOpticalFlowFarneback(ref8, img8, None, 0.5, 5, 15, 5, 7, 1.5,
+                                            cv2.OPTFLOW_FARNEBACK_GAUSSIAN)
+    elif algorithm == "deepflow":
+        flow = cv2.optflow.createOptFlow_DeepFlow().calc(ref8, img8, None)
+    elif algorithm == "pcaflow":
+        flow = cv2.optflow.createOptFlow_PCAFlow().calc(ref8, img8, None)
+    elif algorithm == "rlof":
+        # Dense RLOF's default support region needs 3-channel input.
+        flow = cv2.optflow.calcOpticalFlowDenseRLOF(cv2.cvtColor(ref8, cv2.COLOR_GRAY2BGR),
+                                                    cv2.cvtColor(img8, cv2.COLOR_GRAY2BGR), None)
+    else:
+        raise ValueError(f"algorithm: unknown {algorithm!r}; choose from {list(ALGORITHMS)}")
+    return np.asarray(flow, np.float32)
+
+
+def sample_field(field: NDArray[np.float32], pts: NDArray[np.float32]) -> NDArray[np.float32]:
+    """Bilinear samples of an ``H x W x 2`` field at ``N x 2`` points ``(x, y)`` (pixel centres at
+    integers); points outside take the nearest border value."""
+    import cv2
+
+    if len(pts) == 0:
+        return np.zeros((0, 2), np.float32)
+    mx = np.ascontiguousarray(pts[:, :1], np.float32)
+    my = np.ascontiguousarray(pts[:, 1:], np.float32)
+    s = cv2.remap(field, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return np.asarray(s, np.float32).reshape(-1, 2)
+
+
+def flow_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8], centres: NDArray[np.float32], *,
+                algorithm: str = "dis", preset: str = "medium") -> NDArray[np.float32]:
+    """Motion ``N x 2`` float32 ``(dx, dy)`` px of markers at rest ``centres`` (``(x, y)`` px in
+    ``ref``) from ``ref`` to ``img`` (validated uint8 frames of one shape, BGR or grey).
+
+    Exactly zero for identical frames. ``preset`` applies to DIS only.
+    """
+    if algorithm not in ALGORITHMS:
+        raise ValueError(f"algorithm: unknown {algorithm!r}; choose from {list(ALGORITHMS)}")
+    if preset not in DIS_PRESETS:
+        raise ValueError(f"preset: unknown {preset!r}; choose from {list(DIS_PRESETS)}")
+    if len(centres) == 0 or np.array_equal(img, ref):
+        return np.zeros((len(centres), 2), np.float32)
+    img8, ref8 = normalise_pair(img, ref)
+    flow = dense_flow(ref8, img8, algorithm, preset)
+    out = sample_field(flow, centres)
+    return np.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0)

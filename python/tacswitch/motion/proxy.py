@@ -1,0 +1,343 @@
+"""Real-texture proxy for marker motion: real markerless frames warped by known smooth fields.
+
+No public data pair markerless frames with the motion of markers, so this module makes the truth:
+a real markerless press (taxim's GelSight 640 x 480 and GelSight Mini presses, the latter
+area-downsampled to 320 x 240 as the Mini's driver crops/resizes) is warped by a known lateral
+displacement field of the gel, so everything the real frame shows — the imprint's shading, the
+coating's fixed-pattern grain, dust — moves with the field, as it would on the sensor.
+
+Conventions (px, ``(x, y)``, pixel centres at integers): a field ``u`` is defined at REST
+positions ``X`` (the undeformed gel, the reference frame's pixels): the gel point at ``X`` moves to
+``X + u(X)``. The warped frame is ``img(X + u(X)) = src(X)``, rendered by backward mapping
+(``cv2.remap``): for each pixel ``y`` of the warped frame the rest point ``X`` solving
+``X + u(X) = y`` is found by the fixed-point iteration ``X <- y - u(X)`` (a contraction: every
+field here has a displacement gradient of norm < 0.85). The true motion of a marker at rest
+centre ``c`` from the reference to ``img`` is then exactly ``u(c)``.
+
+Fields, centred on the real contact (``touch_center``, radius ``a`` = ``touch_radius``), ``d = X -
+centre``, ``r = |d|``, amplitude ``A`` (the largest displacement, px):
+
+- ``press``: radial outward, ``A d / r0 exp((1 - r²/r0²) / 2)`` (peak ``A`` at ``r = r0``,
+  ``r0 = max(1.3 a, 2 A)``);
+- ``shear``: Cerruti-like tangential field, uniform inside the contact and decaying as ``rs / r``
+  outside (``A s(r) [e + k ((e.d^) d^ - e / 2) r² / (r² + rs²)]``, ``s = (1 + (r/rs)^4)^(-1/4)``,
+  ``rs = max(1.2 a, 1.5 A)``, ``e`` a unit direction, ``k`` in [0, 0.4]: the along-load component
+  decays more slowly than the transverse one, as in Cerruti's solution);
+- ``twist``: rotation about the contact fading as a Gaussian, ``theta perp(d) exp(-r²/(2 rt²))``
+  (peak ``A`` at ``r = rt``, ``rt = max(1.3 a, 3 A)``);
+- ``mix``: the sum of the three with random shares of ``A`` (rescaled if its gradient is too
+  steep).
+
+Amplitudes are drawn up to one GelSight Mini marker pitch (1.68 mm: 28.5 px at 320 x 240, 57 px at
+640 x 480). Capture: the warped frame gets an exposure / white-balance drift and the capture's
+compression (``tacswitch.sim.capture``: MJPEG or H.264; the reference frame gets its own
+compression but no drift). The real frames already hold their own blur and sensor noise.
+
+Settings (every sample of :func:`make_proxy` carries the references of all three):
+
+- ``"no_contact"``: ``ref`` = the sensor's real no-contact frame ``f0`` (a separate capture: the
+  same fixed-pattern grain, independent noise), ``img`` = the warped press. The truth is the
+  warp alone: it leaves out the press's own (unknown, small) lateral motion.
+- ``"press"``: ``ref`` = the unwarped press frame, ``img`` = its warp: the cleanest test of
+  following real texture, optimistic because the two share the capture's noise pattern.
+- ``"single"``: ``img`` only (the paper's setting).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["FIELD_KINDS", "SENSORS", "SETTINGS", "Field", "ProxySample", "backward_map",
+           "load_real_presses", "make_proxy", "marker_grid", "random_field", "warp"]
+
+FIELD_KINDS = ("press", "shear", "twist", "mix")
+SETTINGS = ("no_contact", "press", "single")
+#: taxim sensor -> (working width, height, marker rows, cols, pitch px at that size).
+SENSORS: dict[str, tuple[int, int, int, int, float]] = {
+    "gelsight": (640, 480, 6, 8, 80.0),
+    "gelsight_mini": (320, 240, 9, 11, 28.5),
+}
+#: Largest amplitude, mm: one GelSight Mini marker pitch (28.5 px x 0.059 mm/px).
+MAX_AMPLITUDE_MM = 1.68
+#: mm per px at the working size of each sensor.
+MM_PER_PX = {"gelsight": 0.0295, "gelsight_mini": 0.059}
+#: Largest displacement-gradient norm allowed (the backward map's contraction factor).
+MAX_GRADIENT = 0.85
+
+
+@dataclass
+class Field:
+    """A smooth lateral displacement field of the gel, defined at rest positions (see module doc).
+
+    Attributes:
+        kind: ``"press"``, ``"shear"``, ``"twist"`` or ``"mix"``.
+        centre: contact centre ``(x, y)`` px.
+        parts: the components, ``(kind, params)`` with params in px / radians.
+    """
+
+    kind: str
+    centre: tuple[float, float]
+    parts: list[tuple[str, dict[str, float]]] = field(default_factory=list)
+
+    def __call__(self, x: NDArray[Any], y: NDArray[Any]) -> tuple[NDArray[np.float64],
+                                                                  NDArray[np.float64]]:
+        """Displacement ``(ux, uy)`` px at rest positions ``(x, y)`` (arrays of one shape)."""
+        dx = np.asarray(x, np.float64) - self.centre[0]
+        dy = np.asarray(y, np.float64) - self.centre[1]
+        r2 = dx * dx + dy * dy
+        ux = np.zeros_like(dx)
+        uy = np.zeros_like(dy)
+        for kind, p in self.parts:
+            if kind == "press":
+                g = p["amp"] / p["r0"] * np.exp(0.5 * (1.0 - r2 / p["r0"] ** 2))
+                ux += g * dx
+                uy += g * dy
+            elif kind == "shear":
+                rs2 = p["rs"] ** 2
+                s = p["amp"] * (1.0 + (r2 / rs2) ** 2) ** -0.25
+                r = np.sqrt(r2)
+                nx = np.divide(dx, r, out=np.zeros_like(dx), where=r > 0)
+                ny = np.divide(dy, r, out=np.zeros_like(dy), where=r > 0)
+                ex, ey = p["ex"], p["ey"]
+                w = p["k"] * r2 / (r2 + rs2)
+                along = ex * nx + ey * ny
+                ux += s * (ex + w * (along * nx - 0.5 * ex))
+                uy += s * (ey + w * (along * ny - 0.5 * ey))
+            elif kind == "twist":
+                g = p["theta"] * np.exp(-0.5 * r2 / p["rt"] ** 2)
+                ux += -g * dy
+                uy += g * dx
+            else:  # pragma: no cover - parts are built by random_field only
+                raise ValueError(f"kind: unknown field part {kind!r}")
+        return ux, uy
+
+    def at(self, pts: NDArray[Any]) -> NDArray[np.float32]:
+        """Displacement ``N x 2`` float32 at ``N x 2`` rest points."""
+        pts = np.asarray(pts, np.float64).reshape(-1, 2)
+        ux, uy = self(pts[:, 0], pts[:, 1])
+        return np.stack([ux, uy], 1).astype(np.float32)
+
+    def max_gradient(self, height: int, width: int, step: int = 4) -> float:
+        """Largest spectral norm of the displacement gradient on a grid of the frame (numeric)."""
+        ys, xs = np.mgrid[0:height:step, 0:width:step].astype(np.float64)
+        h = 0.5
+        ux1, uy1 = self(xs + h, ys)
+        ux0, uy0 = self(xs - h, ys)
+        vx1, vy1 = self(xs, ys + h)
+        vx0, vy0 = self(xs, ys - h)
+        jac = np.stack([np.stack([ux1 - ux0, vx1 - vx0], -1),
+                        np.stack([uy1 - uy0, vy1 - vy0], -1)], -2) / (2 * h)
+        return float(np.linalg.norm(jac, ord=2, axis=(-2, -1)).max())
+
+
+def _part(kind: str, amp: float, a: float, rng: np.random.Generator) -> tuple[str, dict]:
+    if kind == "press":
+        return kind, {"amp": amp, "r0": max(1.3 * a, 2.0 * amp)}
+    if kind == "shear":
+        ang = rng.uniform(0, 2 * np.pi)
+        return kind, {"amp": amp, "rs": max(1.2 * a, 1.5 * amp), "ex": float(np.cos(ang)),
+                      "ey": float(np.sin(ang)), "k": float(rng.uniform(0.0, 0.4))}
+    rt = max(1.3 * a, 3.0 * amp)
+    theta = amp * np.exp(0.5) / rt * (1 if rng.random() < 0.5 else -1)
+    return kind, {"theta": float(theta), "rt": rt}
+
+
+def random_field(kind: str, centre: tuple[float, float], radius: float, max_amp: float,
+                 rng: np.random.Generator, *, shape: tuple[int, int] | None = None) -> Field:
+    """A random field of ``kind`` about ``centre`` (contact radius ``radius`` px), amplitude up to
+    ``max_amp`` px (drawn uniformly from 5 % to 100 % of it). With ``shape = (H, W)`` the field is
+    scaled down, if needed, until its gradient norm is below :data:`MAX_GRADIENT` there."""
+    if kind not in FIELD_KINDS:
+        raise ValueError(f"kind: unknown {kind!r}; choose from {list(FIELD_KINDS)}")
+    amp = float(rng.uniform(0.05, 1.0) * max_amp)
+    if kind == "mix":
+        share = rng.dirichlet([1.0, 1.0, 1.0])
+        parts = [_part(k, float(s * amp), radius, rng)
+                 for k, s in zip(("press", "shear", "twist"), share, strict=True)]
+    else:
+        parts = [_part(kind, amp, radius, rng)]
+    fld = Field(kind, (float(centre[0]), float(centre[1])), parts)
+    if shape is not None:
+        g = fld.max_gradient(*shape)
+        if g > MAX_GRADIENT:
+            f = MAX_GRADIENT / g
+            for _, p in fld.parts:
+                for key in ("amp", "theta"):
+                    if key in p:
+                        p[key] *= f
+    return fld
+
+
+def _solve_rest(fld: Field, xs: NDArray[np.float64], ys: NDArray[np.float64],
+                px: NDArray[np.float64], py: NDArray[np.float64], max_iterations: int,
+                tol: float) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """Fixed-point iteration ``X <- y - u(X)`` from the guess ``(px, py)``; returns the rest
+    points and the largest residual ``|X + u(X) - y|`` (max over x and y components)."""
+    res = np.inf
+    for _ in range(max_iterations):
+        ux, uy = fld(px, py)
+        # Residual of the current estimate, before stepping to the next one.
+        res = float(max(np.abs(px + ux - xs).max(), np.abs(py + uy - ys).max()))
+        if res < tol:
+            break
+        px, py = xs - ux, ys - uy
+    return px, py, res
+
+
+def backward_map(fld: Field, height: int, width: int, max_iterations: int = 400,
+                 tol: float = 1e-3) -> tuple[NDArray[np.float32], NDArray[np.float32], float]:
+    """``cv2.remap`` maps ``(map_x, map_y)`` of the warped frame: for each of its pixels ``y``,
+    the rest point ``X`` with ``X + u(X) = y``; also the largest residual ``|X + u(X) - y|`` px.
+
+    Solved on a 4 px grid first (the fields are smooth), upsampled bicubically, then polished at
+    full resolution until the residual is below ``tol`` px."""
+    import cv2
+
+    step = 4
+    cy, cx = np.mgrid[0:height + step:step, 0:width + step:step].astype(np.float64)
+    qx, qy, _ = _solve_rest(fld, cx, cy, cx.copy(), cy.copy(), max_iterations, tol / 10)
+    # Upsample the (smooth) displacement X - y of the coarse grid (node k at pixel k * step).
+    ys, xs = np.mgrid[0:height, 0:width].astype(np.float64)
+    mx = (xs / step).astype(np.float32)
+    my = (ys / step).astype(np.float32)
+    gx = cv2.remap((qx - cx).astype(np.float32), mx, my, cv2.INTER_CUBIC,
+                   borderMode=cv2.BORDER_REPLICATE)
+    gy = cv2.remap((qy - cy).astype(np.float32), mx, my, cv2.INTER_CUBIC,
+                   borderMode=cv2.BORDER_REPLICATE)
+    px, py, res = _solve_rest(fld, xs, ys, xs + gx, ys + gy, max_iterations, tol)
+    return px.astype(np.float32), py.astype(np.float32), res
+
+
+def warp(src: NDArray[np.uint8], fld: Field) -> NDArray[np.uint8]:
+    """``src`` with its content moved by ``fld`` (bicubic backward map, reflected borders)."""
+    import cv2
+
+    h, w = src.shape[:2]
+    mx, my, res = backward_map(fld, h, w)
+    if res > 1e-2:
+        raise ValueError(f"fld: the backward map did not converge (residual {res:.3g} px); the "
+                         "field is too steep")
+    out = cv2.remap(src, mx, my, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+    return np.asarray(out, np.uint8)
+
+
+def marker_grid(sensor: str) -> tuple[NDArray[np.float32], float]:
+    """The sensor's regular marker grid ``N x 2`` (x, y) px at its working size, and its pitch."""
+    w, h, rows, cols, pitch = SENSORS[sensor]
+    xs = (w - 1) / 2 + (np.arange(cols) - (cols - 1) / 2) * pitch
+    ys = (h - 1) / 2 + (np.arange(rows) - (rows - 1) / 2) * pitch
+    gx, gy = np.meshgrid(xs, ys)
+    return np.stack([gx.ravel(), gy.ravel()], 1).astype(np.float32), pitch
+
+
+@dataclass
+class RealPresses:
+    """taxim's real presses of one sensor at the working size (uint8 BGR)."""
+
+    sensor: str
+    f0: NDArray[np.uint8]
+    imgs: NDArray[np.uint8]
+    centres: NDArray[np.float64]
+    radii: NDArray[np.float64]
+
+
+def load_real_presses(sensor: str = "gelsight") -> RealPresses:
+    """taxim's real markerless presses of ``sensor`` (``"gelsight"`` 640 x 480 or
+    ``"gelsight_mini"``, area-downsampled from 640 x 480 to 320 x 240) with contact centres and
+    radii in the working size's pixels. Needs the ``taxim`` package (``tacswitch[test]``)."""
+    import cv2
+
+    if sensor not in SENSORS:
+        raise ValueError(f"sensor: unknown {sensor!r}; choose from {list(SENSORS)}")
+    try:
+        import taxim
+    except ImportError:
+        raise ImportError("the real-texture proxy needs taxim's real frames: "
+                          "pip install 'tacswitch[test]'") from None
+    pack = np.load(Path(taxim.__file__).parent / "calib" / sensor / "dataPack.npz")
+    w, h = SENSORS[sensor][:2]
+    f0, imgs = pack["f0"], pack["imgs"]
+    k = f0.shape[1] / w
+    if k != 1:
+        def rs(a: NDArray[np.uint8]) -> NDArray[np.uint8]:
+            return np.asarray(cv2.resize(a, (w, h), interpolation=cv2.INTER_AREA), np.uint8)
+        f0 = rs(f0)
+        imgs = np.stack([rs(a) for a in imgs])
+    # Pixel centres at integers: x_small = (x + 0.5) / k - 0.5.
+    centres = (pack["touch_center"].astype(np.float64) + 0.5) / k - 0.5
+    radii = pack["touch_radius"].astype(np.float64) / k
+    return RealPresses(sensor, np.ascontiguousarray(f0), np.ascontiguousarray(imgs), centres,
+                       radii)
+
+
+@dataclass
+class ProxySample:
+    """One proxy sample: ``img`` (warped, captured), the reference of each setting (``refs``:
+    ``"no_contact"``, ``"press"``; the single-frame setting has none), ``rest`` marker centres,
+    ``motion`` the true motion at them, and what made it."""
+
+    img: NDArray[np.uint8]
+    refs: dict[str, NDArray[np.uint8]]
+    rest: NDArray[np.float32]
+    motion: NDArray[np.float32]
+    field: Field
+    press: int
+    contact: tuple[float, float, float]
+
+    def ref(self, setting: str) -> NDArray[np.uint8] | None:
+        """The reference frame of ``setting`` (None for ``"single"``)."""
+        if setting not in SETTINGS:
+            raise ValueError(f"setting: unknown {setting!r}; choose from {list(SETTINGS)}")
+        return self.refs.get(setting)
+
+
+def _capture(img: NDArray[np.uint8], rng: np.random.Generator, drift: bool) -> NDArray[np.uint8]:
+    """Exposure / white-balance drift (``drift``), a little read noise and the capture's codec.
+    The real frame already holds its optics' blur and its sensor's noise."""
+    from tacswitch.sim import capture
+
+    gain = (rng.uniform(0.85, 1.15) * rng.uniform(0.95, 1.05, 3)) if drift else np.ones(3)
+    offset = rng.uniform(-8, 8, 3) if drift else np.zeros(3)
+    codec = "mjpeg" if rng.random() < 0.6 else "h264"
+    quality = int(rng.integers(75, 96)) if codec == "mjpeg" else int(rng.integers(18, 29))
+    prof = capture.CaptureProfile(read_noise=0.5, gain=tuple(float(g) for g in gain),
+                                  offset=tuple(float(o) for o in offset), codec=codec,
+                                  quality=quality)
+    return capture.apply(img, prof, rng)
+
+
+def make_proxy(sensor: str = "gelsight", *, kinds: tuple[str, ...] = FIELD_KINDS,
+               per_press: int = 1, seed: int = 0, presses: RealPresses | None = None,
+               capture: bool = True) -> Iterator[ProxySample]:
+    """Yields proxy samples: every real press of ``sensor`` x every field kind x ``per_press``
+    random fields, each with the references of every setting (see the module doc).
+    Deterministic given ``seed``.
+
+    Args:
+        capture: apply the exposure drift and compression (False: the exact warp, for tests).
+    """
+    data = presses if presses is not None else load_real_presses(sensor)
+    rest, _ = marker_grid(data.sensor)
+    h, w = data.f0.shape[:2]
+    max_amp = MAX_AMPLITUDE_MM / MM_PER_PX[data.sensor]
+    for i in range(len(data.imgs)):
+        for kind in kinds:
+            if kind not in FIELD_KINDS:
+                raise ValueError(f"kinds: unknown {kind!r}; choose from {list(FIELD_KINDS)}")
+            for rep in range(per_press):
+                rng = np.random.default_rng([seed, i, FIELD_KINDS.index(kind), rep])
+                c = (float(data.centres[i, 0]), float(data.centres[i, 1]))
+                fld = random_field(kind, c, float(data.radii[i]), max_amp, rng, shape=(h, w))
+                img = warp(data.imgs[i], fld)
+                refs = {"no_contact": data.f0, "press": data.imgs[i]}
+                if capture:
+                    img = _capture(img, rng, drift=True)
+                    refs = {k: _capture(v, rng, drift=False) for k, v in refs.items()}
+                yield ProxySample(img, refs, rest, fld.at(rest), fld, i,
+                                  (c[0], c[1], float(data.radii[i])))

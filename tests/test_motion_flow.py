@@ -1,0 +1,156 @@
+"""Training-free motion methods of predict_motion: dense optical flow and the outward rule."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tacswitch import predict_motion
+from tacswitch.motion import flow, heuristic, proxy
+
+
+@pytest.fixture(scope="module")
+def mini() -> proxy.RealPresses:
+    """taxim's real markerless GelSight Mini presses at 320 x 240."""
+    return proxy.load_real_presses("gelsight_mini")
+
+
+@pytest.fixture(scope="module")
+def grid() -> np.ndarray:
+    return proxy.marker_grid("gelsight_mini")[0]
+
+
+@pytest.mark.parametrize("method", ["flow", "outward"])
+def test_identical_frames_give_zero_motion(mini, grid, method: str) -> None:
+    for img in (mini.f0, mini.imgs[3]):
+        m = predict_motion(img, img.copy(), grid, method=method)
+        assert m.shape == grid.shape and m.dtype == np.float32
+        assert np.abs(m).max() < 0.05
+
+
+def test_flow_ignores_a_global_brightness_change(mini, grid) -> None:
+    for img in (mini.f0, mini.imgs[5]):
+        for gain, offset in ((1.15, 5.0), (0.85, -5.0)):
+            bright = np.clip(img.astype(np.float64) * gain + offset, 0, 255).astype(np.uint8)
+            m = predict_motion(bright, img, grid, method="flow")
+            assert np.hypot(m[:, 0], m[:, 1]).max() < 0.2, (gain, offset)
+
+
+@pytest.mark.parametrize("kind", ["shear", "twist", "press"])
+def test_flow_recovers_a_known_warp_of_real_texture(mini, grid, kind: str) -> None:
+    i = 2
+    rng = np.random.default_rng(11)
+    fld = proxy.random_field(kind, tuple(mini.centres[i]), float(mini.radii[i]), 20.0, rng,
+                             shape=(240, 320))
+    img = proxy.warp(mini.imgs[i], fld)
+    true = fld.at(grid)
+    pred = predict_motion(img, mini.imgs[i], grid, method="flow")
+    err = np.linalg.norm(pred - true, axis=1)
+    mag = np.linalg.norm(true, axis=1)
+    assert mag.max() > 3.0
+    assert err.mean() < 0.3 * mag.mean()
+    moved = mag > 2.0
+    cos = (pred[moved] * true[moved]).sum(1) / (np.linalg.norm(pred[moved], axis=1) * mag[moved])
+    assert cos.mean() > 0.9
+
+
+@pytest.mark.parametrize("algorithm", ["farneback", "pcaflow", "rlof", "deepflow"])
+def test_other_flow_algorithms_follow_a_shift(mini, algorithm: str) -> None:
+    import cv2
+
+    # Quarter size keeps the slow contrib algorithms fast; a uniform shift of 2.5 px.
+    src = cv2.resize(mini.imgs[1], (160, 120), interpolation=cv2.INTER_AREA)
+    fld = proxy.Field("shear", (80.0, 60.0), [("shear", {"amp": 2.5, "rs": 1e6, "ex": 0.6,
+                                                          "ey": 0.8, "k": 0.0})])
+    img = proxy.warp(src, fld)
+    pts = np.array([[60.0, 50.0], [100.0, 70.0], [80.0, 60.0]], np.float32)
+    m = flow.flow_motion(img, src, pts, algorithm=algorithm)
+    assert np.linalg.norm(m - np.array([1.5, 2.0]), axis=1).mean() < 0.8
+
+
+def test_outward_rule_points_away_from_the_contact(mini, grid) -> None:
+    i = 4
+    c = mini.centres[i]
+    for ref in (mini.f0, None):
+        m = heuristic.outward_motion(mini.imgs[i], ref, grid)
+        near = np.linalg.norm(grid - c, axis=1) < 2.5 * mini.radii[i]
+        v = grid[near] - c
+        cos = (m[near] * v).sum(1) / np.maximum(np.linalg.norm(m[near], axis=1)
+                                                * np.linalg.norm(v, axis=1), 1e-9)
+        assert np.median(cos) > 0.9
+        assert np.abs(m).max() <= heuristic.OUTWARD_GAIN * 28.5 + 1e-3
+
+
+def test_single_frame_background_ignores_the_imprint(mini) -> None:
+    bg = heuristic.background(mini.imgs[4])
+    d = heuristic.change_map(mini.imgs[4], None)
+    c = np.round(mini.centres[4]).astype(int)
+    assert bg.shape == (240, 320, 3)
+    # The change is largest at the contact, small on the untouched gel.
+    assert d[c[1], c[0]] > 4 * np.median(d)
+
+
+def test_bad_inputs_name_the_argument(mini, grid) -> None:
+    img = mini.imgs[0]
+    with pytest.raises(ValueError, match=r"^method: unknown"):
+        predict_motion(img, img, grid, method="magic")
+    with pytest.raises(ValueError, match=r"^ref: shape"):
+        predict_motion(img, img[:200], grid, method="flow")
+    with pytest.raises(ValueError, match=r"^ref: shape"):
+        predict_motion(img, img[:200], grid, method="outward")
+    with pytest.raises(ValueError, match=r"^ref: method='flow'"):
+        predict_motion(img, None, grid, method="flow")
+    with pytest.raises(ValueError, match=r"^img: "):
+        predict_motion(img[..., 0], img, grid, method="flow")
+    with pytest.raises(TypeError, match=r"^ref: "):
+        predict_motion(img, img.astype(np.float32), grid, method="flow")
+    with pytest.raises(ValueError, match=r"^centres: "):
+        predict_motion(img, img, grid[:, :1], method="flow")
+    with pytest.raises(ValueError, match=r"^algorithm: unknown"):
+        predict_motion(img, img, grid, method="flow", algorithm="lk")
+    with pytest.raises(ValueError, match=r"^preset: unknown"):
+        predict_motion(img, img, grid, method="flow", preset="slow")
+    with pytest.raises(ValueError, match=r"^algorithm: applies to method='flow'"):
+        predict_motion(img, img, grid, method="outward", algorithm="dis")
+
+
+def test_default_centres_and_empty_centres(mini) -> None:
+    m = predict_motion(mini.imgs[0], mini.f0, method="flow")
+    assert m.shape == (99, 2)
+    assert predict_motion(mini.imgs[0], mini.f0, np.zeros((0, 2)), method="flow").shape == (0, 2)
+
+
+def test_cli_slip_markerless_flags_a_growing_shear_after_the_grasp_start(mini, tmp_path,
+                                                                        capsys) -> None:
+    import csv
+
+    import cv2
+
+    from tacswitch.cli import main
+
+    i = 6
+    folder = tmp_path / "rec"
+    folder.mkdir()
+    cv2.imwrite(str(tmp_path / "f0.png"), mini.f0)
+    frames = [mini.f0] * 3 + [mini.imgs[i]] * 3
+    # Then the contact is dragged sideways 1 px more every frame (slip threshold: 1.625 px).
+    for k in range(1, 7):
+        fld = proxy.Field("shear", tuple(mini.centres[i]),
+                          [("shear", {"amp": float(k), "rs": 1.2 * float(mini.radii[i]),
+                                      "ex": 1.0, "ey": 0.0, "k": 0.0})])
+        frames.append(proxy.warp(mini.imgs[i], fld))
+    for t, f in enumerate(frames):
+        cv2.imwrite(str(folder / f"{t:03d}.png"), f)
+    log = tmp_path / "log.csv"
+    assert main(["slip", str(folder), "--markerless", "--ref", str(tmp_path / "f0.png"),
+                 "--start", "3", "--log", str(log), "-q"]) == 0
+    rows = list(csv.DictReader(open(log)))
+    flagged = [int(r["frame"]) for r in rows if r["slip"] == "1"]
+    # Frames 3-5 are the same press (zero motion since the start); 1 px at frame 6 is below the
+    # threshold, 2 px and more are above it.
+    assert flagged and flagged[0] == 7
+    capsys.readouterr()
+    assert main(["slip", str(folder), "--ref", str(tmp_path / "f0.png"), "--log", str(log),
+                 "-q"]) != 0
+    assert capsys.readouterr().err.strip() == ("tacswitch slip: error: --ref: applies to "
+                                               "--markerless only")

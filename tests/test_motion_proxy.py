@@ -1,0 +1,93 @@
+"""The real-texture proxy: exact warps of real frames by known fields, and the cosine metrics."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from tacswitch.motion import proxy
+from tacswitch.motion.evaluate import motion_metrics
+
+
+@pytest.mark.parametrize("kind", proxy.FIELD_KINDS)
+def test_warp_moves_a_dot_by_the_field_at_its_rest_centre(kind: str) -> None:
+    rng = np.random.default_rng(7)
+    fld = proxy.random_field(kind, (150.0, 115.0), 20.0, 28.5, rng, shape=(240, 320))
+    img = np.zeros((240, 320, 3), np.uint8)
+    rest = np.array([165.0, 108.0])
+    cv2.circle(img, (165, 108), 3, (255, 255, 255), -1)
+    g = proxy.warp(img, fld)[..., 0].astype(np.float64)
+    ys, xs = np.nonzero(g > 0)
+    w = g[ys, xs]
+    moved = np.array([(xs * w).sum() / w.sum(), (ys * w).sum() / w.sum()])
+    expected = rest + fld.at(rest[None])[0]
+    assert np.linalg.norm(fld.at(rest[None])[0]) > 0.5
+    assert np.linalg.norm(moved - expected) < 0.15
+
+
+def test_backward_map_solves_the_rest_point_and_fields_stay_invertible() -> None:
+    rng = np.random.default_rng(3)
+    for kind in proxy.FIELD_KINDS:
+        fld = proxy.random_field(kind, (300.0, 220.0), 60.0, 57.0, rng, shape=(480, 640))
+        assert fld.max_gradient(480, 640) <= proxy.MAX_GRADIENT + 1e-6
+        mx, my, res = proxy.backward_map(fld, 240, 320)
+        assert res < 1e-3
+        ux, uy = fld(mx.astype(np.float64), my.astype(np.float64))
+        ys, xs = np.mgrid[0:240, 0:320]
+        assert np.abs(mx + ux - xs).max() < 2e-3 and np.abs(my + uy - ys).max() < 2e-3
+
+
+def test_field_kinds_point_the_right_way() -> None:
+    rng = np.random.default_rng(0)
+    c = np.array([160.0, 120.0])
+    pts = c + np.array([[25.0, 0.0], [0.0, -25.0]])
+    press = proxy.random_field("press", tuple(c), 20.0, 20.0, rng).at(pts)
+    assert press[0, 0] > 0 and press[1, 1] < 0  # outward
+    twist = proxy.random_field("twist", tuple(c), 20.0, 20.0, rng).at(pts)
+    # Tangential: perpendicular to the radius.
+    assert abs(twist[0, 0]) < 1e-6 and abs(twist[1, 1]) < 1e-6
+    shear = proxy.random_field("shear", tuple(c), 20.0, 20.0, rng)
+    at_c = shear.at(c[None])[0]
+    far = shear.at((c + np.array([150.0, 0.0]))[None])[0]
+    assert np.linalg.norm(far) < np.linalg.norm(at_c)  # decays away from the contact
+    with pytest.raises(ValueError, match="kind"):
+        proxy.random_field("spin", tuple(c), 20.0, 20.0, rng)
+
+
+def test_make_proxy_on_real_mini_presses() -> None:
+    presses = proxy.load_real_presses("gelsight_mini")
+    assert presses.f0.shape == (240, 320, 3) and presses.imgs.shape[1:] == (240, 320, 3)
+    small = proxy.RealPresses(presses.sensor, presses.f0, presses.imgs[:2], presses.centres[:2],
+                              presses.radii[:2])
+    a = list(proxy.make_proxy(presses=small, kinds=("shear",), seed=1))
+    b = list(proxy.make_proxy(presses=small, kinds=("shear",), seed=1))
+    assert len(a) == 2
+    for s, t in zip(a, b, strict=True):
+        assert np.array_equal(s.img, t.img) and np.array_equal(s.motion, t.motion)
+        for setting in ("no_contact", "press"):
+            ref = s.ref(setting)
+            assert ref is not None and ref.shape == s.img.shape
+        assert s.ref("single") is None
+        assert s.motion.shape == s.rest.shape == (99, 2)
+        assert np.abs(s.motion).max() <= proxy.MAX_AMPLITUDE_MM / proxy.MM_PER_PX["gelsight_mini"]
+    with pytest.raises(ValueError, match="setting"):
+        a[0].ref("stereo")
+    with pytest.raises(ValueError, match="kinds"):
+        next(proxy.make_proxy(presses=small, kinds=("spin",)))
+    with pytest.raises(ValueError, match="sensor"):
+        proxy.load_real_presses("digit")
+
+
+def test_cosine_metrics() -> None:
+    true = np.array([[4.0, 0.0], [0.0, 5.0], [0.1, 0.0]])
+    assert motion_metrics(true, true)["cos_mean"] == pytest.approx(1.0)
+    assert motion_metrics(true, true)["within30_pct"] == pytest.approx(100.0)
+    assert motion_metrics(-true, true)["cos_mean"] == pytest.approx(-1.0)
+    zero = motion_metrics(np.zeros_like(true), true)
+    assert zero["cos_mean"] == 0.0 and zero["within30_pct"] == 0.0
+    # Only markers moving at least min_px count; rotated by 45 degrees: cos 0.707, outside 30.
+    rot = np.array([[2.0, 2.0], [-2.0, 2.0], [5.0, 5.0]])
+    m = motion_metrics(rot, true, min_px=3.0)
+    assert m["n_orient"] == 2 and m["cos_mean"] == pytest.approx(np.sqrt(0.5))
+    assert m["within30_pct"] == 0.0

@@ -1,0 +1,176 @@
+"""Fine-tune inputs that look like inference (transplanted real markers), realistic training
+pairs, and continuing training from a shipped ONNX model."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import tacswitch as ts
+from tacswitch.cli import main
+from tacswitch.sim.scene import render_sample
+from tacswitch.tacdiff import data as tdata
+from tacswitch.tacdiff import transplant as tp
+
+
+@pytest.fixture(scope="module")
+def marker_frames() -> list[np.ndarray]:
+    return [render_sample("gelsight_mini", 40 + i).image_markers for i in range(2)]
+
+
+def test_default_offset_is_half_pitch_on_codec_blocks():
+    assert tp.default_offset(28.5) == (16, 16)
+    assert tp.default_offset(83.0) == (40, 40)
+    assert tp.default_offset(5.0) == (8, 8)
+    with pytest.raises(ValueError, match="pitch"):
+        tp.default_offset(float("nan"))
+
+
+def test_shift_moves_and_drops():
+    a = np.arange(12).reshape(3, 4)
+    np.testing.assert_array_equal(tp.shift(a, (1, -1), -1),
+                                  [[-1, 4, 5, 6], [-1, 8, 9, 10], [-1, -1, -1, -1]])
+    assert (tp.shift(a, (9, 0), 0) == 0).all()
+
+
+def test_transplanted_markers_carry_the_real_appearance(marker_frames):
+    from tacswitch.sim import capture
+
+    # Blur and JPEG darken a rim beyond the removal mask, as on real recordings.
+    frame = capture.apply(marker_frames[0], capture.CaptureProfile(
+        blur_sigma=1.5, codec="mjpeg", quality=60), 0)
+    found = tdata.removal_markers(frame)
+    offset = (16, 16)
+    cond, moved, real, n = tp.transplant(frame, found.mask, offset, ring=3)
+    app = tp.measure_appearance(frame, found.mask, ring=3)
+    assert n > 0.4 * len(found) and moved.any()
+    # The moved markers are where the originals went, and carry their darkening: the ring
+    # beyond the mask is darkened as the original's ring is.
+    assert (moved <= tp.shift(found.mask, offset, False)).all()
+    moved_fp = ts.dilate_mask(moved, 3) & tp.shift(app.footprint, offset, False)
+    want = np.clip(np.rint(app.fill.astype(np.float32) * tp.shift(app.ratio, offset, 1.0)),
+                   0, 255)
+    np.testing.assert_array_equal(cond[moved_fp], want[moved_fp].astype(np.uint8))
+    assert cond[moved].mean() < frame[moved].mean() - 30  # dark dots landed there
+    ring = moved_fp & ~moved & ~app.footprint
+    orig_ring = app.footprint & ~found.mask
+    # Their rim outside the mask is darkened by what the originals' rims show.
+    got = (cond[ring].astype(float) - frame[ring]).mean()
+    want = (frame[orig_ring].astype(float) - app.fill[orig_ring]).mean()
+    assert got < -0.3 and got == pytest.approx(want, abs=1.5)
+    # Loss pixels are real gel: off every original footprint, and the target is the frame.
+    assert real.any() and not (real & app.footprint).any() and (real <= moved).all()
+    # Away from original and moved footprints the input is the frame itself.
+    away = ~(app.footprint | moved_fp | ts.dilate_mask(tp.shift(app.footprint, offset, False), 1))
+    np.testing.assert_array_equal(cond[away], frame[away])
+
+
+def test_border_cut_markers_are_not_moved():
+    img = np.full((64, 96, 3), 180, np.uint8)
+    img[20:30, 0:4] = 30  # a marker cut by the left border
+    img[20:30, 40:50] = 30
+    mask = img[:, :, 0] < 100
+    app = tp.measure_appearance(img, mask, ring=1)
+    ok = tp.movable(app, mask, (16, 16))
+    left = app.labels[25, 1]
+    mid = app.labels[25, 45]
+    assert not ok[left] and ok[mid]
+    assert not tp.movable(app, mask, (60, 0))[mid]  # would leave the frame
+
+
+def test_marker_offset_pairs_transplant(marker_frames):
+    pairs = tdata.marker_offset_pairs(marker_frames)
+    assert set(pairs) == {"cond", "target", "mask", "loss_mask"}
+    np.testing.assert_array_equal(pairs["target"], np.stack(marker_frames))
+    for f, mask, loss in zip(marker_frames, pairs["mask"], pairs["loss_mask"], strict=True):
+        orig = tdata.removal_markers(f).mask
+        assert (mask <= tp.shift(orig, (16, 16), False)).all()
+        assert loss.sum() > 0.5 * mask.sum() and not (loss & orig).any()
+    with pytest.raises(ValueError, match="ring"):
+        tdata.marker_offset_pairs(marker_frames, ring=-1)
+
+
+def test_render_pair_realism_supervises_the_inference_mask():
+    pytest.importorskip("av")
+    for seed in range(3):
+        pair = tdata.render_pair("gelsight_mini", seed)
+        assert {"cond", "target", "mask", "loss_mask", "contact", "footprint"} <= set(pair)
+        np.testing.assert_array_equal(pair["loss_mask"], pair["mask"])
+        np.testing.assert_array_equal(pair["mask"], tdata.removal_markers(pair["cond"]).mask)
+        # The target is the gel through the same camera: outside the markers the captured
+        # frame differs from it by noise and codec only, not by a colour shift.
+        away = ~ts.dilate_mask(pair["footprint"] | pair["mask"], 4)
+        diff = pair["cond"][away].astype(float) - pair["target"][away]
+        assert abs(diff.mean()) < 1.0 and np.abs(diff).mean() < 6
+    old = tdata.render_pair("gelsight_mini", 0, realism=False)
+    assert "footprint" not in old and (old["mask"] == old["loss_mask"]).all()
+
+
+def test_remask_rewrites_changed_masks(tmp_path: Path):
+    pytest.importorskip("av")
+    tdata.render_pairs(tmp_path, 2, mix=(("gelsight_mini", 1.0),), progress=False)
+    assert tdata.remask(tmp_path, progress=False) == 0
+    path = next(tmp_path.glob("pairs_*.npz"))
+    arrays = dict(np.load(path))
+    arrays["mask"][:] = False
+    np.savez(path, **arrays)
+    assert tdata.remask(tmp_path, progress=False) == 1
+    assert np.load(path)["mask"].any()
+
+
+def test_network_from_onnx_round_trip(tmp_path: Path):
+    torch = pytest.importorskip("torch")
+    pytest.importorskip("onnx")
+    from tacswitch.tacdiff.export import export_onnx, network_from_onnx
+    from tacswitch.tacdiff.model import DenoiserUNet, UNetConfig
+
+    torch.manual_seed(0)
+    net = DenoiserUNet(UNetConfig(base=8))
+    with torch.no_grad():  # non-trivial GroupNorm scales and shifts, zero-initialised layers
+        for p in net.parameters():
+            p.add_(0.1 * torch.randn_like(p))
+    path = export_onnx(net, tmp_path / "m.onnx")
+    back = network_from_onnx(path)
+    for k, v in net.state_dict().items():
+        torch.testing.assert_close(back.state_dict()[k], v)
+    with pytest.raises(ValueError, match="path"):
+        network_from_onnx(ts.tacdiff.infer.default_model_path().with_name("motion_unet.onnx"))
+
+
+def test_train_cli_init_continues_a_shipped_model(tmp_path: Path):
+    pytest.importorskip("torch")
+    pytest.importorskip("onnx")
+    pytest.importorskip("av")
+    from tacswitch.tacdiff.train import load_network
+
+    data = tmp_path / "d"
+    tdata.render_pairs(data, 2, mix=(("gelsight_mini", 1.0),), progress=False)
+    run = tmp_path / "run"
+    base = ["train", "tacdiff", "--data", str(data), "--steps", "1", "--batch", "1",
+            "--crop", "64", "-q"]
+    assert main([*base, "--init", "fast", "--out", str(run)]) == 0
+    assert load_network(run / "model.onnx").cfg.base == 16
+    assert main([*base, "--init", "fast", "--base", "24", "--out", str(tmp_path / "x")]) == 1
+    assert main([*base, "--init", "fast", "--prior", "telea", "--out",
+                 str(tmp_path / "y")]) == 1
+    assert main([*base, "--init", str(tmp_path / "nope.onnx"), "--out",
+                 str(tmp_path / "z")]) == 1
+
+
+def test_finetune_cli_options(tmp_path: Path, marker_frames):
+    pytest.importorskip("torch")
+    pytest.importorskip("onnx")
+    import cv2
+
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, f in enumerate(marker_frames):
+        cv2.imwrite(str(src / f"{i}.png"), f)
+    common = ["finetune", "--images", str(src), "--steps", "1", "--batch", "1", "--crop", "64",
+              "-q"]
+    assert main([*common, "--out", str(tmp_path / "a"), "--no-transplant", "--init",
+                 "fast"]) == 0
+    assert (tmp_path / "a" / "model.onnx").is_file()
+    assert main([*common, "--out", str(tmp_path / "b"), "--ring", "-1"]) == 1

@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch import _native
-from tacswitch._checks import as_count, as_image_u8
+from tacswitch._checks import as_count, as_image_u8, check_extract_options
 
 Polarity = Literal["dark", "bright"]
 
@@ -96,6 +96,11 @@ def extract_markers(
         ValueError: bad shape or option; the message names the argument.
     """
     arr = as_image_u8(img)
+    # Conversion errors (polarity=None, threshold="abc", min_fill=None, ...) name the option.
+    check_extract_options({"polarity": polarity, "block_size": block_size, "threshold": threshold,
+                           "min_area": min_area, "max_area": max_area, "min_fill": min_fill,
+                           "max_aspect": max_aspect, "exclude_border": exclude_border})
+
     for value, name, minimum in ((block_size, "block_size", 3), (min_area, "min_area", 0),
                                  (max_area, "max_area", 0)):
         if value is not None:

@@ -1,12 +1,13 @@
 """Motion regression speed on this CPU with onnxruntime: shipped default vs the paper's reference.
 
-    python benches/bench_motion.py [--onnx-dir DIR]
+    python benches/bench_motion.py [--onnx-dir DIR] [--threads N]
 
-Times ``predict_motion`` end to end (validation, downsampling to the working scale, session run)
-at 320x240 and 640x480 for the shipped model, and the raw session of each architecture at full
-input size (the reference DeepLabV3-MobileNetV3 and LR-ASPP are exported on the fly when torch is
-installed; speed does not depend on the weights). Threads: ``os.cpu_count()`` (the session
-defaults), no spinning.
+Times the shipped model end to end (``MotionModel.__call__``: validation, downsampling to the
+working scale, session run) at 320x240 and 640x480, with a reference frame and single-frame (the
+consistent design runs both terms of its graph, a batch of two, either way), and the raw session
+of each architecture at full input size (the reference DeepLabV3-MobileNetV3 and LR-ASPP are
+exported on the fly when torch is installed; speed does not depend on the weights). Threads:
+``--threads`` (default ``os.cpu_count()``, the session default), no spinning.
 """
 
 from __future__ import annotations
@@ -50,20 +51,25 @@ def _params(path: Path) -> int:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--onnx-dir", default=None, help="reuse exported <arch>.onnx files here")
+    ap.add_argument("--threads", type=int, default=None, help="intra-op threads")
     args = ap.parse_args()
     rng = np.random.default_rng(0)
     rows = []
-    default = MotionModel(default_model_path())
+    default = MotionModel(default_model_path(), threads=args.threads)
     for h, w in SIZES:
         img = rng.integers(0, 255, (h, w, 3), dtype=np.uint8)
         ref = rng.integers(0, 255, (h, w, 3), dtype=np.uint8)
         cen = default.centres_for(h, w)
-        t = measure(lambda img=img, ref=ref, cen=cen: default(img, ref, cen), repeat=100,
-                    warmup=10)
-        hz = 1.0 / t.median
-        rows.append([f"default ({default.arch}, predict_motion)", f"{w}x{h}",
-                     f"{_params(default.path) / 1e6:.2f}", t.fmt("ms"), f"{hz:.0f}",
-                     "yes" if hz >= BUDGET_HZ[(h, w)] else "NO"])
+        modes = [("with reference", ref)]
+        if not default.use_ref:
+            modes.append(("single frame", None))
+        for mode, r in modes:
+            t = measure(lambda img=img, r=r, cen=cen: default(img, r, cen), repeat=100,
+                        warmup=10)
+            hz = 1.0 / t.median
+            rows.append([f"default ({default.arch}, {default.design}, {mode})", f"{w}x{h}",
+                         f"{_params(default.path) / 1e6:.2f}", t.fmt("ms"), f"{hz:.0f}",
+                         "yes" if hz >= BUDGET_HZ[(h, w)] else "NO"])
     import onnxruntime as ort
 
     tmp = Path(args.onnx_dir or tempfile.mkdtemp())
@@ -75,13 +81,16 @@ def main() -> None:
         if p is not None:
             archs.append((arch, p, "paper's reference" if arch == "deeplabv3" else "LR-ASPP"))
     for arch, path, note in archs:
-        sess = ort.InferenceSession(str(path), session_options(),
+        sess = ort.InferenceSession(str(path), session_options(args.threads),
                                     providers=["CPUExecutionProvider"])
         for h, w in SIZES:
             feed = {"image": rng.integers(0, 255, (1, h, w, 3), dtype=np.uint8),
                     "centres": (rng.random((99, 2)) * [w - 1, h - 1]).astype(np.float32)}
-            if "reference" in {i.name for i in sess.get_inputs()}:
+            names = {i.name for i in sess.get_inputs()}
+            if "reference" in names:
                 feed["reference"] = feed["image"][:, ::-1].copy()
+            if "has_reference" in names:
+                feed["has_reference"] = np.ones(1, np.float32)
             t = measure(lambda feed=feed, s=sess: s.run(None, feed), repeat=30, warmup=3)
             hz = 1.0 / t.median
             rows.append([f"{arch} at full size ({note})", f"{w}x{h}",

@@ -50,8 +50,8 @@ def decode(path: Path) -> tuple[list[np.ndarray], float]:
 
 
 def marker_mask(frame: np.ndarray) -> np.ndarray:
-    """The mask remove_markers fills (markers cut by the border kept, dilated twice)."""
-    return ts.extract_markers(frame, exclude_border=False, dilate=2).mask
+    """The mask remove_markers fills (markers cut by the border included, adaptive growth)."""
+    return ts.extract_markers(frame, dilate="auto").mask
 
 
 def test_video_becomes_a_markerless_video(tmp_path: Path, video: Path) -> None:

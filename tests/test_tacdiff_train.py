@@ -96,7 +96,7 @@ def test_remove_markers_cli_tacdiff_and_hybrid(tmp_path: Path):
         assert main(["remove-markers", str(src), "-o", str(out), "--method", method,
                      "--steps", "1", *extra, "-q"]) == 0
         got = cv2.imread(str(out / "a.png"))
-        mask = ts.extract_markers(s.image_markers, dilate=2, exclude_border=False).mask
+        mask = ts.extract_markers(s.image_markers, dilate="auto").mask
         np.testing.assert_array_equal(got[~mask], s.image_markers[~mask])
 
 

@@ -31,6 +31,7 @@ def extract_markers(
     min_fill: float = 0.35,
     max_aspect: float = 3.0,
     dilate: int = 0,
+    adaptive: bool = False,
     exclude_border: bool = True,
 ) -> dict[str, Any]: ...
 def dilate_mask(mask: NDArray[np.bool_], iterations: int = 1) -> NDArray[np.bool_]: ...

@@ -298,7 +298,7 @@ def remove_markers(
     mask: NDArray[Any] | None = None,
     method: InpaintMethod = "telea",
     radius: float = 3,
-    dilate: int = DEFAULT_DILATE,
+    dilate: int | Literal["auto"] | None = None,
     *,
     steps: int | None = None,
     ref: NDArray[Any] | None = None,
@@ -314,9 +314,8 @@ def remove_markers(
         mask: ``H x W`` bool/uint8 marker mask. It must cover the markers' soft edges: a rim
             of darkened gel left outside it is smeared into the fill (TELEA) or extrapolated
             (biharmonic, TacDiff). None: extract the markers first with
-            :func:`tacswitch.extract_markers` and grow the mask by ``dilate`` 3x3-cross
-            dilations (:data:`DEFAULT_DILATE`), keeping markers cut by the frame border
-            (``exclude_border=False`` unless given).
+            :func:`tacswitch.extract_markers` (markers cut by the frame border included) and
+            grow the mask as ``dilate`` says.
         method: ``"telea"`` (:func:`inpaint_telea`, the Rust core), ``"biharmonic"``
             (:func:`inpaint_biharmonic`, the Rust core; smoother on contact shading), ``"ns"``
             (``cv2.inpaint(img, mask, radius, cv2.INPAINT_NS)``, uint8/uint16/float32 grey or
@@ -325,8 +324,11 @@ def remove_markers(
             on the markers in or near the contact, TELEA elsewhere,
             :func:`tacswitch.tacdiff.inpaint_hybrid`).
         radius: inpainting radius in pixels (TELEA, NS, and the TELEA part of ``"hybrid"``).
-        dilate: dilations applied to the extracted mask (ignored when ``mask`` is given;
-            default 2, see :data:`DEFAULT_DILATE`).
+        dilate: growth of the extracted mask (ignored when ``mask`` is given). None (default)
+            or ``"auto"``: adaptive, per marker, until the ring around it is consistent with
+            the local background (``extract_markers(dilate="auto")``): about one pixel on crisp
+            lossless markers, several on soft or compressed ones. An integer: that many 3x3-cross
+            dilations instead (the previous default was :data:`DEFAULT_DILATE`).
         steps: TacDiff sampler steps, 1..1000 (default 1: the shipped model's best masked
             error).
         ref: ``"hybrid"`` only: a no-contact frame of the same sensor to find the contact
@@ -353,10 +355,10 @@ def remove_markers(
     if mask is None:
         from tacswitch.markers import extract_markers
 
-        d = as_count(dilate, "dilate", 0)
-        # Markers cut by the frame edge must go too (extraction drops them for tracking only).
-        extract_opts.setdefault("exclude_border", False)
-        m = extract_markers(arr, dilate=d, **extract_opts).mask.view(np.uint8)
+        grow: int | Literal["auto"] = "auto" if dilate is None or dilate == "auto" else as_count(
+            dilate, "dilate", 0)
+        # The mask covers markers cut by the frame edge whatever exclude_border says.
+        m = extract_markers(arr, dilate=grow, **extract_opts).mask.view(np.uint8)
     else:
         m = _as_mask(mask, arr.shape)
     if method == "telea":

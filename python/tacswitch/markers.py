@@ -12,6 +12,8 @@ from tacswitch import _native
 from tacswitch._checks import as_count, as_image_u8, check_extract_options
 
 Polarity = Literal["dark", "bright"]
+#: ``dilate`` value that grows each marker's mask adaptively (see :func:`extract_markers`).
+AUTO = "auto"
 
 
 @dataclass(frozen=True)
@@ -24,12 +26,17 @@ class Markers:
         bboxes: ``N x 4`` int32 boxes ``(x, y, width, height)``, as
             ``cv2.connectedComponentsWithStats`` reports them.
         contrast: ``N`` float32 peak darkness ``1 - darkest / local background`` in ``[0, 1]``.
-        mask: ``H x W`` bool, True on marker pixels (after the requested dilation).
+        mask: ``H x W`` bool, True on marker pixels: every marker found, including markers cut
+            by the frame border that ``exclude_border`` leaves out of ``centres``, after the
+            requested growth (``dilate``).
         threshold: darkness threshold used, grey levels above the local background.
         background_level: median darkness of the image (grey levels; ~0 means a flat background).
         noise_sigma: robust noise estimate of the darkness image, grey levels.
         block_size: side of the background box filter used, pixels.
         n_components: connected components before the area/shape filters.
+        grow_rings: with ``dilate="auto"``, the rings (pixels) added around each masked
+            marker, uint16, in raster order of the markers' first pixel (border-cut markers
+            included); empty otherwise.
     """
 
     centres: NDArray[np.float32]
@@ -42,6 +49,7 @@ class Markers:
     noise_sigma: float
     block_size: int
     n_components: int
+    grow_rings: NDArray[np.uint16]
 
     def __len__(self) -> int:
         return int(self.centres.shape[0])
@@ -57,7 +65,7 @@ def extract_markers(
     max_area: int | None = None,
     min_fill: float = 0.35,
     max_aspect: float = 3.0,
-    dilate: int = 0,
+    dilate: int | Literal["auto"] = 0,
     exclude_border: bool = True,
 ) -> Markers:
     """Finds markers in a tactile image.
@@ -76,17 +84,31 @@ def extract_markers(
         polarity: ``"dark"`` for painted dots (GelSight, Mini, GelSlim), ``"bright"`` for pins.
         block_size: odd box size in pixels for the background; default ``max(15, min(H, W) // 8)``.
         threshold: darkness threshold in grey levels; default chosen from the image.
-        min_area: smallest blob in pixels; default ``max(4, 5e-5 * H * W)``.
+        min_area: smallest blob in pixels; default ``max(4, 5e-5 * H * W)``, but at most a
+            quarter of the typical marker-shaped blob (area-weighted median), so frames of
+            several megapixels with small markers still find them.
         max_area: largest blob in pixels; default ``0.02 * H * W``.
         min_fill: smallest ``area / bbox area`` (a disc has 0.785).
         max_aspect: largest bounding-box aspect ratio.
-        dilate: dilations of ``mask`` by a 3x3 cross (the paper dilates once before inpainting).
-        exclude_border: drop markers whose centre lies outside the frame: blobs on the image
-            border with less than 0.3 of the median interior marker area visible (or, with fewer
-            than 3 interior markers, cut to less than half their extent). Set False to keep every
-            blob, e.g. to build an inpainting mask. Either way, the centre of a marker cut by
-            the border is placed one typical marker radius in from its far edge along the cut
-            axis, since the visible part's centroid would lean inward.
+        dilate: growth of ``mask`` beyond the thresholded pixels. An integer: that many
+            dilations by a 3x3 cross (the paper dilates once before inpainting; stops early
+            once the mask no longer changes, so any size is cheap). ``"auto"``: per marker,
+            ring by ring (a ring is one pixel) while the ring's mean luma differs from the
+            local background just outside it (a plane through the next two rings) by more
+            than a quarter of the local noise sigma, capped at 1.5 marker radii and half the
+            gap to the nearest marker: soft paint edges, optical blur and the dark/bright
+            rings of H.264/MJPEG compression end up inside, while crisp lossless markers get
+            one pixel (``grow_rings`` reports the rings). This is the mask
+            :func:`tacswitch.remove_markers` uses by default; it costs about 1-2 ms per 100
+            markers (BENCHMARKS.md), nothing when not requested.
+        exclude_border: leave out of ``centres`` the markers whose centre lies outside the
+            frame: blobs on the image border with less than 0.3 of the median interior marker
+            area visible (or, with fewer than 3 interior markers, cut to less than half their
+            extent), and slivers that only pass as the visible part of a marker-sized disc.
+            ``mask`` includes them either way (removal must cover them). Set False to report
+            them too; the centre of a marker cut by the border is then placed one typical
+            marker radius in from its far edge along the cut axis (it may lie outside the
+            frame), since the visible part's centroid would lean inward.
 
     Returns:
         :class:`Markers`. An image without markers (flat, black, white, markerless) gives zero.
@@ -105,7 +127,12 @@ def extract_markers(
                                  (max_area, "max_area", 0)):
         if value is not None:
             as_count(value, name, minimum)
-    as_count(dilate, "dilate", 0)
+    adaptive = isinstance(dilate, str)
+    if adaptive and dilate != AUTO:
+        raise ValueError(f"dilate: must be an integer >= 0 or 'auto'; got {dilate!r}")
+    # More dilations than H + W change nothing (the mask is full or stopped changing); capping
+    # here keeps any Python integer within the native size type.
+    steps = 0 if adaptive else min(as_count(dilate, "dilate", 0), sum(arr.shape[:2]))
     out = _native.extract_markers(
         arr,
         polarity=polarity,
@@ -115,7 +142,8 @@ def extract_markers(
         max_area=max_area,
         min_fill=float(min_fill),
         max_aspect=float(max_aspect),
-        dilate=dilate,
+        dilate=steps,
+        adaptive=adaptive,
         exclude_border=bool(exclude_border),
     )
     return Markers(**out)
@@ -126,11 +154,12 @@ def dilate_mask(mask: NDArray, iterations: int = 1) -> NDArray[np.bool_]:
 
     Same result as ``cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3)),
     iterations=iterations)`` (the 3x3 ellipse is a cross); pixels outside the image count as
-    unset. The paper dilates marker masks once before inpainting.
+    unset. The paper dilates marker masks once before inpainting. Stops once the mask no longer
+    changes (at most ``H + W`` passes), so a huge ``iterations`` returns at once.
     """
     if not isinstance(mask, np.ndarray):
         raise TypeError(f"mask: expected a numpy array, got {type(mask).__name__}")
     if mask.ndim != 2:
         raise ValueError(f"mask: expected an H x W array; got shape {mask.shape}")
-    as_count(iterations, "iterations", 0)
-    return _native.dilate_mask(np.ascontiguousarray(mask != 0), iterations)
+    steps = min(as_count(iterations, "iterations", 0), sum(mask.shape))
+    return _native.dilate_mask(np.ascontiguousarray(mask != 0), steps)

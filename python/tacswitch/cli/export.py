@@ -57,7 +57,7 @@ def run_motion(args: argparse.Namespace) -> int:
 
     from tacswitch.motion.data import preset_grid
     from tacswitch.motion.export import export_onnx
-    from tacswitch.motion.model import MotionNet
+    from tacswitch.motion.model import build_net
     from tacswitch.sim.presets import get_preset
 
     path = Path(args.checkpoint)
@@ -66,7 +66,8 @@ def run_motion(args: argparse.Namespace) -> int:
     ck = torch.load(path, map_location="cpu", weights_only=False)
     if not isinstance(ck, dict) or "config" not in ck or "arch" not in ck["config"]:
         raise ValueError(f"checkpoint: {str(path)!r} is not a motion training checkpoint")
-    net = MotionNet(ck["config"]["arch"], ck["config"]["use_ref"])
+    net = build_net(ck["config"]["arch"], ck["config"]["use_ref"],
+                    ck["config"].get("design", "plain"))
     net.load_state_dict(ck["model"])
     p = get_preset(args.preset)
     grid = [[round(float(x), 3), round(float(y), 3)] for x, y in preset_grid(args.preset)]

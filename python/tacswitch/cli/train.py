@@ -21,9 +21,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         description=__doc__)
     m.add_argument("--out", required=True, help="run folder (checkpoint, log.jsonl, model.onnx)")
     m.add_argument("--data", default=None, help="folder of synthetic shards (train_*.npz)")
-    m.add_argument("--split", default="train", choices=("train", "pair_train"),
+    m.add_argument("--split", default="train", choices=("train", "pair_train", "gel_train"),
                    help="train: frame vs the no-contact reference; pair_train: frame vs an "
-                        "earlier frame of the same contact (motion since then; needs --use-ref)")
+                        "earlier frame of the same contact (motion since then; needs --use-ref); "
+                        "gel_train: pairs with random sensor looks, moving gel grain and capture "
+                        "degradations, both frames' motions from rest (for --design consistent)")
+    m.add_argument("--design", choices=("plain", "consistent"), default="plain",
+                   help="consistent: identical frames give exactly zero motion, brightness is "
+                        "normalised in the graph, the reference frame is optional (needs "
+                        "--split gel_train)")
     m.add_argument("--simulate", type=int, default=0, metavar="N",
                    help="render N synthetic training samples into --data first (resumable)")
     m.add_argument("--preset", default="gelsight_mini",
@@ -55,6 +61,9 @@ def run(args: argparse.Namespace) -> int:
         import torch  # noqa: F401
     except ImportError:
         raise ValueError('training needs torch: pip install "tacswitch[train]"') from None
+    if (args.design == "consistent") != (args.split == "gel_train"):
+        raise ValueError("--design consistent and --split gel_train go together (the design "
+                         "trains on both frames' motions from rest, which only gel_ splits hold)")
     if args.split == "pair_train" and not args.use_ref:
         raise ValueError("--split pair_train: the targets are motions since an earlier frame, "
                          "which the network only sees with --use-ref")
@@ -81,11 +90,12 @@ def run(args: argparse.Namespace) -> int:
     cfg = TrainConfig(arch=args.arch, use_ref=bool(args.use_ref), loss=args.loss,
                       epochs=args.epochs,
                       batch=args.batch, lr=args.lr, seed=args.seed,
-                      max_steps_per_epoch=args.max_steps)
+                      max_steps_per_epoch=args.max_steps, design=args.design)
     net = train(arrays, args.out, cfg, progress=not args.quiet)
     h, w = arrays["image"].shape[1:3]
     # Default read-out grid of predict_motion: the preset's ideal grid (sim) or the user's markers.
-    rest = arrays["rest"][0] if args.frames is not None else mdata.preset_grid(args.preset)
+    grid_preset = "gelsight_mini" if args.preset == "mixed" else args.preset
+    rest = arrays["rest"][0] if args.frames is not None else mdata.preset_grid(grid_preset)
     meta = {"work_width": int(w), "work_height": int(h), "seed": args.seed,
             "default_centres": [[round(float(x), 3), round(float(y), 3)] for x, y in rest],
             "trained_on": source, "epochs": args.epochs, "loss": args.loss}

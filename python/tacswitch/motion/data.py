@@ -134,15 +134,123 @@ def render_pair_sample(preset: str, seed: Any, *, classes: tuple[str, ...],
             "present": scene.present.copy(), "depth_mm": scene.depth, "label": label}
 
 
+#: Marker slots of a ``gel_`` sample: the largest grid :data:`tacswitch.sim.scene.GRIDS` draws
+#: (10 x 14); smaller grids are padded with NaN motion and ``present=False``.
+MAX_MARKERS = 140
+
+
+def _gel_preset(name: str, rng: np.random.Generator) -> Any:
+    """``name``, or for ``"mixed"`` the Mini preset or the GelSight calibration at the Mini's
+    size and scale (320 x 240, 0.059 mm/px, pitch 40 px), half each: two real optics."""
+    import dataclasses
+
+    from tacswitch.sim.presets import get_preset
+
+    if name != "mixed":
+        return get_preset(name)
+    if rng.random() < 0.5:
+        return get_preset("gelsight_mini")
+    return dataclasses.replace(get_preset("gelsight"), name="gelsight_320", height=240,
+                               width=320, mm_per_px=0.059, pitch=40.0, diameter=11.5,
+                               edge_px=1.5)
+
+
+def render_gel_pair_sample(preset: str, seed: Any, *, classes: tuple[str, ...],
+                           depth_frac: tuple[float, float] = (0.0, 1.0),
+                           capture: bool = True, max_shear: float = 0.6) -> dict[str, Any]:
+    """A pair of frames of one contact with the simulator's full realism and both frames'
+    absolute motions (what a reference-consistent model trains on).
+
+    The scene has a random sensor look (``appearance="random"``) and the gel-attached grain and
+    dust that move with the gel; ``reference`` is the no-contact frame (30 %), the same contact
+    at another depth and load (60 %), or the same load with fresh noise (10 %: zero motion);
+    ``image`` is the contact at a second depth and load (15 % sliding: the object moves on while
+    the gel stays saturated). Each load's stuck shear is up to ``max_shear`` marker pitches
+    (``pitch * U(0, max_shear) ** 1.5``: mostly small). With ``capture`` both frames go through
+    one camera
+    (:mod:`tacswitch.sim.capture`: blur, noise, white balance, none/MJPEG), the second with its
+    own small exposure drift. Marker grids vary (half the samples draw from
+    :data:`tacswitch.sim.scene.GRIDS`); arrays are padded to :data:`MAX_MARKERS`.
+
+    Returns:
+        ``image`` / ``reference`` (markerless uint8 BGR), ``rest`` (``MAX_MARKERS x 2``),
+        ``displacement`` (motion from ``reference`` to ``image``), ``disp_image`` /
+        ``disp_reference`` (motion of each frame from rest), ``present``, ``depth_mm``, ``label``.
+    """
+    import dataclasses
+
+    from tacswitch.sim import capture as cap
+    from tacswitch.sim.indenters import depth_range
+    from tacswitch.sim.scene import Scene
+
+    rng = np.random.default_rng(seed)
+    label = classes[int(rng.integers(len(classes)))]
+    p = _gel_preset(preset, rng)
+    scene = Scene(p, rng, label=label, appearance="random", vary_grid=bool(rng.random() < 0.5))
+    lo, hi = depth_range(label)
+    depth = float(lo + (hi - lo) * rng.uniform(*depth_frac))
+    scene.depth = depth
+    if capture:
+        # The capture profile brings the camera's noise; the scene's own stays small.
+        scene.noise_sigma = rng.uniform(0.2, 0.8, 3)
+
+    def load() -> dict[str, Any]:
+        mag = scene.pitch * rng.uniform(0.0, max_shear) ** 1.5
+        ang = rng.uniform(0, 2 * np.pi)
+        return {"shear_px": (float(mag * np.cos(ang)), float(mag * np.sin(ang))),
+                "load_ratio": float(rng.uniform(0.0, 0.95)),
+                "twist_rad": float(rng.uniform(-0.06, 0.06)),
+                "depth": depth * float(rng.uniform(0.6, 1.0))}
+
+    second = load()
+    u = rng.random()
+    if u < 0.3:
+        first = scene.render(rng, depth=0.0, markers=False)
+    elif u < 0.9:
+        first = scene.render(rng, **load(), markers=False)
+    else:
+        first = scene.render(rng, **second, markers=False)
+    if rng.random() < 0.15:
+        second["load_ratio"] = 1.0
+        second["offset"] = tuple(np.add(second["shear_px"], rng.normal(0, 0.15 * scene.pitch, 2)))
+    f = scene.render(rng, **second, markers=False)
+    ref_img, img = first.image, f.image
+    if capture:
+        prof = cap.sample_profile(rng, codec=str(rng.choice(["none", "mjpeg"])))  # type: ignore[arg-type]
+        g0, g1, g2 = (float(g * rng.normal(1.0, 0.02)) for g in prof.gain)
+        drift = (g0, g1, g2)
+        ref_img = cap.apply(ref_img, prof, rng)
+        img = cap.apply(img, dataclasses.replace(prof, gain=drift), rng)
+    n = len(scene.rest)
+    if n > MAX_MARKERS:
+        raise ValueError(f"preset: {n} markers exceed MAX_MARKERS={MAX_MARKERS}")
+
+    def pad(a: NDArray[Any], fill: Any) -> NDArray[Any]:
+        out = np.full((MAX_MARKERS, *a.shape[1:]), fill, a.dtype)
+        out[:n] = a
+        return out
+
+    d_ref = first.displacement.astype(np.float32)
+    d_img = f.displacement.astype(np.float32)
+    return {"image": img, "reference": ref_img, "rest": pad(scene.rest, 0.0),
+            "displacement": pad(d_img - d_ref, np.nan), "disp_image": pad(d_img, np.nan),
+            "disp_reference": pad(d_ref, np.nan), "present": pad(scene.present, False),
+            "depth_mm": depth, "label": label}
+
+
 def generate_split(out: str | Path, split: str, n: int, *, preset: str = "gelsight_mini",
                    seed: int = 0, shard: int = 250, markers: bool = False,
-                   progress: bool = True) -> list[Path]:
+                   progress: bool = True, options: dict[str, Any] | None = None) -> list[Path]:
     """Writes ``n`` samples of ``split`` as shards ``out/{split}_{k:03d}.npz``; skips finished
-    shards (resume). Sample ``i`` uses ``SeedSequence([seed, SPLITS.index(split), i])``."""
+    shards (resume). Sample ``i`` uses ``SeedSequence([seed, SPLITS.index(base), i])`` (+100 for
+    ``pair_`` splits, +200 for ``gel_`` splits: :func:`render_gel_pair_sample`; ``preset``
+    may then be ``"mixed"``; ``options`` are passed on to it, e.g. ``max_shear``)."""
     from tacswitch._io import atomic_open
 
     pair = split.startswith("pair_")
-    classes, frac = split_spec(split.removeprefix("pair_"))
+    gel = split.startswith("gel_")
+    base = split.removeprefix("pair_").removeprefix("gel_")
+    classes, frac = split_spec(base)
     root = Path(out)
     root.mkdir(parents=True, exist_ok=True)
     paths = []
@@ -152,8 +260,11 @@ def generate_split(out: str | Path, split: str, n: int, *, preset: str = "gelsig
         paths.append(path)
         if path.is_file():
             continue
-        sid = SPLITS.index(split.removeprefix("pair_")) + (100 if pair else 0)
-        items = [render_pair_sample(preset, np.random.SeedSequence([seed, sid, i]),
+        sid = SPLITS.index(base) + (100 if pair else 200 if gel else 0)
+        items = [render_gel_pair_sample(preset, np.random.SeedSequence([seed, sid, i]),
+                                        classes=classes, depth_frac=frac,
+                                        **(options or {})) if gel else
+                 render_pair_sample(preset, np.random.SeedSequence([seed, sid, i]),
                                     classes=classes, depth_frac=frac) if pair else
                  render_motion_sample(preset, np.random.SeedSequence([seed, sid, i]),
                                       classes=classes, depth_frac=frac, markers=markers,

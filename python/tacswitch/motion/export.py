@@ -9,7 +9,16 @@ serves any grid and any frame size, and returns the motion at those centres::
     -> motion float32 N x 2           (dx, dy) px
 
 Normalisation and the bilinear gather are inside the graph. Metadata (``tacswitch.*`` keys) record
-the architecture, whether the reference is used, the working width and the default marker grid.
+the kind (``motion``), the architecture, the design, whether the reference is required, the
+working width and the default marker grid.
+
+A :class:`~tacswitch.motion.model.ConsistentMotionNet` exports with one more input::
+
+    has_reference float32 1               1: motion from reference to image; 0: single-frame
+                                          motion of image from rest (reference ignored)
+
+and its graph computes ``G(x, (x - r) h) - h G(r, 0)`` (both terms in one batch of two), so
+identical frames give exactly zero motion.
 """
 
 from __future__ import annotations
@@ -21,9 +30,19 @@ from typing import Any
 import torch
 from torch import nn
 
-from tacswitch.motion.model import MotionNet
+from tacswitch.motion.model import ConsistentMotionNet, MotionNet
 
 OPSET = 17
+
+
+class _ConsistentGraph(nn.Module):
+    def __init__(self, net: ConsistentMotionNet) -> None:
+        super().__init__()
+        self.net = net
+
+    def forward(self, image: torch.Tensor, centres: torch.Tensor, reference: torch.Tensor,
+                has_reference: torch.Tensor) -> torch.Tensor:
+        return self.net(image, centres.unsqueeze(0), reference, has_reference)[0]
 
 
 class _Graph(nn.Module):
@@ -36,22 +55,28 @@ class _Graph(nn.Module):
         return self.net(image, centres.unsqueeze(0), reference)[0]
 
 
-def export_onnx(net: MotionNet, path: str | Path, *, metadata: dict[str, Any] | None = None,
-                height: int = 240, width: int = 320) -> Path:
+def export_onnx(net: MotionNet | ConsistentMotionNet, path: str | Path, *,
+                metadata: dict[str, Any] | None = None, height: int = 240,
+                width: int = 320) -> Path:
     """Writes ``net`` (eval mode) as ONNX to ``path`` (atomically) and returns the path."""
     from tacswitch._io import write_onnx
 
     was_training = net.training
+    consistent = isinstance(net, ConsistentMotionNet)
     # The wrapper must be in eval mode too: the exporter restores the wrapper's mode afterwards,
     # which would otherwise switch the caller's network to training mode (batch-stat BN).
-    g = _Graph(net).eval()
+    g: nn.Module = (_ConsistentGraph(net) if consistent else _Graph(net)).eval()  # type: ignore[arg-type]
     img = torch.zeros(1, height, width, 3, dtype=torch.uint8)
     cen = torch.tensor([[width / 2, height / 2], [10.0, 10.0], [width - 5.0, 3.0]])
-    args: tuple[torch.Tensor, ...] = (img, cen, img.clone()) if net.use_ref else (img, cen)
-    names = ["image", "centres", "reference"][: len(args)]
+    args: tuple[torch.Tensor, ...]
+    if consistent:
+        args = (img, cen, img.clone(), torch.ones(1))
+    else:
+        args = (img, cen, img.clone()) if net.use_ref else (img, cen)
+    names = ["image", "centres", "reference", "has_reference"][: len(args)]
     axes: dict[str, dict[int, str]] = {"image": {1: "height", 2: "width"}, "centres": {0: "n"},
                                        "motion": {0: "n"}}
-    if net.use_ref:
+    if len(args) > 2:
         axes["reference"] = {1: "height", 2: "width"}
     target = Path(path)
     tmp = target.with_suffix(".tmp.onnx")
@@ -59,5 +84,7 @@ def export_onnx(net: MotionNet, path: str | Path, *, metadata: dict[str, Any] | 
         torch.onnx.export(g, args, str(tmp), input_names=names, output_names=["motion"],
                           dynamic_axes=axes, opset_version=OPSET, dynamo=False)
     net.train(was_training)
-    meta = {"tacswitch.arch": net.arch, "tacswitch.use_ref": json.dumps(net.use_ref)}
+    meta = {"tacswitch.kind": "motion", "tacswitch.arch": net.arch,
+            "tacswitch.design": "consistent" if consistent else "plain",
+            "tacswitch.use_ref": json.dumps(net.use_ref)}
     return write_onnx(tmp, target, meta, metadata)

@@ -54,6 +54,8 @@ class MotionModel:
 
     Attributes:
         arch: architecture name; ``use_ref``: whether the model needs the reference frame;
+        design: ``"consistent"`` (identical frames give exactly zero motion, the reference is
+        optional: without it, the single-frame motion from rest) or ``"plain"``;
         work_width, work_height: the frame size it was trained at (px);
         default_centres: ``N x 2`` float32 (x, y) grid at the working size.
     """
@@ -65,6 +67,7 @@ class MotionModel:
         self.metadata = dict(meta)
         self.arch = meta.get("tacswitch.arch", "?")
         self.use_ref = json.loads(meta.get("tacswitch.use_ref", "false"))
+        self.design = meta.get("tacswitch.design", "plain")
         self.work_width = int(json.loads(meta.get("tacswitch.work_width", "320")))
         self.work_height = int(json.loads(meta.get("tacswitch.work_height", "240")))
         grid = json.loads(meta.get("tacswitch.default_centres", "[]"))
@@ -112,6 +115,9 @@ class MotionModel:
         feed: dict[str, Any] = {"image": frame[None], "centres": np.ascontiguousarray(pts)}
         if "reference" in self._inputs:
             feed["reference"] = (ref_arr if ref_arr is not None else frame)[None]
+        if "has_reference" in self._inputs:
+            # The consistent design's switch: 0 = single-frame motion from rest.
+            feed["has_reference"] = np.array([0.0 if ref_arr is None else 1.0], np.float32)
         out = self.session.run(None, feed)[0]
         if k > 1:
             out = out * np.float32(k)

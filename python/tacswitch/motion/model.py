@@ -17,6 +17,10 @@ Architectures (:data:`ARCHS`):
 
 With ``use_ref=True`` the network also receives the markerless no-contact reference frame; it sees
 ``[img, img - ref]`` (the difference is what carries the contact).
+
+:class:`ConsistentMotionNet` (the shipped design) is consistent by construction: identical frames
+give exactly zero motion, a global brightness change is normalised away, and the reference frame
+is optional (single-frame mode).
 """
 
 from __future__ import annotations
@@ -166,6 +170,90 @@ class MotionNet(nn.Module):
                 ref: torch.Tensor | None = None) -> torch.Tensor:
         f = self.field(img, ref)
         return sample_at(f, centres, img.shape[1], img.shape[2])
+
+
+class FrameNorm(nn.Module):
+    """``B x H x W x 3`` uint8 BGR -> ``B x 3 x H x W`` float32, each frame and channel
+    normalised by its own mean and standard deviation.
+
+    A global brightness or contrast change of a frame (``a * img + b`` per channel) leaves its
+    normalised image unchanged, up to rounding and clipping: the model downstream cannot see it.
+    """
+
+    def forward(self, img: torch.Tensor) -> torch.Tensor:
+        x = img.permute(0, 3, 1, 2).float()
+        m = x.mean(dim=(2, 3), keepdim=True)
+        c = x - m
+        # sqrt(mean(c^2)) rather than Tensor.std: one ONNX op chain, no Bessel factor; +1 grey
+        # level keeps a flat frame finite.
+        sd = torch.sqrt((c * c).mean(dim=(2, 3), keepdim=True)) + 1.0
+        return c / sd
+
+
+class ConsistentMotionNet(nn.Module):
+    """Marker motion that is consistent by construction (a :class:`SmallUNet` ``G`` inside).
+
+    ``G(x, d)`` maps a normalised frame ``x`` (:class:`FrameNorm`) and a difference image ``d``
+    to the frame's marker motion *from rest* (a dense field, stride 4):
+
+    - single frame (``ref`` omitted, the paper's setting): ``G(x, 0)``;
+    - with a reference frame: ``G(x, x - r) - G(r, 0)``: the motion from ``ref`` to ``img``.
+
+    For ``img == ref`` the two terms are the same computation on the same input: the motion is
+    exactly zero. A global brightness change of either frame is normalised away before ``G``.
+    ``use_ref`` is False: the reference is optional.
+    """
+
+    def __init__(self, widths: tuple[int, ...] = (32, 64, 96, 128)) -> None:
+        super().__init__()
+        self.arch, self.use_ref, self.design = "unet", False, "consistent"
+        self.norm = FrameNorm()
+        self.body = SmallUNet(6, widths)
+
+    def _g(self, x: torch.Tensor, d: torch.Tensor) -> torch.Tensor:
+        return self.body(torch.cat([x, d], dim=1)) * MOTION_SCALE
+
+    def pair_fields(self, x: torch.Tensor, r: torch.Tensor
+                    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(single(ref), pair)`` from already normalised frames ``x``, ``r`` (training on
+        crops of frames normalised whole, so the statistics are those inference sees)."""
+        b = x.shape[0]
+        f = self._g(torch.cat([r, x]), torch.cat([torch.zeros_like(r), x - r]))
+        return f[:b], f[b:] - f[:b]
+
+    def field(self, img: torch.Tensor, ref: torch.Tensor | None = None,
+              has_ref: torch.Tensor | None = None) -> torch.Tensor:
+        """Dense motion (px): single-frame without ``ref``; with ``ref``, from ``ref`` to ``img``.
+
+        ``has_ref`` (a ``1``-element 0/1 tensor, the exported graph's switch): with 0 the result
+        is the single-frame field of ``img`` whatever ``ref`` holds (one graph serves both)."""
+        x = self.norm(img)
+        if ref is None:
+            return self._g(x, torch.zeros_like(x))
+        r = self.norm(ref)
+        b = x.shape[0]
+        h = torch.ones(1, dtype=x.dtype) if has_ref is None else has_ref.to(x.dtype)
+        f = self._g(torch.cat([x, r]), torch.cat([(x - r) * h, torch.zeros_like(r)]))
+        return f[:b] - h * f[b:]
+
+    def forward(self, img: torch.Tensor, centres: torch.Tensor,
+                ref: torch.Tensor | None = None, has_ref: torch.Tensor | None = None
+                ) -> torch.Tensor:
+        f = self.field(img, ref, has_ref)
+        return sample_at(f, centres, img.shape[1], img.shape[2])
+
+
+def build_net(arch: str = "unet", use_ref: bool = False, design: str = "plain"
+              ) -> MotionNet | ConsistentMotionNet:
+    """The network of a training configuration: ``design="consistent"`` gives a
+    :class:`ConsistentMotionNet` (``arch`` must be ``"unet"``), ``"plain"`` a :class:`MotionNet`."""
+    if design == "consistent":
+        if arch != "unet":
+            raise ValueError(f"arch: the consistent design uses 'unet'; got {arch!r}")
+        return ConsistentMotionNet()
+    if design != "plain":
+        raise ValueError(f"design: must be 'plain' or 'consistent'; got {design!r}")
+    return MotionNet(arch, use_ref)
 
 
 def count_params(model: nn.Module) -> int:

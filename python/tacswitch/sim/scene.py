@@ -269,7 +269,8 @@ class Scene:
     def render(self, rng: Any = None, *, offset: tuple[float, float] | None = None,
                depth: float | None = None, shear_px: tuple[float, float] = (0.0, 0.0),
                load_ratio: float = 0.5, twist_rad: float = 0.0,
-               marker_shear_px: tuple[float, float] | None = None) -> Frame:
+               marker_shear_px: tuple[float, float] | None = None,
+               markers: bool = True) -> Frame:
         """Renders one frame.
 
         Args:
@@ -282,6 +283,9 @@ class Scene:
             twist_rad: rotation of the object and of the stuck zone, rad.
             marker_shear_px: override the gel's shear (slip: the markers stay saturated while
                 the object moves on by ``offset``).
+            markers: paint the markers (False: ``image_markers`` is the markerless image and
+                ``marker_mask`` is empty; saves the marker rendering when only ``I_wo`` is
+                needed). The noise draws are the same either way.
         """
         import cv2
 
@@ -335,7 +339,9 @@ class Scene:
             dark.append(self.darkness[self.merged])
             shp.append(shapes[self.merged])
         trans = marker_layer(h, w, np.concatenate(cen), np.concatenate(dia),
-                             np.concatenate(dark), edge_px=self.edge_px, shape=np.concatenate(shp))
+                             np.concatenate(dark), edge_px=self.edge_px,
+                             shape=np.concatenate(shp)) if markers else \
+            np.ones((h, w), np.float32)
         mask = trans < 1.0
         i_wo, i_w = self._camera(clean, trans, mask, rng)
         n_contact = max(int((pres > 0).sum()), 1)

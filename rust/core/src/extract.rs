@@ -13,10 +13,13 @@
 //!    `cv2.connectedComponents(connectivity=8)`);
 //! 5. filters on area, fill ratio (area / bounding-box area) and bounding-box aspect ratio;
 //! 6. per kept marker, a local background level from a ring around its box, and a centre weighted
-//!    by darkness above that level over the marker and a one-pixel margin, so soft edges count.
+//!    by darkness above that level over the marker and a one-pixel margin, so soft edges count;
+//! 7. the mask: every marker's pixels, markers cut by the frame border included (reported or
+//!    not), then grown by fixed dilations or adaptively per marker ([`crate::mask_grow`]).
 
 use crate::error::{CoreError, Result};
 use crate::image::ImageView;
+use crate::mask_grow::{grow_masks, GrowSeed, GrowWorkspace};
 use crate::simd::multiversion;
 
 /// Fixed-point luma weights (sum 256), BT.601, in B, G, R order.
@@ -58,6 +61,30 @@ pub const MAX_BLOCK: usize = 255;
 const SCAN_CHUNK: usize = 16;
 /// Width of the ring around a marker's box used for its local background (pixels).
 const RING_GAP: usize = 2;
+/// Default `min_area`: this fraction of the frame's pixels (at least [`MIN_AREA_FLOOR`])...
+const MIN_AREA_FRAME_FRACTION: f64 = 5e-5;
+/// ...but never above this fraction of the typical blob area (area-weighted median of the
+/// marker-shaped components), so large frames with small markers keep them.
+const MIN_AREA_TYPICAL_FRACTION: f32 = 0.25;
+const MIN_AREA_FLOOR: usize = 4;
+/// A border blob failing the interior shape filters is a cut marker (masked; reported only with
+/// `exclude_border = false`) when the disc it is part of has a radius within these factors of a
+/// typical interior marker's radius...
+const CUT_RADIUS_MIN: f32 = 0.4;
+const CUT_RADIUS_MAX: f32 = 2.0;
+/// ...and at least this many pixels show.
+const CUT_MIN_PIXELS: u32 = 2;
+
+/// How the output mask is grown beyond the thresholded marker pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MaskGrowth {
+    /// This many dilations by a 3x3 cross (OpenCV's 3x3 `MORPH_ELLIPSE`), at most until the mask
+    /// stops changing.
+    Dilate(usize),
+    /// Per marker, ring by ring until the ring just outside is consistent with the local
+    /// background ([`crate::mask_grow`]).
+    Adaptive,
+}
 
 /// Which way markers differ from the gel.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -85,9 +112,10 @@ pub struct ExtractParams {
     pub min_fill: f32,
     /// Largest bounding-box aspect ratio (long side / short side).
     pub max_aspect: f32,
-    /// Dilations of the output mask by a 3x3 cross (OpenCV's 3x3 `MORPH_ELLIPSE`).
-    pub dilate: usize,
-    /// Drop blobs cut by the image border (a marker cut by the frame edge has a biased centre).
+    /// Growth of the output mask beyond the thresholded pixels.
+    pub grow: MaskGrowth,
+    /// Do not report markers whose centre lies outside the frame (cut by the border; their
+    /// centre is an estimate). They are in the mask either way.
     pub exclude_border: bool,
 }
 
@@ -101,7 +129,7 @@ impl Default for ExtractParams {
             max_area: None,
             min_fill: 0.35,
             max_aspect: 3.0,
-            dilate: 0,
+            grow: MaskGrowth::Dilate(0),
             exclude_border: true,
         }
     }
@@ -125,8 +153,11 @@ pub struct Marker {
 pub struct Extraction {
     /// Markers sorted by row then column of their centre (raster order of the centres).
     pub markers: Vec<Marker>,
-    /// `H x W` mask, true = marker pixel (after dilation).
+    /// `H x W` mask, true = marker pixel (every marker found, reported or not, after growth).
     pub mask: Vec<bool>,
+    /// Rings added around each masked marker by [`MaskGrowth::Adaptive`] (empty otherwise), in
+    /// label order.
+    pub grow_rings: Vec<u16>,
     /// Threshold used, grey levels of darkness above the local background.
     pub threshold: f32,
     /// Background level (median darkness), grey levels.
@@ -149,6 +180,7 @@ pub struct ExtractWorkspace {
     labels: Vec<u32>,
     labeller: RunLabeller,
     ring: Vec<u16>,
+    grow: GrowWorkspace,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -218,19 +250,31 @@ pub fn extract_markers_with(
     );
     let comps = component_stats(&ws.labeller.runs, n_components);
 
-    let min_area = params
-        .min_area
-        .unwrap_or_else(|| ((5e-5 * n as f64).round() as usize).max(4));
     let max_area = params
         .max_area
-        .unwrap_or_else(|| ((0.02 * n as f64).round() as usize).max(min_area));
+        .unwrap_or_else(|| ((0.02 * n as f64).round() as usize).max(MIN_AREA_FLOOR));
+    let min_area = params.min_area.unwrap_or_else(|| {
+        default_min_area(&comps, h, w, max_area, params.min_fill, params.max_aspect)
+    });
+    let max_area = max_area.max(min_area);
+    // `keep`: in the mask; `report`: in the returned markers.
     let mut keep: Vec<bool> = comps
         .iter()
         .map(|c| c.passes(min_area, max_area, params.min_fill, params.max_aspect))
         .collect();
     let typical_area = typical_interior_area(&comps, &keep, h, w);
+    let mut report = keep.clone();
     if params.exclude_border {
-        drop_border_cut(&comps, &mut keep, h, w, typical_area);
+        drop_border_cut(&comps, &mut report, h, w, typical_area);
+    }
+    if let Some(a) = typical_area {
+        let r_typ = (a / std::f32::consts::PI).sqrt();
+        for (i, c) in comps.iter().enumerate() {
+            if !keep[i] && c.is_cut_marker(h, w, r_typ, max_area, params.min_fill) {
+                keep[i] = true;
+                report[i] = !params.exclude_border;
+            }
+        }
     }
 
     // Label image (0 = background) so that centroids can tell their own pixels from a neighbour's.
@@ -247,6 +291,7 @@ pub fn extract_markers_with(
     let sigma_units = stats.sigma * LUMA_SCALE as f32;
     let mut markers = Vec::new();
     let t_luma = threshold * LUMA_SCALE as f32;
+    let mut seeds = Vec::new();
     for (label, c) in comps.iter().enumerate() {
         if !keep[label] {
             continue;
@@ -264,15 +309,26 @@ pub fn extract_markers_with(
         complete_cut_centre(&mut marker, c, h, w, typical_area);
         // The box mean is pulled up next to bright features, so their dark-looking surroundings
         // can pass the threshold; a real marker is also darker than its own immediate ring.
-        if local_dark > t_luma {
-            markers.push(marker);
-        } else {
+        if local_dark <= t_luma {
             keep[label] = false;
+            continue;
         }
-    }
-    for r in &ws.labeller.runs {
-        let row = r.y as usize * w;
-        ws.labels[row + r.x0 as usize..row + r.x1 as usize].fill(0);
+        if report[label] {
+            markers.push(marker);
+        }
+        if want_mask && params.grow == MaskGrowth::Adaptive {
+            let visible = (c.area as f32 / std::f32::consts::PI).sqrt();
+            let radius = match typical_area {
+                Some(a) if c.on_border(h, w) => (a / std::f32::consts::PI).sqrt().max(visible),
+                _ => visible,
+            };
+            seeds.push(GrowSeed {
+                label: label as u32 + 1,
+                bbox: [c.x0, c.y0, c.x1, c.y1],
+                centre: marker.centre,
+                radius,
+            });
+        }
     }
     markers.sort_by(|a, b| {
         a.centre[1]
@@ -293,13 +349,24 @@ pub fn extract_markers_with(
             mask[row + r.x0 as usize..row + r.x1 as usize].fill(true);
         }
     }
-    for _ in 0..params.dilate * usize::from(want_mask) {
-        mask = dilate_cross(&mask, h, w);
+    let mut grow_rings = Vec::new();
+    if want_mask {
+        match params.grow {
+            MaskGrowth::Dilate(k) => mask = dilate_cross_n(mask, h, w, k),
+            MaskGrowth::Adaptive => {
+                grow_rings = grow_masks(&ws.luma, &ws.labels, h, w, &seeds, &mut mask, &mut ws.grow)
+            }
+        }
+    }
+    for r in &ws.labeller.runs {
+        let row = r.y as usize * w;
+        ws.labels[row + r.x0 as usize..row + r.x1 as usize].fill(0);
     }
 
     Ok(Extraction {
         markers,
         mask,
+        grow_rings,
         threshold,
         background_level: stats.median,
         noise_sigma: stats.sigma,
@@ -862,6 +929,48 @@ impl Component {
         self.x0 == 0 || self.y0 == 0 || self.x1 as usize + 1 == w || self.y1 as usize + 1 == h
     }
 
+    /// A blob on the border that fails the interior shape filters but is the visible part of a
+    /// marker-sized disc: judged on the disc it is part of (its radius from the blob's extent
+    /// along and across the border), so slivers pass while shading and edges along the border
+    /// (long and thin: a huge disc) or large dark corners do not.
+    fn is_cut_marker(
+        &self,
+        h: usize,
+        w: usize,
+        r_typ: f32,
+        max_area: usize,
+        min_fill: f32,
+    ) -> bool {
+        let on_x = self.x0 == 0 || self.x1 as usize + 1 == w;
+        let on_y = self.y0 == 0 || self.y1 as usize + 1 == h;
+        let spans = (self.x0 == 0 && self.x1 as usize + 1 == w)
+            || (self.y0 == 0 && self.y1 as usize + 1 == h);
+        if !(on_x || on_y) || spans || self.area < CUT_MIN_PIXELS || self.area as usize > max_area {
+            return false;
+        }
+        let (bw, bh) = (
+            (self.x1 - self.x0 + 1) as f32,
+            (self.y1 - self.y0 + 1) as f32,
+        );
+        // Disc through a chord of length `along` at depth `across` (the sagitta); a blob at
+        // least half as deep as it is long shows the whole diameter along the border.
+        let disc_radius = |along: f32, across: f32| {
+            if across >= 0.5 * along {
+                0.5 * along
+            } else {
+                (across * across + 0.25 * along * along) / (2.0 * across)
+            }
+        };
+        let radius = match (on_x, on_y) {
+            (true, false) => disc_radius(bh, bw),
+            (false, true) => disc_radius(bw, bh),
+            // In a corner both extents are at most a diameter.
+            _ => 0.5 * bw.max(bh),
+        };
+        let fill = self.area as f32 / (bw * bh);
+        (CUT_RADIUS_MIN * r_typ..=CUT_RADIUS_MAX * r_typ).contains(&radius) && fill >= min_fill
+    }
+
     fn passes(&self, min_area: usize, max_area: usize, min_fill: f32, max_aspect: f32) -> bool {
         let area = self.area as usize;
         if area < min_area || area > max_area {
@@ -874,6 +983,43 @@ impl Component {
         let fill = self.area as f32 / (bw * bh);
         fill >= min_fill && bw.max(bh) / bw.min(bh) <= max_aspect
     }
+}
+
+/// Default smallest marker area: [`MIN_AREA_FRAME_FRACTION`] of the frame, capped at
+/// [`MIN_AREA_TYPICAL_FRACTION`] of the typical marker-shaped blob (area-weighted median over
+/// interior blobs of at least [`MIN_AREA_FLOOR`] pixels passing the fill and aspect filters,
+/// so a few large markers outweigh many specks).
+fn default_min_area(
+    comps: &[Component],
+    h: usize,
+    w: usize,
+    max_area: usize,
+    min_fill: f32,
+    max_aspect: f32,
+) -> usize {
+    let by_frame =
+        ((MIN_AREA_FRAME_FRACTION * (h * w) as f64).round() as usize).max(MIN_AREA_FLOOR);
+    let mut areas: Vec<u32> = comps
+        .iter()
+        .filter(|c| !c.on_border(h, w) && c.passes(MIN_AREA_FLOOR, max_area, min_fill, max_aspect))
+        .map(|c| c.area)
+        .collect();
+    if areas.is_empty() {
+        return by_frame;
+    }
+    areas.sort_unstable();
+    let total: u64 = areas.iter().map(|&a| u64::from(a)).sum();
+    let mut acc = 0u64;
+    let mut typical = areas[areas.len() - 1];
+    for &a in &areas {
+        acc += u64::from(a);
+        if 2 * acc >= total {
+            typical = a;
+            break;
+        }
+    }
+    let by_blobs = (MIN_AREA_TYPICAL_FRACTION * typical as f32).round() as usize;
+    by_frame.min(by_blobs.max(MIN_AREA_FLOOR))
 }
 
 /// Median area of the kept markers that do not touch the border, if there are enough of them.
@@ -1091,6 +1237,19 @@ multiversion! {
         }
         (rw, rx, row_min)
     }
+}
+
+/// `iterations` dilations by a 3x3 cross, stopping early once the mask no longer changes (empty,
+/// full, or grown over every pixel it can reach): at most `H + W` passes whatever is asked.
+pub fn dilate_cross_n(mut mask: Vec<bool>, h: usize, w: usize, iterations: usize) -> Vec<bool> {
+    for _ in 0..iterations.min(h + w) {
+        let next = dilate_cross(&mask, h, w);
+        if next == mask {
+            break;
+        }
+        mask = next;
+    }
+    mask
 }
 
 /// One dilation by a 3x3 cross (`cv2.dilate` with the 3x3 `MORPH_ELLIPSE` kernel, border ignored).

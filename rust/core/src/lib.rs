@@ -13,6 +13,7 @@ pub mod extract;
 pub mod geometry;
 pub mod image;
 pub mod kdtree;
+pub mod mask_grow;
 pub mod matching;
 pub mod merge;
 mod simd;

@@ -7,7 +7,8 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use tacswitch_core::extract::{
-    dilate_cross, extract_markers_with, ExtractParams, ExtractWorkspace, Extraction, Polarity,
+    dilate_cross_n, extract_markers_with, ExtractParams, ExtractWorkspace, Extraction, MaskGrowth,
+    Polarity,
 };
 use tacswitch_core::image::ImageView;
 
@@ -35,7 +36,7 @@ pub fn params_from_args(
     max_area: Option<usize>,
     min_fill: f32,
     max_aspect: f32,
-    dilate: usize,
+    grow: MaskGrowth,
     exclude_border: bool,
 ) -> PyResult<ExtractParams> {
     Ok(ExtractParams {
@@ -46,7 +47,7 @@ pub fn params_from_args(
         max_area,
         min_fill,
         max_aspect,
-        dilate,
+        grow,
         exclude_border,
     })
 }
@@ -96,13 +97,14 @@ pub fn extraction_to_py<'py>(
     d.set_item("noise_sigma", ex.noise_sigma)?;
     d.set_item("block_size", ex.block_size)?;
     d.set_item("n_components", ex.n_components)?;
+    d.set_item("grow_rings", PyArray1::from_vec(py, ex.grow_rings))?;
     Ok(d)
 }
 
 /// Extracts markers from a uint8 BGR/BGRA/grey image; returns a dict of arrays and scalars.
 #[pyfunction]
 #[pyo3(signature = (img, *, polarity="dark", block_size=None, threshold=None, min_area=None,
-    max_area=None, min_fill=0.35, max_aspect=3.0, dilate=0, exclude_border=true))]
+    max_area=None, min_fill=0.35, max_aspect=3.0, dilate=0, adaptive=false, exclude_border=true))]
 #[allow(clippy::too_many_arguments)]
 fn extract_markers<'py>(
     py: Python<'py>,
@@ -115,8 +117,18 @@ fn extract_markers<'py>(
     min_fill: f32,
     max_aspect: f32,
     dilate: usize,
+    adaptive: bool,
     exclude_border: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let grow = match (adaptive, dilate) {
+        (false, k) => MaskGrowth::Dilate(k),
+        (true, 0) => MaskGrowth::Adaptive,
+        (true, k) => {
+            return Err(PyValueError::new_err(format!(
+                "dilate: must be 0 with adaptive growth; got {k}"
+            )))
+        }
+    };
     let params = params_from_args(
         polarity,
         block_size,
@@ -125,7 +137,7 @@ fn extract_markers<'py>(
         max_area,
         min_fill,
         max_aspect,
-        dilate,
+        grow,
         exclude_border,
     )?;
     let mut ws = ExtractWorkspace::default();
@@ -134,7 +146,8 @@ fn extract_markers<'py>(
     extraction_to_py(py, ex, arg.height, arg.width)
 }
 
-/// Dilates a bool mask `iterations` times by a 3x3 cross (cv2's 3x3 `MORPH_ELLIPSE`).
+/// Dilates a bool mask `iterations` times by a 3x3 cross (cv2's 3x3 `MORPH_ELLIPSE`), stopping
+/// once it no longer changes.
 #[pyfunction]
 #[pyo3(signature = (mask, iterations=1))]
 fn dilate_mask<'py>(
@@ -146,12 +159,8 @@ fn dilate_mask<'py>(
     let src = mask
         .as_slice()
         .map_err(|_| PyValueError::new_err("mask: array must be C-contiguous"))?;
-    let mut out = src.to_vec();
-    py.detach(|| {
-        for _ in 0..iterations {
-            out = dilate_cross(&out, h, w);
-        }
-    });
+    let src = src.to_vec();
+    let out = py.detach(|| dilate_cross_n(src, h, w, iterations));
     Ok(PyArray1::from_vec(py, out).reshape([h, w])?.into_any())
 }
 

@@ -3,7 +3,7 @@
 
 use numpy::{PyArray1, PyReadonlyArray2, PyReadonlyArrayDyn};
 use pyo3::prelude::*;
-use tacswitch_core::extract::{ExtractParams, ExtractWorkspace};
+use tacswitch_core::extract::{ExtractParams, ExtractWorkspace, MaskGrowth};
 use tacswitch_core::tracker::{TrackState, Tracker as CoreTracker};
 
 use crate::arrays::{finite_opt, points_f32, points_to_py};
@@ -57,7 +57,7 @@ impl Tracker {
             max_area,
             min_fill,
             max_aspect,
-            0,
+            MaskGrowth::Dilate(0),
             exclude_border,
         )?;
         Ok(Self {

@@ -1,0 +1,495 @@
+//! Adaptive marker masks: each marker's mask grows ring by ring until the ring just outside it
+//! is consistent with the gel around it.
+//!
+//! A threshold mask follows a marker's dark core. Real markers darken more than that: soft paint
+//! edges, optical blur, and the ringing of lossy codecs (H.264, MJPEG) around high-contrast dots
+//! leave a rim a few grey levels dark (or bright) that an inpainting fill smears inward. How wide
+//! that rim is depends on the sensor, the codec and the marker, so no fixed dilation fits: on
+//! crisp lossless markers one pixel is right, on compressed ones five or more.
+//!
+//! Per marker (one window around it, single thread):
+//! 1. a chamfer (3-4) distance from the marker's thresholded pixels; ring `k` holds the pixels at
+//!    distance `(k - 1, k]` (ring 1 = the 4-neighbours, i.e. one 3x3-cross dilation);
+//! 2. the local background: a plane fitted (least squares, two outlier-rejecting passes) to the
+//!    luma of an annulus of [`ANNULUS_RINGS`] rings just beyond the largest growth allowed, so a
+//!    contact-shading gradient across the marker is not mistaken for darkening; the fit's
+//!    residual spread is the local noise sigma;
+//! 3. each ring's mean darkness relative to that plane (other markers' pixels excluded); the mask
+//!    takes every ring up to the last one whose mean deviates from the background by more than
+//!    [`GROW_SIGMAS`] local noise sigmas, stopping after two consistent rings in a row (codec
+//!    ringing alternates dark and bright, so one consistent ring does not end the rim);
+//! 4. growth is capped at [`MAX_GROW_RADII`] marker radii and at half the gap to the nearest
+//!    other marker, so neighbouring markers and contact shading cannot make it run away.
+
+/// Rings (pixels) of the annulus the local background is fitted on.
+pub const ANNULUS_RINGS: usize = 2;
+/// A ring belongs to the marker while its mean darkness differs from the local background by
+/// more than this many local noise sigmas (per-pixel sigma of the annulus around the plane)...
+pub const GROW_SIGMAS: f32 = 0.25;
+/// ...and by more than this many grey levels (noise-free synthetic frames).
+pub const GROW_MIN_LEVELS: f32 = 0.5;
+/// Largest growth, in marker radii (equivalent-disc radius of the thresholded blob).
+pub const MAX_GROW_RADII: f32 = 1.5;
+/// Growth never exceeds this many rings, whatever the marker size.
+pub const MAX_GROW_RINGS: usize = 48;
+/// Consistent rings in a row that end the growth.
+const STOP_AFTER_CONSISTENT: usize = 2;
+/// Chamfer 3-4 weights: an orthogonal step is 3 units (one pixel), a diagonal 4.
+const STEP_ORTHO: u8 = 3;
+const STEP_DIAG: u8 = 4;
+// Every distance that matters (the annulus' outer edge) fits in the u8 distance map.
+const _: () = assert!((MAX_GROW_RINGS + ANNULUS_RINGS) * (STEP_ORTHO as usize) < 255);
+/// Fewest annulus pixels for a plane fit; fewer use their median as a flat background.
+const MIN_PLANE_PIXELS: usize = 12;
+/// Outliers beyond this many sigmas (neighbours' soft edges, bright features) leave the fit.
+const FIT_CLIP_SIGMAS: f32 = 3.0;
+/// MAD to sigma for a normal distribution.
+const MAD_TO_SIGMA: f32 = 1.4826;
+/// Luma units per grey level (the extraction's fixed point).
+const LUMA_PER_LEVEL: f32 = 256.0;
+
+/// One marker to grow: its label in the label image and its geometry.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GrowSeed {
+    /// Label of the marker's pixels in the label image (non-zero).
+    pub label: u32,
+    /// Inclusive bounding box `(x0, y0, x1, y1)` of the thresholded pixels.
+    pub bbox: [u32; 4],
+    /// Centre `(x, y)`, pixels (may lie outside the frame for a marker cut by the border).
+    pub centre: [f32; 2],
+    /// Radius of the full marker, pixels (equivalent disc of the thresholded blob).
+    pub radius: f32,
+}
+
+/// Reusable buffers of [`grow_masks`].
+#[derive(Debug, Default, Clone)]
+pub struct GrowWorkspace {
+    dist: Vec<u8>,
+    annulus: Vec<[f32; 3]>,
+    scratch: Vec<f32>,
+    sums: Vec<RingSums>,
+}
+
+/// Grows every seed's mask into `mask` (`h x w`, row-major; pixels are only ever set).
+///
+/// `luma` is the extraction's luma (grey x 256, markers dark), `labels` its label image (0 =
+/// no component). Returns the rings added around each seed (0 = the thresholded pixels only).
+pub fn grow_masks(
+    luma: &[u16],
+    labels: &[u32],
+    h: usize,
+    w: usize,
+    seeds: &[GrowSeed],
+    mask: &mut [bool],
+    ws: &mut GrowWorkspace,
+) -> Vec<u16> {
+    let gaps = nearest_gaps(seeds);
+    seeds
+        .iter()
+        .zip(gaps)
+        .map(|(s, gap)| {
+            let by_size = (MAX_GROW_RADII * s.radius).ceil().max(1.0) as usize;
+            // Half the free gap to the nearest marker's edge: two markers' rims never overlap
+            // and neither annulus reaches into the other's thresholded pixels.
+            let by_gap = (0.5 * gap).floor().max(1.0) as usize;
+            let cap = by_size.min(by_gap).min(MAX_GROW_RINGS);
+            grow_one(luma, labels, h, w, s, cap, mask, ws) as u16
+        })
+        .collect()
+}
+
+/// Free distance from each seed's edge to the nearest other seed's edge (pixels; infinite when
+/// alone), by a sweep over seeds sorted by x in both directions from each seed.
+fn nearest_gaps(seeds: &[GrowSeed]) -> Vec<f32> {
+    let mut order: Vec<usize> = (0..seeds.len()).collect();
+    order.sort_by(|&a, &b| seeds[a].centre[0].total_cmp(&seeds[b].centre[0]));
+    let mut out = vec![f32::INFINITY; seeds.len()];
+    for (k, &i) in order.iter().enumerate() {
+        let a = seeds[i].centre;
+        let mut best = f32::INFINITY;
+        let mut visit = |j: usize| {
+            let b = seeds[j].centre;
+            let dx = b[0] - a[0];
+            // Sorted by x: once dx alone is as far as the best, nothing further can be nearer.
+            if dx * dx >= best {
+                return false;
+            }
+            best = best.min(dx * dx + (b[1] - a[1]) * (b[1] - a[1]));
+            true
+        };
+        for &j in &order[k + 1..] {
+            if !visit(j) {
+                break;
+            }
+        }
+        for &j in order[..k].iter().rev() {
+            if !visit(j) {
+                break;
+            }
+        }
+        if best.is_finite() {
+            out[i] = (best.sqrt() - 2.0 * seeds[i].radius).max(0.0);
+        }
+    }
+    out
+}
+
+/// Per-ring moments over free pixels (not part of any component), in window coordinates `x`,
+/// `y` and luma `z`: enough for a least-squares plane through any run of rings, and for a
+/// plane's mean over a ring, without another pass over the pixels.
+#[derive(Debug, Default, Clone, Copy)]
+struct RingSums {
+    n: f64,
+    x: f64,
+    y: f64,
+    z: f64,
+    xx: f64,
+    xy: f64,
+    yy: f64,
+    xz: f64,
+    yz: f64,
+}
+
+impl RingSums {
+    fn add(&mut self, o: &RingSums) {
+        self.n += o.n;
+        self.x += o.x;
+        self.y += o.y;
+        self.z += o.z;
+        self.xx += o.xx;
+        self.xy += o.xy;
+        self.yy += o.yy;
+        self.xz += o.xz;
+        self.yz += o.yz;
+    }
+
+    /// Least-squares plane `z = a + b x + c y`; flat (the mean) when the pixels do not span a
+    /// plane (few, or on one line as an annulus cut down to a strip by the frame border).
+    fn plane(&self) -> [f64; 3] {
+        let flat = [self.z / self.n, 0.0, 0.0];
+        if self.n < MIN_PLANE_PIXELS as f64 {
+            return flat;
+        }
+        let m = [
+            [self.n, self.x, self.y],
+            [self.x, self.xx, self.xy],
+            [self.y, self.xy, self.yy],
+        ];
+        solve3(m, [self.z, self.xz, self.yz]).unwrap_or(flat)
+    }
+
+    /// Mean of `plane - z` over these pixels: how much darker than the plane they are.
+    fn darkness_below(&self, p: [f64; 3]) -> f64 {
+        (p[0] * self.n + p[1] * self.x + p[2] * self.y - self.z) / self.n
+    }
+}
+
+/// Grows one marker; returns the number of rings added.
+#[allow(clippy::too_many_arguments)]
+fn grow_one(
+    luma: &[u16],
+    labels: &[u32],
+    h: usize,
+    w: usize,
+    s: &GrowSeed,
+    cap: usize,
+    mask: &mut [bool],
+    ws: &mut GrowWorkspace,
+) -> usize {
+    let margin = cap + ANNULUS_RINGS;
+    let x0 = (s.bbox[0] as usize).saturating_sub(margin);
+    let y0 = (s.bbox[1] as usize).saturating_sub(margin);
+    let x1 = (s.bbox[2] as usize + margin).min(w - 1);
+    let y1 = (s.bbox[3] as usize + margin).min(h - 1);
+    let (ww, wh) = (x1 - x0 + 1, y1 - y0 + 1);
+    chamfer(labels, w, s.label, x0, y0, ww, wh, &mut ws.dist);
+    let pw = ww + 2;
+
+    // Ring of each distance, ceil(d / 3); 0 for the marker itself and for anything beyond the
+    // outermost annulus (nothing to add there).
+    let max_d = margin * usize::from(STEP_ORTHO);
+    let mut ring_of = [0u8; 256];
+    for (d, r) in ring_of.iter_mut().enumerate().take(max_d + 1) {
+        *r = d.div_ceil(usize::from(STEP_ORTHO)) as u8;
+    }
+
+    // One pass: per-ring moments, and the pixels of the outermost annulus for the noise.
+    ws.annulus.clear();
+    ws.sums.clear();
+    ws.sums.resize(margin + 1, RingSums::default());
+    for wy in 0..wh {
+        let y = y0 + wy;
+        let drow = &ws.dist[(wy + 1) * pw + 1..][..ww];
+        let lrow = &luma[y * w + x0..][..ww];
+        let labrow = &labels[y * w + x0..][..ww];
+        let fy = wy as f64;
+        for (wx, ((&d, &z), &l)) in drow.iter().zip(lrow).zip(labrow).enumerate() {
+            let r = usize::from(ring_of[usize::from(d)]);
+            if r == 0 || l != 0 {
+                continue;
+            }
+            let (fx, fz) = (wx as f64, f64::from(z));
+            let e = &mut ws.sums[r];
+            e.n += 1.0;
+            e.x += fx;
+            e.y += fy;
+            e.z += fz;
+            e.xx += fx * fx;
+            e.xy += fx * fy;
+            e.yy += fy * fy;
+            e.xz += fx * fz;
+            e.yz += fy * fz;
+            if r > cap {
+                ws.annulus.push([wx as f32, wy as f32, z as f32]);
+            }
+        }
+    }
+    // The local noise: robust spread of the outermost annulus around its own plane.
+    let Some((_, sigma)) = fit_background(&ws.annulus, &mut ws.scratch) else {
+        return 0;
+    };
+    let tau = f64::from((GROW_SIGMAS * sigma).max(GROW_MIN_LEVELS * LUMA_PER_LEVEL));
+    let mut rings = 0;
+    let mut consistent = 0;
+    for k in 1..=cap {
+        let ring = ws.sums[k];
+        // Background just outside ring k: the plane through the next ANNULUS_RINGS rings, so
+        // contact shading (a gradient, or curvature over a few pixels) is no darkening.
+        let mut beyond = RingSums::default();
+        for e in &ws.sums[k + 1..=k + ANNULUS_RINGS] {
+            beyond.add(e);
+        }
+        // A ring with no free pixel (other markers, or outside the frame) tells nothing.
+        let deviates =
+            ring.n > 0.0 && beyond.n > 0.0 && ring.darkness_below(beyond.plane()).abs() > tau;
+        if deviates {
+            rings = k;
+            consistent = 0;
+        } else {
+            consistent += 1;
+            if consistent >= STOP_AFTER_CONSISTENT {
+                break;
+            }
+        }
+    }
+
+    let limit = rings as u8 * STEP_ORTHO;
+    for wy in 0..wh {
+        let drow = &ws.dist[(wy + 1) * pw + 1..][..ww];
+        let mrow = &mut mask[(y0 + wy) * w + x0..][..ww];
+        for (m, &d) in mrow.iter_mut().zip(drow) {
+            *m |= d <= limit;
+        }
+    }
+    rings
+}
+
+/// Chamfer 3-4 distance (two raster passes) from the pixels labelled `label`, inside the window
+/// `(x0, y0, ww, wh)`, into `dist`: `(ww + 2) x (wh + 2)` with a one-pixel frame of `u8::MAX`
+/// so the passes need no edge tests. Distances saturate at 255 (85 rings, beyond any window).
+#[allow(clippy::too_many_arguments)]
+fn chamfer(
+    labels: &[u32],
+    w: usize,
+    label: u32,
+    x0: usize,
+    y0: usize,
+    ww: usize,
+    wh: usize,
+    dist: &mut Vec<u8>,
+) {
+    let pw = ww + 2;
+    dist.clear();
+    dist.resize(pw * (wh + 2), u8::MAX);
+    for wy in 0..wh {
+        let lrow = &labels[(y0 + wy) * w + x0..][..ww];
+        let drow = &mut dist[(wy + 1) * pw + 1..][..ww];
+        for (d, &l) in drow.iter_mut().zip(lrow) {
+            *d = if l == label { 0 } else { u8::MAX };
+        }
+    }
+    for wy in 1..=wh {
+        let (above, rest) = dist.split_at_mut(wy * pw);
+        relax_row(&above[(wy - 1) * pw..][..pw], &mut rest[..pw]);
+        let row = &mut rest[..pw];
+        for x in 1..=ww {
+            row[x] = row[x].min(row[x - 1].saturating_add(STEP_ORTHO));
+        }
+    }
+    for wy in (1..=wh).rev() {
+        let (head, below) = dist.split_at_mut((wy + 1) * pw);
+        let row = &mut head[wy * pw..][..pw];
+        relax_row(&below[..pw], row);
+        for x in (1..=ww).rev() {
+            row[x] = row[x].min(row[x + 1].saturating_add(STEP_ORTHO));
+        }
+    }
+}
+
+/// `row[x] = min(row[x], nb[x] + 3, nb[x - 1] + 4, nb[x + 1] + 4)` for the inner pixels, from
+/// the neighbouring row `nb` (independent per pixel: vectorises).
+#[inline(always)]
+fn relax_row(nb: &[u8], row: &mut [u8]) {
+    let n = row.len() - 2;
+    let inner = &mut row[1..=n];
+    for (((r, &c), &l), &rt) in inner.iter_mut().zip(&nb[1..=n]).zip(&nb[..n]).zip(&nb[2..]) {
+        let v = c
+            .saturating_add(STEP_ORTHO)
+            .min(l.saturating_add(STEP_DIAG))
+            .min(rt.saturating_add(STEP_DIAG));
+        *r = (*r).min(v);
+    }
+}
+
+/// Robust plane `z = a + b u + c v` through annulus samples `[u, v, z]`, and the per-pixel sigma
+/// of its residuals (luma units, at least half a grey level). `None` without samples.
+fn fit_background(samples: &[[f32; 3]], scratch: &mut Vec<f32>) -> Option<([f32; 3], f32)> {
+    if samples.is_empty() {
+        return None;
+    }
+    let floor = 0.5 * LUMA_PER_LEVEL;
+    // Start flat at the median, with the MAD as the spread: robust to a minority of outliers.
+    let mut plane = [median_of(samples.iter().map(|s| s[2]), scratch), 0.0, 0.0];
+    let mut sigma = residual_sigma(samples, plane, scratch).max(floor);
+    if samples.len() < MIN_PLANE_PIXELS {
+        return Some((plane, sigma));
+    }
+    for _ in 0..2 {
+        let clip = FIT_CLIP_SIGMAS * sigma;
+        match least_squares_plane(samples, plane, clip) {
+            Some(p) => plane = p,
+            None => break,
+        }
+        sigma = residual_sigma(samples, plane, scratch).max(floor);
+    }
+    Some((plane, sigma))
+}
+
+fn residual(s: &[f32; 3], p: [f32; 3]) -> f32 {
+    s[2] - (p[0] + p[1] * s[0] + p[2] * s[1])
+}
+
+fn residual_sigma(samples: &[[f32; 3]], plane: [f32; 3], scratch: &mut Vec<f32>) -> f32 {
+    MAD_TO_SIGMA * median_of(samples.iter().map(|s| residual(s, plane).abs()), scratch)
+}
+
+fn median_of(values: impl Iterator<Item = f32>, scratch: &mut Vec<f32>) -> f32 {
+    scratch.clear();
+    scratch.extend(values);
+    if scratch.is_empty() {
+        return 0.0;
+    }
+    let mid = scratch.len() / 2;
+    *scratch.select_nth_unstable_by(mid, f32::total_cmp).1
+}
+
+/// Least-squares plane over the samples within `clip` of `prev`; `None` when they do not span
+/// a plane (too few, or on one line, e.g. an annulus reduced to a strip by the frame border).
+fn least_squares_plane(samples: &[[f32; 3]], prev: [f32; 3], clip: f32) -> Option<[f32; 3]> {
+    let mut m = [[0f64; 3]; 3];
+    let mut rhs = [0f64; 3];
+    let mut n = 0usize;
+    for s in samples.iter().filter(|s| residual(s, prev).abs() <= clip) {
+        let row = [1.0, f64::from(s[0]), f64::from(s[1])];
+        for i in 0..3 {
+            for j in 0..3 {
+                m[i][j] += row[i] * row[j];
+            }
+            rhs[i] += row[i] * f64::from(s[2]);
+        }
+        n += 1;
+    }
+    if n < MIN_PLANE_PIXELS {
+        return None;
+    }
+    let sol = solve3(m, rhs)?;
+    Some([sol[0] as f32, sol[1] as f32, sol[2] as f32])
+}
+
+/// Solves a 3x3 symmetric system by Cramer's rule; `None` when nearly singular.
+fn solve3(m: [[f64; 3]; 3], r: [f64; 3]) -> Option<[f64; 3]> {
+    let det = |a: &[[f64; 3]; 3]| {
+        a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
+            - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+            + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
+    };
+    let d = det(&m);
+    // Relative to the diagonal's scale: samples on one line give a (near) zero determinant.
+    let scale = m[0][0] * m[1][1] * m[2][2];
+    // NaN (degenerate sums) fails the comparison too.
+    if d.abs().partial_cmp(&(1e-9 * scale.abs())) != Some(std::cmp::Ordering::Greater) {
+        return None;
+    }
+    let mut out = [0f64; 3];
+    for (k, o) in out.iter_mut().enumerate() {
+        let mut a = m;
+        for i in 0..3 {
+            a[i][k] = r[i];
+        }
+        *o = det(&a) / d;
+    }
+    Some(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chamfer_rings_start_with_the_cross() {
+        // One pixel at (3, 3) of a 7x7 window.
+        let mut labels = vec![0u32; 49];
+        labels[3 * 7 + 3] = 5;
+        let mut dist = Vec::new();
+        chamfer(&labels, 7, 5, 0, 0, 7, 7, &mut dist);
+        let at = |x: usize, y: usize| dist[(y + 1) * 9 + x + 1];
+        assert_eq!(at(3, 3), 0);
+        assert_eq!(at(4, 3), 3);
+        assert_eq!(at(4, 2), 4);
+        assert_eq!(at(6, 3), 9);
+        assert_eq!(at(0, 0), 12);
+        assert_eq!(at(6, 6), 12);
+    }
+
+    #[test]
+    fn plane_fit_recovers_a_gradient_despite_outliers() {
+        let mut samples = Vec::new();
+        for y in -10..=10 {
+            for x in -10..=10 {
+                let z = 1000.0 + 30.0 * x as f32 - 12.0 * y as f32;
+                // A dark blob in one corner, as a neighbour's soft edge would be.
+                let z = if x > 6 && y > 6 { z - 5000.0 } else { z };
+                samples.push([x as f32, y as f32, z]);
+            }
+        }
+        let mut scratch = Vec::new();
+        let (p, sigma) = fit_background(&samples, &mut scratch).unwrap();
+        assert!((p[0] - 1000.0).abs() < 1.0, "{p:?}");
+        assert!(
+            (p[1] - 30.0).abs() < 0.1 && (p[2] + 12.0).abs() < 0.1,
+            "{p:?}"
+        );
+        assert!(sigma <= 0.5 * LUMA_PER_LEVEL + 1.0);
+    }
+
+    #[test]
+    fn collinear_samples_fall_back_to_flat() {
+        let samples: Vec<[f32; 3]> = (0..30).map(|i| [i as f32, 0.0, 500.0]).collect();
+        let mut scratch = Vec::new();
+        let (p, _) = fit_background(&samples, &mut scratch).unwrap();
+        assert!((p[0] - 500.0).abs() < 1e-3 && p[2] == 0.0);
+    }
+
+    #[test]
+    fn gaps_between_seeds() {
+        let seed = |x: f32| GrowSeed {
+            label: 1,
+            bbox: [0, 0, 0, 0],
+            centre: [x, 0.0],
+            radius: 2.0,
+        };
+        let gaps = nearest_gaps(&[seed(0.0), seed(10.0), seed(30.0)]);
+        assert_eq!(gaps, vec![6.0, 6.0, 16.0]);
+        assert!(nearest_gaps(&[seed(0.0)])[0].is_infinite());
+    }
+}

@@ -64,6 +64,9 @@ CASES: list[tuple[str, Any]] = [
     ("radius", lambda v: ts.inpaint_telea(F, M, radius=v)),
     ("radius", lambda v: ts.remove_markers(F, M, method="ns", radius=v)),
     ("method", lambda v: ts.remove_markers(F, M, method=v)),
+    ("dilate", lambda v: ts.remove_markers(F, dilate=v)),
+    ("dilate", lambda v: ts.extract_markers(F, dilate=v)),
+    ("iterations", lambda v: ts.dilate_mask(M, v)),
     ("max_dist", lambda v: ts.match_markers(PTS, PTS + 1, v)),
     ("max_dist", lambda v: ts.MarkerTracker(PTS, v)),
     ("polarity", lambda v: ts.MarkerTracker(PTS, polarity=v)),
@@ -287,7 +290,8 @@ def test_unaligned_arrays_are_accepted() -> None:
 
 
 @pytest.mark.parametrize("name,call", [
-    ("dilate", lambda: ts.remove_markers(F, dilate=10**30)),
+    ("dilate", lambda: ts.remove_markers(F, dilate=-1)),
+    ("dilate", lambda: ts.remove_markers(F, dilate=2.5)),
     ("patch", lambda: ts.tile(F, 10**30, 0)),
     ("overlap", lambda: ts.tile(F, 64, 10**30)),
     ("origins", lambda: ts.merge_patches(np.zeros((1, 4, 4), np.uint8), [[10**30, 0]], (4, 4))),

@@ -63,17 +63,20 @@ def as_image_u8(img: Any, name: str = "img") -> NDArray[np.uint8]:
     return as_image(img, name)
 
 
-def as_count(value: Any, name: str, minimum: int, maximum: int = MAX_COUNT) -> int:
+def as_count(value: Any, name: str, minimum: int, maximum: int | None = MAX_COUNT) -> int:
     """Checks an integer argument (bools refused) against ``[minimum, maximum]``.
 
-    Raises ``TypeError`` for a non-integer, ``ValueError`` outside the range; both messages read
-    ``"NAME: expected an integer in [a, b], got ..."``.
+    ``maximum=None``: no upper bound (for counts the callee caps itself, e.g. dilations that
+    stop once the mask is full). Raises ``TypeError`` for a non-integer, ``ValueError`` outside
+    the range; both messages read ``"NAME: expected an integer in [a, b], got ..."``.
     """
+    span = f"[{minimum}, {maximum}]" if maximum is not None else f">= {minimum}"
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name}: expected an integer in [{minimum}, {maximum}], "
-                        f"got {type(value).__name__}")
-    if not minimum <= value <= maximum:
-        raise ValueError(f"{name}: expected an integer in [{minimum}, {maximum}], got {value}")
+        raise TypeError(f"{name}: expected an integer {'in ' if maximum is not None else ''}"
+                        f"{span}, got {type(value).__name__}")
+    if value < minimum or (maximum is not None and value > maximum):
+        raise ValueError(f"{name}: expected an integer {'in ' if maximum is not None else ''}"
+                         f"{span}, got {value}")
     return int(value)
 
 

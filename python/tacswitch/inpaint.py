@@ -355,10 +355,14 @@ def remove_markers(
     if mask is None:
         from tacswitch.markers import extract_markers
 
-        grow: int | Literal["auto"] = "auto" if dilate is None or dilate == "auto" else as_count(
-            dilate, "dilate", 0)
+        auto = dilate is None or (isinstance(dilate, str) and dilate == "auto")
+        # Unbounded: extraction caps dilations at H + W (more change nothing).
+        grow: int | Literal["auto"] = "auto" if auto else as_count(dilate, "dilate", 0, None)
         # The mask covers markers cut by the frame edge whatever exclude_border says.
         m = extract_markers(arr, dilate=grow, **extract_opts).mask.view(np.uint8)
+        if m.all():
+            raise ValueError(f"dilate: the marker mask grown by {grow!r} covers every pixel; "
+                             "nothing is left to inpaint from")
     else:
         m = _as_mask(mask, arr.shape)
     if method == "telea":

@@ -132,7 +132,7 @@ def extract_markers(
         raise ValueError(f"dilate: must be an integer >= 0 or 'auto'; got {dilate!r}")
     # More dilations than H + W change nothing (the mask is full or stopped changing); capping
     # here keeps any Python integer within the native size type.
-    steps = 0 if adaptive else min(as_count(dilate, "dilate", 0), sum(arr.shape[:2]))
+    steps = 0 if adaptive else min(as_count(dilate, "dilate", 0, None), sum(arr.shape[:2]))
     out = _native.extract_markers(
         arr,
         polarity=polarity,
@@ -161,5 +161,5 @@ def dilate_mask(mask: NDArray, iterations: int = 1) -> NDArray[np.bool_]:
         raise TypeError(f"mask: expected a numpy array, got {type(mask).__name__}")
     if mask.ndim != 2:
         raise ValueError(f"mask: expected an H x W array; got shape {mask.shape}")
-    steps = min(as_count(iterations, "iterations", 0), sum(mask.shape))
+    steps = min(as_count(iterations, "iterations", 0, None), sum(mask.shape))
     return _native.dilate_mask(np.ascontiguousarray(mask != 0), steps)

@@ -45,27 +45,30 @@ def proxy_tables(n: int, methods: dict, sensors: tuple[str, ...]) -> list[str]:
 
     out = []
     for sensor in sensors:
-        frames = R.proxy_frames(sensor, n, seed=0)
+        want = {f"{s}/{c}" for cases in CASES.values() for s, c in cases}
+        frames = [f for f in R.proxy_frames(sensor, n, seed=0)
+                  if "/".join(f.name.split("/")[2:]) in want]
 
-        def pick(cols: tuple[str, ...], frames: list = frames) -> list:
-            want = {f"{s}/{c}" for col in cols for s, c in CASES[col]}
-            return [f for f in frames if "/".join(f.name.split("/")[2:]) in want]
+        def pick(res: list, cols: tuple[str, ...]) -> list:
+            keep = {f"{s}/{c}" for col in cols for s, c in CASES[col]}
+            return [r for r in res if "/".join(r.name.split("/")[2:]) in keep]
 
         rows = []
         for name, fill in methods.items():
-            per = {col: R.evaluate(pick((col,)), fill) for col in CASES}
-            comp = R.evaluate(pick(COMPRESSED), fill)
-            ms = float(np.median([s.ms for s in per.values()]))
+            res = R.run(frames, fill)
+            per = {col: R.pool(pick(res, (col,))) for col in CASES}
+            comp = R.pool(pick(res, COMPRESSED))
             rows.append((comp.mae, [name, *(f"{per[c].mae:.2f}" for c in CASES),
                                     f"{comp.signed:+.2f}", f"{comp.ghost:+.2f}",
                                     f"{comp.ghost_abs:.2f}", f"{per['crisp'].ghost:+.2f}",
-                                    f"{ms:.0f}"]))
+                                    f"{R.pool(res).ms:.0f}"]))
             print(sensor, rows[-1][1], flush=True)
         rows.sort(key=lambda r: r[0])
         h, w = frames[0].img.shape[:2]
         out.append(f"**{sensor}** ({w}x{h}, {n} real presses x {len(frames) // n} "
                    "style/capture cases; masked MAE over the true footprint, grey levels; "
-                   "signed error and ghost pooled over the MJPEG and H.264 cases):\n\n" + table(
+                   "signed error and ghost pooled over the MJPEG and H.264 cases; sorted by "
+                   "their MAE):\n\n" + table(
                        ["method", *(f"MAE {c}" for c in CASES), "signed (compr.)",
                         "ghost (compr.)", "abs ghost (compr.)", "ghost crisp", "ms / frame"],
                        [r[1] for r in rows]))

@@ -59,3 +59,24 @@ def test_prior_kinds() -> None:
     assert P.input_channels("telea+biharmonic-grown") == 13
     with pytest.raises(ValueError, match="prior"):
         P.check_prior("biharmonic")
+
+
+def test_grown_prior_falls_back_when_the_grown_hole_is_too_large(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    import tacswitch.inpaint as inp
+
+    real = inp.inpaint_biharmonic
+    m = _holes()
+    limit = int(m.sum())
+
+    def limited(img: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        # Stands in for the solver's size limit (hit by huge holes only, slow to reach).
+        if np.count_nonzero(mask) > limit:
+            raise ValueError("mask: a hole of N pixels is too large for biharmonic inpainting")
+        return real(img, mask)
+
+    monkeypatch.setattr(inp, "inpaint_biharmonic", limited)
+    img = np.full((80, 120, 3), 120, np.uint8)
+    _, smooth = P.fills(img, m, "telea+biharmonic-grown")
+    assert smooth is not None
+    np.testing.assert_array_equal(smooth, real(img, m))

@@ -23,7 +23,8 @@ def marker_frames() -> list[np.ndarray]:
 
 def test_marker_offset_pairs_follow_the_paper(marker_frames):
     pairs = tdata.marker_offset_pairs(marker_frames, transplant=False)
-    orig = ts.extract_markers(marker_frames[0], dilate=2, exclude_border=False).mask
+    # The mask remove_markers fills (adaptive growth, border-cut markers included).
+    orig = ts.extract_markers(marker_frames[0], dilate="auto").mask
     mask, loss = pairs["mask"][0], pairs["loss_mask"][0]
     # Shifted by half the pitch (28.5 px / 2 -> 14) on both axes; pixels shifted out are dropped.
     shift = tdata._shift(orig, (14, 14))
@@ -141,7 +142,7 @@ def test_train_tacdiff_tiny_run_resumes_and_exports(tmp_path: Path):
     net = load_network(run / "model.safetensors")
     model = TacDiffModel(run / "model.onnx", threads=1)
     rng = np.random.default_rng(0)
-    assert model.prior == net.cfg.prior == "telea+biharmonic"
+    assert model.prior == net.cfg.prior == "telea+biharmonic-grown"  # DEFAULT_PRIOR
     arrs = [rng.standard_normal((1, c, 32, 48)).astype(np.float32) for c in (3, 1, 3, 3, 3, 3)]
     arrs[1] = (arrs[1] > 0.5).astype(np.float32)
     with torch.no_grad():

@@ -41,7 +41,8 @@ def test_transplanted_markers_carry_the_real_appearance(marker_frames):
     # Blur and JPEG darken a rim beyond the removal mask, as on real recordings.
     frame = capture.apply(marker_frames[0], capture.CaptureProfile(
         blur_sigma=1.5, codec="mjpeg", quality=60), 0)
-    found = tdata.removal_markers(frame)
+    # A fixed two-dilation mask leaves part of that rim outside: the ring must move along.
+    found = tdata.removal_markers(frame, dilate=2)
     offset = (16, 16)
     cond, moved, real, n = tp.transplant(frame, found.mask, offset, ring=3)
     app = tp.measure_appearance(frame, found.mask, ring=3)
@@ -174,3 +175,28 @@ def test_finetune_cli_options(tmp_path: Path, marker_frames):
                  "fast"]) == 0
     assert (tmp_path / "a" / "model.onnx").is_file()
     assert main([*common, "--out", str(tmp_path / "b"), "--ring", "-1"]) == 1
+
+
+def test_cache_fills_is_reused_and_dropped_by_remask(tmp_path: Path, monkeypatch):
+    pytest.importorskip("av")
+    tdata.render_pairs(tmp_path, 1, mix=(("gelsight_mini", 1.0),), progress=False)
+    assert tdata.cache_fills(tmp_path, "telea", progress=False) == 1
+    assert tdata.cache_fills(tmp_path, "telea", progress=False) == 0
+    shards = tdata.load_pairs(tmp_path)
+    assert tdata.has_fills(shards[0], "telea") and not tdata.has_fills(shards[0],
+                                                                       "telea+biharmonic")
+
+    def boom(*_a, **_k):
+        raise AssertionError("fills recomputed")
+
+    monkeypatch.setattr(tdata, "classical_fills", boom)
+    tdata.CropSampler(shards, 64, prior="telea").batch(1, np.random.default_rng(0))
+    with pytest.raises(AssertionError, match="recomputed"):
+        tdata.CropSampler(tdata.load_pairs(tmp_path), 64, prior="telea+biharmonic")
+    monkeypatch.undo()
+    path = next(tmp_path.glob("pairs_*.npz"))
+    arrays = dict(np.load(path))
+    arrays["mask"][:] = False
+    np.savez(path, **arrays)
+    assert tdata.remask(tmp_path, progress=False) == 1
+    assert not tdata.has_fills(tdata.load_pairs(tmp_path)[0], "telea")

@@ -108,7 +108,8 @@ def load_presses(sensor: str, n: int | None = None
     def prep(a: NDArray[np.uint8]) -> NDArray[np.uint8]:
         if scale == 1.0:
             return np.ascontiguousarray(a)
-        return cv2.resize(a, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+        return np.asarray(cv2.resize(a, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA),
+                          np.uint8)
 
     presses = []
     for i in idx.astype(int):
@@ -151,8 +152,8 @@ def grid_for(sensor: str, rng: np.random.Generator) -> NDArray[np.float32]:
     from tacswitch.sim.presets import get_preset
 
     p = get_preset(sensor)
-    pts = marker_grid(p.height, p.width, p.rows + 1, p.cols + 1, p.pitch, jitter=0.5, seed=rng)
-    pts = pts + rng.uniform(-p.pitch / 2, p.pitch / 2, 2)
+    grid = marker_grid(p.height, p.width, p.rows + 1, p.cols + 1, p.pitch, jitter=0.5, seed=rng)
+    pts = grid.astype(np.float64) + rng.uniform(-p.pitch / 2, p.pitch / 2, 2)
     r = p.diameter / 2
     keep = ((pts[:, 0] > -r) & (pts[:, 0] < p.width - 1 + r)
             & (pts[:, 1] > -r) & (pts[:, 1] < p.height - 1 + r))
@@ -281,28 +282,48 @@ def score(out: NDArray[np.uint8], frame: ProxyFrame) -> tuple[float, float, NDAr
             ghost_per_marker(out, fp, frame.clean))
 
 
-def evaluate(frames: Sequence[ProxyFrame], fill: Fill) -> Score:
-    """Runs ``fill`` on every frame; MAE and signed error are pooled over all footprint pixels
-    of all frames, ghosts over all markers."""
+@dataclass(frozen=True)
+class FrameResult:
+    """One fill of one proxy frame: error sums over the footprint, ghosts, time (s)."""
+
+    name: str
+    abs_sum: float
+    signed_sum: float
+    count: int
+    ghosts: NDArray[np.float64]
+    seconds: float
+
+
+def run(frames: Sequence[ProxyFrame], fill: Fill) -> list[FrameResult]:
+    """Runs ``fill`` once on every frame (timed) and keeps what :func:`pool` needs."""
     import time
 
-    abs_sum = signed_sum = 0.0
-    count = 0
-    ghosts, times = [], []
+    res = []
     for f in frames:
         t0 = time.perf_counter()
         out = fill(f.img, None)
-        times.append(time.perf_counter() - t0)
+        dt = time.perf_counter() - t0
         err = out[f.footprint].astype(np.float64) - f.clean[f.footprint]
-        abs_sum += float(np.abs(err).sum())
-        signed_sum += float(err.sum())
-        count += err.size
-        ghosts.append(ghost_per_marker(out, f.footprint, f.clean))
-    g = np.concatenate(ghosts) if ghosts else np.zeros(0)
-    return Score(abs_sum / max(count, 1), signed_sum / max(count, 1),
+        res.append(FrameResult(f.name, float(np.abs(err).sum()), float(err.sum()), int(err.size),
+                               ghost_per_marker(out, f.footprint, f.clean), dt))
+    return res
+
+
+def pool(results: Sequence[FrameResult]) -> Score:
+    """MAE and signed error pooled over all footprint pixels, ghosts over all markers, median
+    time per frame."""
+    n = max(sum(r.count for r in results), 1)
+    g = np.concatenate([r.ghosts for r in results]) if results else np.zeros(0)
+    return Score(sum(r.abs_sum for r in results) / n, sum(r.signed_sum for r in results) / n,
                  float(g.mean()) if g.size else float("nan"),
                  float(np.abs(g).mean()) if g.size else float("nan"),
-                 1e3 * float(np.median(times)))
+                 1e3 * float(np.median([r.seconds for r in results])) if results else float("nan"))
+
+
+def evaluate(frames: Sequence[ProxyFrame], fill: Fill) -> Score:
+    """Runs ``fill`` on every frame; MAE and signed error are pooled over all footprint pixels
+    of all frames, ghosts over all markers (:func:`run`, :func:`pool`)."""
+    return pool(run(frames, fill))
 
 
 # --- Ground-truth-free check on real frames with markers ------------------------------------

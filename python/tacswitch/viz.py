@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+from collections.abc import Sequence
 from typing import cast
 
 import numpy as np
@@ -88,8 +89,8 @@ def line_plot(
     hline_label: str | None = None,
     marks: NDArray | None = None,
     marks_label: str | None = None,
-    spans: list[tuple[float, float, str]] | None = None,
-    events: list[tuple[float, str, int]] | None = None,
+    spans: Sequence[tuple[float, float, str]] | None = None,
+    events: Sequence[tuple[float, str, int]] | None = None,
     title: str = "",
     xlabel: str = "",
     ylabel: str = "",
@@ -132,8 +133,8 @@ def line_plot(
         for k, line in enumerate(_wrap(text, b - a - 12, small)):
             _put(img, line, (a + 6, y1 + 22 + 20 * k), (90, 90, 90), small)
     if marks is not None:
-        for i in np.flatnonzero(np.asarray(marks, bool)):
-            cv2.rectangle(img, (px(i - 0.5, 0)[0], y1), (px(i + 0.5, 0)[0], y0),
+        for j in np.flatnonzero(np.asarray(marks, bool)).tolist():
+            cv2.rectangle(img, (px(j - 0.5, 0)[0], y1), (px(j + 0.5, 0)[0], y0),
                           (215, 215, 255), -1)
     # Axes, ticks and labels.
     cv2.line(img, (x0, y0), (x1, y0), (0, 0, 0), 1)
@@ -145,10 +146,10 @@ def line_plot(
         text = f"{tick:.1f}" if ymax < 20 else f"{tick:.0f}"
         _put(img, text, (x0 - 9 - _text_width(text, small), y + 6), scale=small)
     step = max(1, int(np.ceil(n / 10 / 5)) * 5) if n > 10 else 1
-    for i in range(0, n, step):
-        x, _ = px(i, 0)
+    for tick_i in range(0, n, step):
+        x, _ = px(tick_i, 0)
         cv2.line(img, (x, y0), (x, y0 + 5), (0, 0, 0), 1)
-        _put(img, str(i), (x - _text_width(str(i), small) // 2, y0 + 24), scale=small)
+        _put(img, str(tick_i), (x - _text_width(str(tick_i), small) // 2, y0 + 24), scale=small)
     if xlabel:
         _put(img, xlabel, ((x0 + x1 - _text_width(xlabel, small)) // 2, h - 6), scale=small)
     if ylabel:
@@ -163,10 +164,10 @@ def line_plot(
     palette = [(200, 80, 0), (0, 150, 0), (0, 0, 200), (120, 0, 120)]
     for k, (_name, v) in enumerate(series.items()):
         pts = [px(i, val) for i, val in enumerate(np.asarray(v, np.float64)) if np.isfinite(val)]
-        for a, b in itertools.pairwise(pts):
-            cv2.line(img, a, b, palette[k % len(palette)], 2, cv2.LINE_AA)
-    for i, text, k in events or []:
-        x, _ = px(i, 0)
+        for p, q in itertools.pairwise(pts):
+            cv2.line(img, p, q, palette[k % len(palette)], 2, cv2.LINE_AA)
+    for at, text, k in events or []:
+        x, _ = px(at, 0)
         colour = palette[k % len(palette)]
         for y in range(y1, y0, 8):
             cv2.line(img, (x, y), (x, min(y + 4, y0)), colour, 2)

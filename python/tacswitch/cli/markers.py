@@ -84,6 +84,7 @@ def run(args: argparse.Namespace) -> int:
     done = 0
     with progress(inputs, desc="markers", unit="file", quiet=args.quiet) as bar:
         for path, is_video in bar:
+            img: np.ndarray | None
             if is_video:
                 try:
                     img = video_frame(path, args.frame)

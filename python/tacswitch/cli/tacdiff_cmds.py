@@ -24,6 +24,13 @@ def add_train_parser(what: argparse._SubParsersAction) -> None:
     m.add_argument("--base", type=int, default=None,
                    help="U-Net width (default: 24, or that of --init)")
     m.add_argument("--lr", type=float, default=5e-4)
+    m.add_argument("--warmup", type=int, default=200,
+                   help="steps of linear learning-rate warm-up (default: %(default)s)")
+    m.add_argument("--save-every", type=int, default=250,
+                   help="steps between checkpoints (a rerun resumes from the last; default: "
+                        "%(default)s)")
+    m.add_argument("--threads", type=int, default=0,
+                   help="torch threads (default 0: all cores)")
     m.add_argument("--contact-share", type=float, default=0.5,
                    help="share of crops centred on a marker in contact, where TELEA is weakest "
                         "(default: %(default)s)")
@@ -64,6 +71,8 @@ def run_train(args: argparse.Namespace) -> int:
         raise ValueError(f"--crop: must be a positive multiple of {MULTIPLE}; got {args.crop}")
     if args.steps < 1 or args.batch < 1 or (args.base is not None and args.base < 4):
         raise ValueError("--steps and --batch must be >= 1, --base >= 4")
+    if args.warmup < 0 or args.save_every < 1 or args.threads < 0:
+        raise ValueError("--warmup and --threads must be >= 0, --save-every >= 1")
     for name in ("contact_share", "hole_share", "terminal_fraction"):
         if not 0 <= getattr(args, name) <= 1:
             raise ValueError(f"--{name.replace('_', '-')}: must be in [0, 1]; got "
@@ -94,7 +103,9 @@ def run_train(args: argparse.Namespace) -> int:
     shape = {} if arch is None else {"mults": arch.mults, "attention": arch.attention}
     cfg = TrainConfig(base=args.base or (arch.base if arch else 24), **shape, prior=prior,
                       steps=args.steps, batch=args.batch, crop=args.crop,
-                      lr=args.lr, seed=args.seed, contact_share=args.contact_share,
+                      lr=args.lr, warmup=args.warmup, save_every=args.save_every,
+                      threads=args.threads,
+                      seed=args.seed, contact_share=args.contact_share,
                       hole_share=args.hole_share, terminal_fraction=args.terminal_fraction,
                       extra={"init": str(init)} if init is not None else {})
     net = train(shards, args.out, cfg, progress=not args.quiet, init=init)

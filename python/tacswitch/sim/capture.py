@@ -40,6 +40,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 Codec = Literal["none", "mjpeg", "h264"]
+#: A generator, or a seed for ``numpy.random.default_rng`` (an int or a sequence of ints).
+Seed = np.random.Generator | int | Sequence[int] | None
 CODECS: tuple[str, ...] = ("none", "mjpeg", "h264")
 X264_PRESETS: tuple[str, ...] = ("ultrafast", "superfast", "veryfast", "faster", "fast",
                                  "medium", "slow")
@@ -122,7 +124,7 @@ class CaptureProfile:
 CRISP = CaptureProfile()
 
 
-def sample_profile(rng: np.random.Generator | int | None = None, *,
+def sample_profile(rng: Seed = None, *,
                    codec: Codec | None = None) -> CaptureProfile:
     """A random realistic :class:`CaptureProfile` (ranges: the module constants).
 
@@ -166,7 +168,7 @@ def _as_bgr(img: Any, name: str = "img") -> NDArray[np.uint8]:
     return np.ascontiguousarray(img)
 
 
-def _rng(rng: np.random.Generator | int | None) -> np.random.Generator:
+def _rng(rng: Seed) -> np.random.Generator:
     return rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
 
 
@@ -178,8 +180,8 @@ def blur(img: NDArray[np.floating] | NDArray[np.uint8], sigma: float) -> NDArray
     out = np.asarray(img, np.float32)
     if sigma <= 0:
         return out.copy()
-    return cv2.GaussianBlur(out, (0, 0), sigmaX=float(sigma), sigmaY=float(sigma),
-                            borderType=cv2.BORDER_REFLECT_101)
+    return np.asarray(cv2.GaussianBlur(out, (0, 0), sigmaX=float(sigma), sigmaY=float(sigma),
+                                       borderType=cv2.BORDER_REFLECT_101), np.float32)
 
 
 def colour_drift(img: NDArray[np.floating], gain: Sequence[float], offset: Sequence[float]
@@ -191,7 +193,7 @@ def colour_drift(img: NDArray[np.floating], gain: Sequence[float], offset: Seque
 
 
 def sensor_noise(img: NDArray[np.floating], read_noise: float, shot_noise: float,
-                 rng: np.random.Generator | int | None = None) -> NDArray[np.uint8]:
+                 rng: Seed = None) -> NDArray[np.uint8]:
     """Adds shot noise (variance ``shot_noise * value``) and read noise (sigma ``read_noise``),
     both in grey levels, and quantises to uint8 (round, saturate) as the camera's ADC does."""
     x = np.asarray(img, np.float32)
@@ -295,7 +297,7 @@ def _sensor(img: NDArray[np.uint8], profile: CaptureProfile, rng: np.random.Gene
 
 
 def apply(img: NDArray[np.uint8], profile: CaptureProfile = CRISP,
-          rng: np.random.Generator | int | None = None) -> NDArray[np.uint8]:
+          rng: Seed = None) -> NDArray[np.uint8]:
     """Captures one clean BGR uint8 frame with ``profile``: blur, colour drift, noise, codec.
 
     Under ``"h264"`` the frame is encoded as a clip of :data:`H264_CLIP` frames of the same
@@ -328,7 +330,7 @@ def apply(img: NDArray[np.uint8], profile: CaptureProfile = CRISP,
 
 def apply_sequence(frames: Sequence[NDArray[np.uint8]] | NDArray[np.uint8],
                    profile: CaptureProfile = CRISP,
-                   rng: np.random.Generator | int | None = None, *,
+                   rng: Seed = None, *,
                    gain_drift: float = 0.0) -> NDArray[np.uint8]:
     """Captures a clean video: every frame through the same optics and sensor (fresh noise per
     frame), then one codec over the whole sequence (H.264: one stream, so inter-frame coding is
@@ -355,7 +357,7 @@ def apply_sequence(frames: Sequence[NDArray[np.uint8]] | NDArray[np.uint8],
     gain = np.asarray(profile.gain, np.float64)
     raw = []
     for f in seq:
-        p = replace(profile, gain=tuple(float(v) for v in gain))
+        p = replace(profile, gain=(float(gain[0]), float(gain[1]), float(gain[2])))
         raw.append(_sensor(f, p, g))
         if gain_drift > 0:
             gain = gain * (1.0 + g.normal(0.0, gain_drift))

@@ -2,10 +2,11 @@
 
 Two sources, one format: a shard holds ``cond`` (``B x H x W x 3`` uint8 BGR, the frame the
 network sees, markers included), ``target`` (the same frame's true pixels), ``mask`` (``B x H x W``
-bool: pixels to fill at inference, i.e. markers dilated as the paper does) and ``loss_mask``
+bool: pixels to fill at inference, what remove_markers would mask) and ``loss_mask``
 (pixels whose ``target`` is real and may carry a loss).
 
-- Simulated pairs (:func:`render_pairs`): ``cond`` = I_w, ``target`` = I_wo, ``loss_mask`` = mask.
+- Simulated pairs (:func:`render_pairs`, :func:`render_pair`): ``cond`` = I_w through a random
+  camera and recorder, ``target`` = I_wo through the same optics, ``loss_mask`` = mask.
   Presets are mixed (GelSight 640x480, GelSight Mini, DIGIT, a dense grid; grids varied) so the
   model meets 8-25 px dots of different darkness on both Taxim-calibrated and Phong optics.
 - A user's sensor with markers only (:func:`marker_offset_pairs`, the paper's marker-offset
@@ -37,8 +38,8 @@ from tacswitch.tacdiff.transplant import DEFAULT_RING
 #: Default mix of simulator presets (name, share of samples).
 PRESET_MIX: tuple[tuple[str, float], ...] = (
     ("gelsight", 0.3), ("gelsight_mini", 0.4), ("digit", 0.15), ("dense", 0.15))
-#: Dilations of the *true* marker mask of simulated pairs (it already holds the soft edges; the
-#: paper dilates once with a 3x3 ellipse). Extracted masks use ``inpaint.DEFAULT_DILATE``.
+#: Dilations of the *true* marker mask of the 0.2 simulated pairs (it already holds the soft
+#: edges; the paper dilates once with a 3x3 ellipse); realistic pairs use :func:`removal_markers`.
 MASK_DILATE = 1
 #: Share of realistic pairs captured losslessly and sharp (crisp markers must stay right).
 CRISP_SHARE = 0.15
@@ -131,6 +132,8 @@ def remask(root: str | Path, progress: bool = True) -> int:
         if np.array_equal(mask, arrays["mask"]):
             continue
         arrays["mask"], arrays["loss_mask"] = mask, mask.copy()
+        for key in ("telea", "smooth", "fills_prior"):  # fills of the old mask
+            arrays.pop(key, None)
         with atomic_open(path, "wb") as fh:
             np.savez(fh, **arrays)  # type: ignore[arg-type]
         done += 1
@@ -181,13 +184,12 @@ def load_pairs(root: str | Path) -> list[dict[str, NDArray[Any]]]:
 
 def removal_markers(frame: NDArray[np.uint8], **extract_opts: Any) -> Markers:
     """The markers :func:`tacswitch.remove_markers` would find on ``frame``; their ``mask`` is
-    what it fills (grown as its default does, border-cut markers kept). ``extract_opts``
-    override the defaults."""
-    from tacswitch.inpaint import DEFAULT_DILATE
-    from tacswitch.markers import extract_markers
+    what it fills (grown adaptively per marker as its default does, ``dilate="auto"``,
+    border-cut markers included). ``extract_opts`` override the defaults."""
+    from tacswitch.markers import AUTO, extract_markers
 
     extract_opts.setdefault("exclude_border", False)
-    extract_opts.setdefault("dilate", DEFAULT_DILATE)
+    extract_opts.setdefault("dilate", AUTO)
     return extract_markers(frame, **extract_opts)
 
 
@@ -296,8 +298,9 @@ class CropSampler:
         self.size = size
         self.augment = augment
         for sh in self.shards:
-            if "telea" not in sh or (has_spread(prior) and "smooth" not in sh):
+            if not has_fills(sh, self.prior):
                 sh["telea"], smooth = classical_fills(sh["cond"], sh["mask"], prior)
+                sh["fills_prior"] = np.array(self.prior)
                 if smooth is not None:
                     sh["smooth"] = smooth
         weights = np.array([len(s["cond"]) for s in self.shards], np.float64)
@@ -363,6 +366,39 @@ class CropSampler:
         if spread is not None:
             out["spread"] = spread
         return out
+
+
+def has_fills(shard: dict[str, NDArray[Any]], prior: str) -> bool:
+    """Whether ``shard`` carries the classical fills of ``prior`` (``telea``, ``smooth``),
+    recorded as computed for it (``fills_prior``), e.g. by :func:`cache_fills`."""
+    kind = shard.get("fills_prior")
+    return (kind is not None and str(kind) == prior and "telea" in shard
+            and (not has_spread(prior) or "smooth" in shard))
+
+
+def cache_fills(root: str | Path, prior: str = DEFAULT_PRIOR, progress: bool = True) -> int:
+    """Stores the classical fills of ``prior`` in every shard under ``root`` that lacks them,
+    so training runs (and resumed runs) on those shards skip computing them. Returns the number
+    of shards written. :func:`remask` drops them again when a mask changes."""
+    from tacswitch._io import atomic_open
+
+    check_prior(prior)
+    done = 0
+    for path in sorted(Path(root).glob("pairs_*.npz")):
+        arrays = dict(np.load(path))
+        if has_fills(arrays, prior):
+            continue
+        arrays.pop("smooth", None)
+        arrays["telea"], smooth = classical_fills(arrays["cond"], arrays["mask"], prior)
+        if smooth is not None:
+            arrays["smooth"] = smooth
+        arrays["fills_prior"] = np.array(prior)
+        with atomic_open(path, "wb") as fh:
+            np.savez(fh, **arrays)  # type: ignore[arg-type]
+        done += 1
+        if progress:
+            print(f"{path.name}: fills of {prior}", flush=True)
+    return done
 
 
 def classical_fills(frames: NDArray[np.uint8], masks: NDArray[np.bool_], prior: str

@@ -92,10 +92,13 @@ def contact_region(img: NDArray[np.uint8], mask: NDArray[np.bool_],
     ``img`` is the frame with its ``mask`` holes already filled (e.g. by TELEA)."""
     f = img.astype(np.float32)
     if ref is not None:
-        from tacswitch.inpaint import DEFAULT_DILATE, inpaint_telea
-        from tacswitch.markers import dilate_mask, extract_markers
+        from tacswitch.inpaint import inpaint_telea
+        from tacswitch.markers import dilate_mask
+        from tacswitch.tacdiff.data import removal_markers
 
-        ref_mask = extract_markers(ref, dilate=DEFAULT_DILATE, exclude_border=False).mask
+        # The reference's markers as remove_markers masks them (adaptive growth), so their
+        # rings do not read as contact.
+        ref_mask = removal_markers(ref).mask
         ref_clean = inpaint_telea(ref, ref_mask, radius).astype(np.float32)
         diff = _box(f, BOX) - _box(ref_clean, BOX)
         diff -= np.median(diff.reshape(-1, 3), axis=0)

@@ -1390,6 +1390,68 @@ mod tests {
     }
 
     #[test]
+    fn slivers_on_every_border_are_masked_not_reported() {
+        // Centres outside the frame on each border (deep cuts: slivers), plus an interior grid.
+        let mut centres = vec![[-3.0, 60.0], [163.0, 100.0], [100.0, -3.5], [60.0, 163.0]];
+        for j in 0..3 {
+            for i in 0..3 {
+                centres.push([40.0 + 40.0 * i as f32, 40.0 + 40.0 * j as f32]);
+            }
+        }
+        let img = render(160, 160, &centres, 5.0, 200.0, 30.0);
+        let view = ImageView::new(&img, 160, 160, 1, "img").unwrap();
+        for grow in [MaskGrowth::Dilate(0), MaskGrowth::Adaptive] {
+            let params = ExtractParams {
+                grow,
+                ..Default::default()
+            };
+            let ex = extract_markers(&view, &params).unwrap();
+            assert_eq!(ex.markers.len(), 9);
+            for (i, &v) in img.iter().enumerate() {
+                assert!(
+                    v > 100 || ex.mask[i],
+                    "dark pixel {i} outside the mask, {grow:?}"
+                );
+            }
+        }
+        let all = ExtractParams {
+            exclude_border: false,
+            ..Default::default()
+        };
+        assert_eq!(extract_markers(&view, &all).unwrap().markers.len(), 13);
+    }
+
+    #[test]
+    fn adaptive_growth_on_crisp_discs_is_one_ring() {
+        let centres: Vec<[f32; 2]> = (0..4)
+            .flat_map(|j| (0..5).map(move |i| [30.3 + 35.0 * i as f32, 30.6 + 35.0 * j as f32]))
+            .collect();
+        let img = render(160, 200, &centres, 5.0, 180.0, 40.0);
+        let view = ImageView::new(&img, 160, 200, 1, "img").unwrap();
+        let params = ExtractParams {
+            grow: MaskGrowth::Adaptive,
+            ..Default::default()
+        };
+        let ex = extract_markers(&view, &params).unwrap();
+        assert_eq!(ex.markers.len(), 20);
+        assert!(ex.grow_rings.iter().all(|&r| r <= 1), "{:?}", ex.grow_rings);
+        // Every pixel a disc touches is inside.
+        assert!(img.iter().zip(&ex.mask).all(|(&v, &m)| v >= 180 || m));
+    }
+
+    #[test]
+    fn dilation_stops_once_the_mask_is_full() {
+        let mut mask = vec![false; 6 * 9];
+        mask[0] = true;
+        let full = dilate_cross_n(mask.clone(), 6, 9, usize::MAX);
+        assert!(full.iter().all(|&m| m));
+        assert!(!dilate_cross_n(mask, 6, 9, 12).iter().all(|&m| m));
+        assert!(dilate_cross_n(vec![false; 54], 6, 9, usize::MAX)
+            .iter()
+            .all(|&m| !m));
+    }
+
+    #[test]
     fn tiny_images_do_not_panic() {
         for (h, w) in [(1, 1), (1, 7), (5, 1), (2, 2), (3, 40)] {
             let img = vec![7u8; h * w * 3];

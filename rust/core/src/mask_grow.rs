@@ -10,21 +10,24 @@
 //! Per marker (one window around it, single thread):
 //! 1. a chamfer (3-4) distance from the marker's thresholded pixels; ring `k` holds the pixels at
 //!    distance `(k - 1, k]` (ring 1 = the 4-neighbours, i.e. one 3x3-cross dilation);
-//! 2. the local background: a plane fitted (least squares, two outlier-rejecting passes) to the
-//!    luma of an annulus of [`ANNULUS_RINGS`] rings just beyond the largest growth allowed, so a
-//!    contact-shading gradient across the marker is not mistaken for darkening; the fit's
-//!    residual spread is the local noise sigma;
-//! 3. each ring's mean darkness relative to that plane (other markers' pixels excluded); the mask
-//!    takes every ring up to the last one whose mean deviates from the background by more than
-//!    [`GROW_SIGMAS`] local noise sigmas, stopping after two consistent rings in a row (codec
-//!    ringing alternates dark and bright, so one consistent ring does not end the rim);
+//! 2. the local noise sigma: the robust spread (MAD) of the luma around a plane fitted (least
+//!    squares, two outlier-rejecting passes) to an annulus of [`ANNULUS_RINGS`] rings just
+//!    beyond the largest growth allowed;
+//! 3. ring `k` is part of the rim while its mean luma differs by more than [`GROW_SIGMAS`] noise
+//!    sigmas from the local background just outside it: the least-squares plane through rings
+//!    `k + 1 ..= k + ANNULUS_RINGS` (other markers' pixels excluded), so that contact shading (a
+//!    gradient, or curvature over a few pixels) is not mistaken for darkening. The mask takes
+//!    every ring up to the last one that differs, stopping after two consistent rings in a row
+//!    (codec ringing alternates dark and bright, so one consistent ring does not end the rim);
 //! 4. growth is capped at [`MAX_GROW_RADII`] marker radii and at half the gap to the nearest
 //!    other marker, so neighbouring markers and contact shading cannot make it run away.
 
-/// Rings (pixels) of the annulus the local background is fitted on.
+/// Rings (pixels) the local background just outside a ring is fitted on (and of the outer
+/// annulus the noise is measured on).
 pub const ANNULUS_RINGS: usize = 2;
-/// A ring belongs to the marker while its mean darkness differs from the local background by
-/// more than this many local noise sigmas (per-pixel sigma of the annulus around the plane)...
+/// A ring belongs to the marker while its mean luma differs from the local background just
+/// outside it by more than this many local noise sigmas (per-pixel sigma of the outer annulus
+/// around its plane)...
 pub const GROW_SIGMAS: f32 = 0.25;
 /// ...and by more than this many grey levels (noise-free synthetic frames).
 pub const GROW_MIN_LEVELS: f32 = 0.5;

@@ -67,6 +67,7 @@ def main() -> int:
         img, rest = frame(preset, noise=sim.get_preset(preset).noise_sigma)
         t = interleaved({
             "ours": lambda img=img: ts.extract_markers(img),
+            "auto": lambda img=img: ts.extract_markers(img, dilate="auto"),
             "cv_gauss": lambda img=img: opencv_chain(img, "gauss"),
             "cv_box": lambda img=img: opencv_chain(img, "box"),
         }, rounds=rounds, repeat=20)
@@ -76,12 +77,13 @@ def main() -> int:
         same = len(peer) == len(ours) and max_err(ours, peer) < 1.0
         rows.append([
             f"{preset} {img.shape[1]}x{img.shape[0]}, {len(rest)} markers",
-            t["ours"].fmt(), t["cv_gauss"].fmt(), t["cv_box"].fmt(),
+            t["ours"].fmt(), t["auto"].fmt(), t["cv_gauss"].fmt(), t["cv_box"].fmt(),
             f"**{fastest / t['ours'].median:.1f}x**",
             f"{len(ours)} / {len(peer)}{' (same)' if same else ''}",
         ])
     print("### Speed (median [IQR] per frame, one thread)\n")
-    print(table(["frame", "tacswitch", "OpenCV Gauss chain", "OpenCV box chain",
+    print(table(["frame", "tacswitch", "tacswitch, adaptive mask (dilate='auto')",
+                 "OpenCV Gauss chain", "OpenCV box chain",
                  "speed-up vs fastest OpenCV", "markers ours / OpenCV"], rows))
 
     acc = []

@@ -39,17 +39,18 @@ from tacswitch.motion.infer import MotionModel, default_model_path
 SECTION = "## Marker motion from markerless frames: model vs baselines (accuracy)"
 
 
-def _methods(model: MotionModel, with_ref: bool) -> dict[str, Any]:
+def _methods(model: MotionModel, with_ref: bool, baselines: bool = True) -> dict[str, Any]:
     from tacswitch.motion.flow import flow_motion
     from tacswitch.motion.heuristic import outward_motion
 
     def zero(img: Any, ref: Any, c: Any) -> Any:
         return np.zeros((len(c), 2), np.float32)
 
-    out: dict[str, Any] = {"zero": zero,
-                           "outward heuristic": lambda i, r, c: outward_motion(i, r, c)}
-    if with_ref:
-        out["flow (DIS medium)"] = lambda i, r, c: flow_motion(i, r, c)
+    out: dict[str, Any] = {"zero": zero}
+    if baselines:
+        out["outward heuristic"] = lambda i, r, c: outward_motion(i, r, c)
+        if with_ref:
+            out["flow (DIS medium)"] = lambda i, r, c: flow_motion(i, r, c)
     out["model"] = lambda i, r, c: model(i, r, c)
     return out
 
@@ -118,6 +119,8 @@ def main() -> None:
     ap.add_argument("--press-step", type=int, default=2, help="every K-th real press")
     ap.add_argument("--no-sim", action="store_true")
     ap.add_argument("--no-proxy", action="store_true")
+    ap.add_argument("--no-baselines", action="store_true",
+                    help="score only zero motion and the model (the baselines do not change)")
     ap.add_argument("--update", action="store_true", help="write BENCHMARKS.md's section")
     args = ap.parse_args()
     model = MotionModel(args.model or default_model_path())
@@ -131,7 +134,8 @@ def main() -> None:
     rows = []
     for name, samples in settings.items():
         with_ref = samples[0][1] is not None
-        for meth, m in _score(samples, _methods(model, with_ref)).items():
+        methods = _methods(model, with_ref, not args.no_baselines)
+        for meth, m in _score(samples, methods).items():
             rows.append([name, meth, f"{m['e_rmse_mean']:.3f} / {m['e_rmse_median']:.3f}",
                          f"{m['e_mag_mean']:.3f}", f"{m['nan_pct']:.1f}", f"{m['cos_mean']:.3f}",
                          f"{m['within30_pct']:.1f}", f"{len(samples)}", f"{m['ms']:.1f}"])

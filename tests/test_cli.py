@@ -255,8 +255,8 @@ def test_motion_command_matches_predict_motion(tmp_path: Path, motion_pair: dict
                  "-o", str(tmp_path / "g"), "-q"]) == 0
     pts, _ = _read_motion_csv(tmp_path / "g" / "img.csv")
     np.testing.assert_allclose(pts, load_model().centres_for(*img.shape[:2]), atol=1e-3)
-    # The shipped model measures motion since a reference frame: no --ref is a user error.
-    assert main(["motion", str(tmp_path / "img.png"), "-o", str(tmp_path / "n"), "-q"]) == 1
+    # The shipped model's reference is optional: without --ref, the single-frame motion.
+    assert main(["motion", str(tmp_path / "img.png"), "-o", str(tmp_path / "n"), "-q"]) == 0
     centres.write_bytes(b"\x93NUMPY")
     assert main(["motion", str(tmp_path / "img.png"), "--ref", str(tmp_path / "ref.png"),
                  "--centres", str(centres), "-o", str(out), "-q"]) == 1

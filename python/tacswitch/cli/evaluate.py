@@ -60,7 +60,10 @@ def run(args: argparse.Namespace) -> int:
         arrays = mdata.load_split(args.data, split)
         results[split] = evaluate_split(arrays, lambda i, r, c: model(i, ref=r, centres=c),
                                         use_ref=model.use_ref, pitch=pitch)
-    pair = "pair_train" in model.metadata.get("tacswitch.trained_on", "")
+    # Pair models, and the consistent design (its reference is optional), are also scored on
+    # motion since an earlier contact frame.
+    pair = "pair_train" in model.metadata.get("tacswitch.trained_on", "") or \
+        getattr(model, "design", "plain") == "consistent"
     if pair:
         # Motion since an earlier contact frame (what the model was trained for).
         mdata.generate_split(args.data, "pair_test_indenter", args.n // 2, preset=args.preset,

@@ -88,10 +88,12 @@ class SmallUNet(nn.Module):
     time and the field is only read out at stride 4.
     """
 
-    def __init__(self, in_ch: int = 3, widths: tuple[int, ...] = (32, 64, 96, 128)) -> None:
+    def __init__(self, in_ch: int = 3, widths: tuple[int, ...] = (32, 64, 96, 128),
+                 stem_stride: int = 4) -> None:
         super().__init__()
         w1, w2, w3, w4 = widths
-        self.stem = _cbr(in_ch, w1, 4, 4)                       # /4
+        # stem_stride=1: the input is already at stride 4 (feature maps), a 1x1 mixing stem.
+        self.stem = _cbr(in_ch, w1, stem_stride, stem_stride)  # /4
         self.e1 = _DS(w1, w1)
         self.e2 = nn.Sequential(_DS(w1, w2, 2), _DS(w2, w2))    # /8
         self.e3 = nn.Sequential(_DS(w2, w3, 2), _DS(w3, w3))    # /16
@@ -243,13 +245,73 @@ class ConsistentMotionNet(nn.Module):
         return sample_at(f, centres, img.shape[1], img.shape[2])
 
 
+class CorrMotionNet(ConsistentMotionNet):
+    """The consistent design on a local correlation volume instead of the frames' difference.
+
+    Shared features ``f`` (stride 4) of each normalised frame; ``C(a, b)`` is the correlation of
+    ``a`` with ``b`` shifted by every offset within ``radius`` feature cells (``radius * 4`` px);
+    ``H(a, C)`` a :class:`SmallUNet` on ``[a, C]`` gives motion from rest:
+
+    - single frame: ``H(f_x, C(f_x, f_x))``;
+    - with a reference: ``H(f_x, C(f_x, f_r)) - H(f_r, C(f_r, f_r))``: exactly zero for
+      identical frames (the two terms are then the same computation).
+    """
+
+    def __init__(self, feat: int = 16, radius: int = 4,
+                 widths: tuple[int, ...] = (32, 64, 96, 128)) -> None:
+        nn.Module.__init__(self)
+        self.arch, self.use_ref, self.design = "corr", False, "consistent"
+        self.norm = FrameNorm()
+        self.radius = radius
+        self.feat = nn.Sequential(_cbr(3, feat, 4, 4), _DS(feat, feat))
+        self.body = SmallUNet(feat + (2 * radius + 1) ** 2, widths, stem_stride=1)
+
+    def corr(self, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+        """``B x (2 radius + 1)^2 x h x w``: mean over channels of ``a(p) * b(p + d)``."""
+        r = self.radius
+        h, w = a.shape[-2:]
+        bp = F.pad(b, (r, r, r, r))
+        return torch.cat([(a * bp[:, :, dy:dy + h, dx:dx + w]).mean(1, keepdim=True)
+                          for dy in range(2 * r + 1) for dx in range(2 * r + 1)], dim=1)
+
+    def _h(self, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+        return self.body(torch.cat([a, self.corr(a, b)], dim=1)) * MOTION_SCALE
+
+    def pair_fields(self, x: torch.Tensor, r: torch.Tensor
+                    ) -> tuple[torch.Tensor, torch.Tensor]:
+        b = x.shape[0]
+        f = self.feat(torch.cat([x, r]))
+        fx, fr = f[:b], f[b:]
+        out = self._h(torch.cat([fr, fx]), torch.cat([fr, fr]))
+        return out[:b], out[b:] - out[:b]
+
+    def field(self, img: torch.Tensor, ref: torch.Tensor | None = None,
+              has_ref: torch.Tensor | None = None) -> torch.Tensor:
+        x = self.norm(img)
+        if ref is None:
+            fx = self.feat(x)
+            return self._h(fx, fx)
+        b = x.shape[0]
+        f = self.feat(torch.cat([x, self.norm(ref)]))
+        fx, fr = f[:b], f[b:]
+        h = torch.ones(1, dtype=x.dtype) if has_ref is None else has_ref.to(x.dtype)
+        # h = 0: the reference term drops out and the first correlates the frame with itself.
+        fr_eff = fx + h * (fr - fx)
+        out = self._h(torch.cat([fx, fr]), torch.cat([fr_eff, fr]))
+        return out[:b] - h * out[b:]
+
+
 def build_net(arch: str = "unet", use_ref: bool = False, design: str = "plain"
               ) -> MotionNet | ConsistentMotionNet:
     """The network of a training configuration: ``design="consistent"`` gives a
-    :class:`ConsistentMotionNet` (``arch`` must be ``"unet"``), ``"plain"`` a :class:`MotionNet`."""
+    :class:`ConsistentMotionNet` (``arch="unet"``: on the frames' difference) or a
+    :class:`CorrMotionNet` (``arch="corr"``: on a correlation volume); ``"plain"`` a
+    :class:`MotionNet`."""
     if design == "consistent":
+        if arch == "corr":
+            return CorrMotionNet()
         if arch != "unet":
-            raise ValueError(f"arch: the consistent design uses 'unet'; got {arch!r}")
+            raise ValueError(f"arch: the consistent design uses 'unet' or 'corr'; got {arch!r}")
         return ConsistentMotionNet()
     if design != "plain":
         raise ValueError(f"design: must be 'plain' or 'consistent'; got {design!r}")

@@ -70,6 +70,7 @@ pub struct GrowWorkspace {
     dist: Vec<u8>,
     annulus: Vec<[f32; 3]>,
     scratch: Vec<f32>,
+    sums_int: Vec<RingSumsInt>,
     sums: Vec<RingSums>,
 }
 
@@ -153,6 +154,37 @@ struct RingSums {
     yz: f64,
 }
 
+/// [`RingSums`] accumulated per pixel in integers (exact and cheaper than floats): window
+/// coordinates are below 2^16 and luma below 2^16, so every sum of a window fits in u64.
+#[derive(Debug, Default, Clone, Copy)]
+struct RingSumsInt {
+    n: u64,
+    x: u64,
+    y: u64,
+    z: u64,
+    xx: u64,
+    xy: u64,
+    yy: u64,
+    xz: u64,
+    yz: u64,
+}
+
+impl RingSumsInt {
+    fn to_f64(self) -> RingSums {
+        RingSums {
+            n: self.n as f64,
+            x: self.x as f64,
+            y: self.y as f64,
+            z: self.z as f64,
+            xx: self.xx as f64,
+            xy: self.xy as f64,
+            yy: self.yy as f64,
+            xz: self.xz as f64,
+            yz: self.yz as f64,
+        }
+    }
+}
+
 impl RingSums {
     fn add(&mut self, o: &RingSums) {
         self.n += o.n;
@@ -218,35 +250,37 @@ fn grow_one(
 
     // One pass: per-ring moments, and the pixels of the outermost annulus for the noise.
     ws.annulus.clear();
-    ws.sums.clear();
-    ws.sums.resize(margin + 1, RingSums::default());
+    ws.sums_int.clear();
+    ws.sums_int.resize(margin + 1, RingSumsInt::default());
     for wy in 0..wh {
         let y = y0 + wy;
         let drow = &ws.dist[(wy + 1) * pw + 1..][..ww];
         let lrow = &luma[y * w + x0..][..ww];
         let labrow = &labels[y * w + x0..][..ww];
-        let fy = wy as f64;
+        let iy = wy as u64;
         for (wx, ((&d, &z), &l)) in drow.iter().zip(lrow).zip(labrow).enumerate() {
             let r = usize::from(ring_of[usize::from(d)]);
             if r == 0 || l != 0 {
                 continue;
             }
-            let (fx, fz) = (wx as f64, f64::from(z));
-            let e = &mut ws.sums[r];
-            e.n += 1.0;
-            e.x += fx;
-            e.y += fy;
-            e.z += fz;
-            e.xx += fx * fx;
-            e.xy += fx * fy;
-            e.yy += fy * fy;
-            e.xz += fx * fz;
-            e.yz += fy * fz;
+            let (ix, iz) = (wx as u64, u64::from(z));
+            let e = &mut ws.sums_int[r];
+            e.n += 1;
+            e.x += ix;
+            e.y += iy;
+            e.z += iz;
+            e.xx += ix * ix;
+            e.xy += ix * iy;
+            e.yy += iy * iy;
+            e.xz += ix * iz;
+            e.yz += iy * iz;
             if r > cap {
                 ws.annulus.push([wx as f32, wy as f32, z as f32]);
             }
         }
     }
+    ws.sums.clear();
+    ws.sums.extend(ws.sums_int.iter().map(|e| e.to_f64()));
     // The local noise: robust spread of the outermost annulus around its own plane.
     let Some((_, sigma)) = fit_background(&ws.annulus, &mut ws.scratch) else {
         return 0;
@@ -314,17 +348,21 @@ fn chamfer(
     for wy in 1..=wh {
         let (above, rest) = dist.split_at_mut(wy * pw);
         relax_row(&above[(wy - 1) * pw..][..pw], &mut rest[..pw]);
-        let row = &mut rest[..pw];
-        for x in 1..=ww {
-            row[x] = row[x].min(row[x - 1].saturating_add(STEP_ORTHO));
+        // The running value stays in a register (no store-to-load round trip per pixel).
+        let mut run = u8::MAX;
+        for v in rest[1..=ww].iter_mut() {
+            run = (*v).min(run.saturating_add(STEP_ORTHO));
+            *v = run;
         }
     }
     for wy in (1..=wh).rev() {
         let (head, below) = dist.split_at_mut((wy + 1) * pw);
         let row = &mut head[wy * pw..][..pw];
         relax_row(&below[..pw], row);
-        for x in (1..=ww).rev() {
-            row[x] = row[x].min(row[x + 1].saturating_add(STEP_ORTHO));
+        let mut run = u8::MAX;
+        for v in row[1..=ww].iter_mut().rev() {
+            run = (*v).min(run.saturating_add(STEP_ORTHO));
+            *v = run;
         }
     }
 }

@@ -8,6 +8,20 @@ import numpy as np
 from numpy.typing import NDArray
 
 VALID_CHANNELS = (1, 3, 4)
+#: Default upper bound of integer arguments: every count, size and area the API takes fits in a
+#: signed 32-bit integer (larger values are mistakes, and overflow the native side's types).
+MAX_COUNT = 2**31 - 1
+
+
+def aligned(arr: NDArray[Any]) -> NDArray[Any]:
+    """``arr`` itself when C-contiguous and aligned, else an aligned C-contiguous copy.
+
+    ``np.ascontiguousarray`` keeps an unaligned array (e.g. a view at an odd byte offset of a
+    buffer) as it is; the native code needs aligned elements.
+    """
+    if arr.flags.c_contiguous and arr.flags.aligned:
+        return arr
+    return np.array(arr, order="C", copy=True)
 
 
 def as_image(
@@ -41,7 +55,7 @@ def as_image(
         )
     if img.shape[0] < 1 or img.shape[1] < 1:
         raise ValueError(f"{name}: image must be at least 1 x 1 pixels; got shape {img.shape}")
-    return np.ascontiguousarray(img)
+    return aligned(img)
 
 
 def as_image_u8(img: Any, name: str = "img") -> NDArray[np.uint8]:
@@ -49,13 +63,52 @@ def as_image_u8(img: Any, name: str = "img") -> NDArray[np.uint8]:
     return as_image(img, name)
 
 
-def as_count(value: Any, name: str, minimum: int) -> int:
-    """Checks an integer argument (bools refused) against a minimum."""
+def as_count(value: Any, name: str, minimum: int, maximum: int | None = MAX_COUNT) -> int:
+    """Checks an integer argument (bools refused) against ``[minimum, maximum]``.
+
+    ``maximum=None``: no upper bound (for counts the callee caps itself, e.g. dilations that
+    stop once the mask is full). Raises ``TypeError`` for a non-integer, ``ValueError`` outside
+    the range; both messages read ``"NAME: expected an integer in [a, b], got ..."``.
+    """
+    span = f"[{minimum}, {maximum}]" if maximum is not None else f">= {minimum}"
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name}: expected an integer, got {type(value).__name__}")
-    if value < minimum:
-        raise ValueError(f"{name}: must be >= {minimum}; got {value}")
+        raise TypeError(f"{name}: expected an integer {'in ' if maximum is not None else ''}"
+                        f"{span}, got {type(value).__name__}")
+    if value < minimum or (maximum is not None and value > maximum):
+        raise ValueError(f"{name}: expected an integer {'in ' if maximum is not None else ''}"
+                         f"{span}, got {value}")
     return int(value)
+
+
+def as_number(value: Any, name: str, minimum: float | None = None,
+              maximum: float | None = None) -> float:
+    """Checks a finite real argument (bools refused) against an optional closed range."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name}: expected a number, got {type(value).__name__}")
+    try:
+        v = float(value)
+    except OverflowError:
+        v = float("inf") if value > 0 else float("-inf")
+    lo = -np.inf if minimum is None else minimum
+    hi = np.inf if maximum is None else maximum
+    if not np.isfinite(v) or not lo <= v <= hi:
+        raise ValueError(f"{name}: expected a finite number in [{lo}, {hi}], got {value!r}")
+    return v
+
+
+def as_choice(value: Any, name: str, choices: tuple[str, ...]) -> str:
+    """Checks a string argument against its allowed values."""
+    if not isinstance(value, str) or value not in choices:
+        allowed = ", ".join(repr(c) for c in choices)
+        raise ValueError(f"{name}: must be one of {allowed}; got {value!r}")
+    return value
+
+
+def as_seed(seed: Any, name: str = "seed") -> int | None:
+    """An optional random seed: None or an integer in ``[0, 2**32 - 1]`` (numpy's range)."""
+    if seed is None:
+        return None
+    return as_count(seed, name, 0, 2**32 - 1)
 
 
 def as_points(pts: Any, name: str, *, check_finite: bool = True) -> NDArray[np.float32]:
@@ -67,8 +120,8 @@ def as_points(pts: Any, name: str, *, check_finite: bool = True) -> NDArray[np.f
     if isinstance(pts, np.ndarray) and pts.dtype == np.bool_:
         raise TypeError(f"{name}: expected numeric (x, y) points, got a boolean array")
     try:
-        arr = np.ascontiguousarray(pts, dtype=np.float32)
-    except (TypeError, ValueError) as exc:
+        arr = aligned(np.asarray(pts, dtype=np.float32))
+    except (TypeError, ValueError, OverflowError) as exc:
         raise TypeError(f"{name}: expected an N x 2 array of (x, y) points ({exc})") from None
     if arr.size == 0:
         return np.zeros((0, 2), dtype=np.float32)
@@ -87,14 +140,14 @@ def as_valid(valid: Any, n: int, name: str = "valid") -> NDArray[np.bool_]:
         raise TypeError(f"{name}: expected a boolean array, got dtype {arr.dtype}")
     if arr.shape != (n,):
         raise ValueError(f"{name}: expected shape ({n},) to match the motion rows; got {arr.shape}")
-    return np.ascontiguousarray(arr)
+    return aligned(arr)
 
 
 def as_motion(motion: Any, name: str = "motion") -> NDArray[np.float32]:
     """Returns ``motion`` as ``N x 2`` float32; NaN rows are allowed (lost markers), Inf is not."""
     try:
         arr = np.asarray(motion, dtype=np.float32)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise TypeError(f"{name}: expected an N x 2 array of (dx, dy) ({exc})") from None
     if arr.size == 0:
         return np.zeros((0, 2), dtype=np.float32)
@@ -102,14 +155,68 @@ def as_motion(motion: Any, name: str = "motion") -> NDArray[np.float32]:
         raise ValueError(f"{name}: expected an N x 2 array of (dx, dy); got shape {arr.shape}")
     if np.isinf(arr).any():
         raise ValueError(f"{name}: contains infinite values")
-    return np.ascontiguousarray(arr)
+    return aligned(arr)
 
 
 def positive_or_none(value: float | None, name: str) -> float | None:
     """Checks an optional positive finite number."""
     if value is None:
         return None
-    v = float(value)
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name}: expected a positive number or None, got {type(value).__name__}")
+    try:
+        v = float(value)
+    except OverflowError:
+        v = float("inf")
     if not np.isfinite(v) or v <= 0:
         raise ValueError(f"{name}: must be a positive, finite number; got {value!r}")
     return v
+
+
+def check_extract_options(opts: dict[str, Any]) -> dict[str, Any]:
+    """Validates the options :func:`tacswitch.extract_markers` and :class:`MarkerTracker` share
+    (``polarity``, ``block_size``, ``threshold``, ``min_area``, ``max_area``, ``min_fill``,
+    ``max_aspect``, ``exclude_border``) and returns them converted for the native side.
+
+    Only the keys present are checked; every error names its option.
+    """
+    out = dict(opts)
+    if "polarity" in out:
+        out["polarity"] = as_choice(out["polarity"], "polarity", ("dark", "bright"))
+    for name, minimum in (("block_size", 3), ("min_area", 0), ("max_area", 0)):
+        if out.get(name) is not None:
+            out[name] = as_count(out[name], name, minimum)
+    if out.get("threshold") is not None:
+        out["threshold"] = as_number(out["threshold"], "threshold", 0.0)
+    if "min_fill" in out:
+        out["min_fill"] = as_number(out["min_fill"], "min_fill", 0.0, 1.0)
+    if "max_aspect" in out:
+        out["max_aspect"] = as_number(out["max_aspect"], "max_aspect", 1.0)
+    if "exclude_border" in out:
+        flag = out["exclude_border"]
+        if not isinstance(flag, (bool, np.bool_)):
+            raise TypeError(f"exclude_border: expected a bool, got {type(flag).__name__}")
+        out["exclude_border"] = bool(flag)
+    return out
+
+
+def check_model_arg(model: Any, name: str = "model") -> None:
+    """An ONNX model argument must be None, a path or a shipped model's name (a str)."""
+    import os
+
+    if model is not None and not isinstance(model, (str, os.PathLike)):
+        raise TypeError(f"{name}: expected a path to an ONNX file, a shipped model name or None, "
+                        f"got {type(model).__name__}")
+
+
+def check_downsampled_size(shape: tuple[int, ...], factor: int, minimum: int,
+                           name: str = "img") -> None:
+    """A frame ``shape`` downsampled by ``factor`` must keep both sides >= ``minimum`` px.
+
+    ``minimum`` is the smallest side the consumer (e.g. a network's stride) can take.
+    """
+    h, w = int(shape[0]) // factor, int(shape[1]) // factor
+    if min(h, w) < minimum:
+        raise ValueError(f"{name}: a {shape[0]} x {shape[1]} frame is {h} x {w} px after the "
+                         f"model's {factor}x downsampling; both sides must be at least "
+                         f"{minimum} px")

@@ -33,9 +33,58 @@ def read_manifest(root: str | Path) -> tuple[dict[str, Any], list[dict[str, Any]
     if not head.is_file() or not man.is_file():
         raise ValueError(f"root: {str(root)!r} holds no tacswitch dataset "
                          "(dataset.json and manifest.jsonl expected)")
-    header = json.loads(head.read_text())
-    records = [json.loads(line) for line in man.read_text().splitlines() if line.strip()]
+    try:
+        header = json.loads(head.read_text())
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise ValueError(f"root: {str(head)!r} is not valid JSON ({exc})") from None
+    if not isinstance(header, dict) or not isinstance(header.get("classes", []), list):
+        raise ValueError(f"root: {str(head)!r} must hold a JSON object with a 'classes' list")
+    records = []
+    try:
+        for n, line in enumerate(man.read_text().splitlines(), 1):
+            if not line.strip():
+                continue
+            try:
+                rec = json.loads(line)
+            except ValueError as exc:
+                raise ValueError(f"root: {str(man)!r} line {n} is not valid JSON ({exc})") from None
+            if not isinstance(rec, dict):
+                raise ValueError(f"root: {str(man)!r} line {n} is not a JSON object")
+            records.append(rec)
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"root: {str(man)!r} is not UTF-8 text ({exc})") from None
     return header, records
+
+
+def _record_dir(root: Path, rec: dict[str, Any], i: int) -> Path:
+    """The folder of record ``i``; it must lie inside ``root`` (no absolute path, no ``..``)."""
+    rel = rec.get("dir")
+    if not isinstance(rel, str):
+        raise ValueError(f"root: manifest record {i} has no 'dir' string")
+    d = (root / rel).resolve()
+    if not d.is_relative_to(root.resolve()):
+        raise ValueError(f"root: manifest record {i} points outside the dataset ({rel!r})")
+    return d
+
+
+def _field(rec: dict[str, Any], key: str, i: int) -> Any:
+    """``rec[key]``, or a ValueError naming the record and the missing key."""
+    try:
+        return rec[key]
+    except (KeyError, TypeError):
+        raise ValueError(f"root: manifest record {i} lacks {key!r}") from None
+
+
+def _file(d: Path, rec: dict[str, Any], key: str, i: int) -> Path:
+    """Path of file ``key`` of record ``i``, inside its folder ``d``."""
+    files = _field(rec, "files", i)
+    name = files.get(key) if isinstance(files, dict) else None
+    if not isinstance(name, str):
+        raise ValueError(f"root: manifest record {i} has no file {key!r}")
+    path = (d / name).resolve()
+    if not path.is_relative_to(d):
+        raise ValueError(f"root: manifest record {i} file {key!r} points outside its folder")
+    return path
 
 
 def _img(path: Path) -> np.ndarray:
@@ -44,12 +93,16 @@ def _img(path: Path) -> np.ndarray:
     return read_image(path)
 
 
-def _mask(path: Path) -> np.ndarray:
+def _mask(path: Path, shape: tuple[int, ...] | None = None) -> np.ndarray:
+    """Reads a mask PNG as bool; ``shape``: the ``(H, W)`` it must have (its image's)."""
     import cv2
 
     m = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
     if m is None:
         raise ValueError(f"path: cannot read a mask from {str(path)!r}")
+    if shape is not None and m.shape != tuple(shape[:2]):
+        raise ValueError(f"path: mask {str(path)!r} is {m.shape[0]} x {m.shape[1]} but its image "
+                         f"is {shape[0]} x {shape[1]}")
     return m > 127
 
 
@@ -71,6 +124,8 @@ class TactileDataset:
         self.header, self.records = read_manifest(self.root)
         if self.header.get("sequences"):
             raise ValueError(f"root: {str(root)!r} holds sequences; use SequenceDataset")
+        if "classes" not in self.header:
+            raise ValueError(f"root: {str(root)!r}: dataset.json lacks 'classes'")
         self.classes: list[str] = list(self.header["classes"])
         self.transform = transform
         self.keys = keys
@@ -79,22 +134,34 @@ class TactileDataset:
         return len(self.records)
 
     def __getitem__(self, i: int) -> Any:
+        if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
+            raise TypeError(f"i: expected an integer index, got {type(i).__name__}")
         if not -len(self) <= i < len(self):
             raise IndexError(f"i: {i} out of range for {len(self)} samples")
         rec = self.records[i]
-        d = self.root / rec["dir"]
-        item: dict[str, Any] = {
-            "index": rec["index"], "label": rec["label"], "label_id": rec["label_id"],
-            "rest": np.asarray(rec["rest"], np.float32).reshape(-1, 2),
-            "displacement": np.asarray(rec["displacement"], np.float32).reshape(-1, 2),
-            "present": np.asarray(rec["present"], bool),
-            "merged": np.asarray(rec["merged"], bool), "params": rec["params"],
-        }
-        for k in self.IMAGE_KEYS + self.MASK_KEYS:
-            if self.keys is not None and k not in self.keys:
-                continue
-            path = d / rec["files"][k]
-            item[k] = _mask(path) if k in self.MASK_KEYS else _img(path)
+        n = int(i) % len(self)
+        d = _record_dir(self.root, rec, n)
+        f = lambda key: _field(rec, key, n)  # noqa: E731
+        try:
+            item: dict[str, Any] = {
+                "index": f("index"), "label": f("label"), "label_id": f("label_id"),
+                "rest": np.asarray(f("rest"), np.float32).reshape(-1, 2),
+                "displacement": np.asarray(f("displacement"), np.float32).reshape(-1, 2),
+                "present": np.asarray(f("present"), bool),
+                "merged": np.asarray(f("merged"), bool), "params": f("params"),
+            }
+        except (TypeError, ValueError) as exc:
+            if str(exc).startswith("root:"):
+                raise
+            raise ValueError(f"root: manifest record {n} has a malformed field ({exc})") from None
+        shape: tuple[int, ...] | None = None
+        for k in self.IMAGE_KEYS:
+            if self.keys is None or k in self.keys:
+                item[k] = _img(_file(d, rec, k, n))
+                shape = item[k].shape
+        for k in self.MASK_KEYS:
+            if self.keys is None or k in self.keys:
+                item[k] = _mask(_file(d, rec, k, n), shape)
         return self.transform(item) if self.transform is not None else item
 
     def labels(self) -> np.ndarray:
@@ -118,22 +185,33 @@ class SequenceDataset:
         return len(self.records)
 
     def __getitem__(self, i: int) -> Any:
+        if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
+            raise TypeError(f"i: expected an integer index, got {type(i).__name__}")
         if not -len(self) <= i < len(self):
             raise IndexError(f"i: {i} out of range for {len(self)} sequences")
         rec = self.records[i]
-        d = self.root / rec["dir"]
+        n = int(i) % len(self)
+        d = _record_dir(self.root, rec, n)
+        try:
+            return self._load(rec, d)
+        except (KeyError, TypeError, AttributeError) as exc:
+            raise ValueError(f"root: manifest record {n} is malformed ({exc!r})") from None
+
+    def _load(self, rec: dict[str, Any], d: Path) -> Any:
         fr = rec["frames"]
+        reference = _img(d / rec["files"]["reference"])
+        shape = reference.shape
         item: dict[str, Any] = {
             "index": rec["index"], "kind": rec["kind"], "label": rec["label"],
             "label_id": rec["label_id"], "grasp_start": rec["grasp_start"],
-            "reference": _img(d / rec["files"]["reference"]),
+            "reference": reference,
             "rest": np.asarray(rec["rest"], np.float32).reshape(-1, 2),
             "present": np.asarray(rec["present"], bool),
             "merged": np.asarray(rec["merged"], bool),
             "images": np.stack([_img(d / f["files"]["image"]) for f in fr]),
             "images_markers": np.stack([_img(d / f["files"]["image_markers"]) for f in fr]),
-            "marker_masks": np.stack([_mask(d / f["files"]["marker_mask"]) for f in fr]),
-            "contact_masks": np.stack([_mask(d / f["files"]["contact_mask"]) for f in fr]),
+            "marker_masks": np.stack([_mask(d / f["files"]["marker_mask"], shape) for f in fr]),
+            "contact_masks": np.stack([_mask(d / f["files"]["contact_mask"], shape) for f in fr]),
             "displacements": np.stack([np.asarray(f["displacement"], np.float32).reshape(-1, 2)
                                        for f in fr]),
             "slip": np.array([f["slip"] for f in fr], bool),

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch import _native
-from tacswitch._checks import as_count, as_image
+from tacswitch._checks import MAX_COUNT, aligned, as_count, as_image, as_seed, check_model_arg
 
 InpaintMethod = Literal["telea", "biharmonic", "ns", "tacdiff", "hybrid"]
 MergeMode = Literal["average", "feather"]
@@ -54,15 +54,38 @@ def _as_mask(mask: Any, shape: tuple[int, ...]) -> NDArray[np.uint8]:
         mask = mask[:, :, 0]
     if mask.shape != tuple(shape[:2]):
         raise ValueError(f"mask: expected shape {tuple(shape[:2])} to match img; got {mask.shape}")
-    return np.ascontiguousarray(mask)
+    return aligned(mask)
 
 
 def _as_radius(radius: Any) -> int:
     if isinstance(radius, bool) or not isinstance(radius, (int, float, np.integer, np.floating)):
         raise TypeError(f"radius: expected a number of pixels, got {type(radius).__name__}")
-    if not np.isfinite(radius) or not 1 <= np.rint(radius) <= MAX_RADIUS:
+    try:
+        r = float(radius)
+    except OverflowError:  # an int beyond float range
+        r = float("inf")
+    if not np.isfinite(r) or not 1 <= np.rint(r) <= MAX_RADIUS:
         raise ValueError(f"radius: must be between 1 and {MAX_RADIUS} pixels; got {radius!r}")
-    return int(np.rint(radius))
+    return int(np.rint(r))
+
+
+#: Float images whose known values exceed this magnitude are inpainted scaled down by a power
+#: of two: TELEA's weighted mean is computed relative to a reference pixel in float32, and the
+#: differences of values near +-3.4e38 would overflow to +-inf.
+_FLOAT_SAFE = 2.0**100
+
+
+def _float_scale(arr: NDArray[Any], mask: NDArray[np.uint8]) -> float:
+    """Power of two to divide a float32 image by so its known values stay below ``_FLOAT_SAFE``
+    (1.0 for integer images and ordinary floats)."""
+    if arr.dtype != np.float32:
+        return 1.0
+    known = arr[mask == 0] if arr.ndim == 2 else arr[mask == 0].reshape(-1)
+    finite = known[np.isfinite(known)]
+    big = float(np.abs(finite).max()) if finite.size else 0.0
+    if big <= _FLOAT_SAFE:
+        return 1.0
+    return float(2.0 ** (int(np.ceil(np.log2(big))) - 100))
 
 
 def inpaint_telea(img: NDArray[Any], mask: NDArray[Any], radius: float = 3) -> NDArray[Any]:
@@ -102,7 +125,15 @@ def inpaint_telea(img: NDArray[Any], mask: NDArray[Any], radius: float = 3) -> N
     arr = _as_image(img)
     m = _as_mask(mask, arr.shape)
     r = _as_radius(radius)
-    out: NDArray[Any] = _native.inpaint_telea(arr, m, r)
+    scale = _float_scale(arr, m)
+    if scale == 1.0:
+        out: NDArray[Any] = _native.inpaint_telea(arr, m, r)
+        return out
+    # Exact: dividing by a power of two only shifts exponents; unmasked pixels are restored.
+    with np.errstate(over="ignore", invalid="ignore"):
+        out = _native.inpaint_telea(arr / np.float32(scale), m, r) * np.float32(scale)
+    known = m == 0
+    out[known] = arr[known]
     return out
 
 
@@ -161,10 +192,17 @@ def tile(
     Returns:
         ``(patches, origins)``: ``N x patch x patch [x C]`` of ``img``'s dtype, row by row
         (y outer, x inner), and ``N x 2`` int64 top-left corners ``(x, y)``.
+
+    Raises:
+        TypeError / ValueError: a bad ``img``, ``patch`` or ``overlap`` (naming it), including
+            a layout whose patches would need more than 2 GiB (``tile(img, 256, 255)`` on a
+            640 x 480 frame asks for 86 625 patches, 17 GB).
     """
     arr = _as_image(img, any_channels=True)
     p = as_count(patch, "patch", 1)
     o = as_count(overlap, "overlap", 0)
+    # The native side also refuses layouts needing more than 2 GiB of patches (e.g.
+    # overlap = patch - 1: one patch per pixel), naming patch or overlap.
     if o >= p:
         raise ValueError(f"overlap: must be smaller than patch ({p}); got {o}")
     patches, origins = _native.tile(arr, p, o)
@@ -202,12 +240,16 @@ def merge_patches(
     """
     if not isinstance(patches, np.ndarray):
         raise TypeError(f"patches: expected a numpy array, got {type(patches).__name__}")
+    if not isinstance(shape, (tuple, list)):
+        raise TypeError(f"shape: expected a tuple (H, W) or (H, W, C), got {type(shape).__name__}")
     if patches.dtype not in NATIVE_DTYPES:
         raise TypeError(f"patches: expected dtype uint8, uint16 or float32, got {patches.dtype}")
     if patches.ndim not in (3, 4) or patches.shape[1] != patches.shape[2]:
         raise ValueError(f"patches: expected N x P x P or N x P x P x C; got {patches.shape}")
     try:
         org = np.asarray(origins, dtype=np.int64)
+    except OverflowError:
+        raise ValueError(f"origins: expected (x, y) integers in [0, {MAX_COUNT}]") from None
     except (TypeError, ValueError) as exc:
         raise TypeError(f"origins: expected an N x 2 array of (x, y) ({exc})") from None
     if org.ndim != 2 or org.shape != (patches.shape[0], 2):
@@ -215,9 +257,9 @@ def merge_patches(
             f"origins: expected shape ({patches.shape[0]}, 2), one (x, y) per patch; "
             f"got {org.shape}"
         )
-    if (org < 0).any():
-        raise ValueError("origins: must be non-negative")
-    dims = tuple(int(v) for v in shape)
+    if (org < 0).any() or (org > MAX_COUNT).any():
+        raise ValueError(f"origins: expected (x, y) integers in [0, {MAX_COUNT}]")
+    dims = tuple(as_count(v, "shape", 1) for v in shape)
     channels = patches.shape[3] if patches.ndim == 4 else None
     if len(dims) not in (2, 3) or min(dims) < 1:
         raise ValueError(f"shape: expected (H, W) or (H, W, C) of positive sizes; got {shape}")
@@ -225,12 +267,30 @@ def merge_patches(
         raise ValueError(f"shape: {dims[2]} channels but the patches have {channels}")
     if len(dims) == 2 and channels is not None:
         raise ValueError(f"shape: (H, W) given but the patches have {channels} channels")
-    if mode not in ("average", "feather"):
+    if not isinstance(mode, str) or mode not in ("average", "feather"):
         raise ValueError(f"mode: must be 'average' or 'feather'; got {mode!r}")
     out: NDArray[Any] = _native.merge_patches(
-        np.ascontiguousarray(patches), np.ascontiguousarray(org), dims[0], dims[1], mode
+        aligned(patches), aligned(org), dims[0], dims[1], mode
     )
     return out
+
+
+def _check_ns_input(arr: NDArray[Any], m: NDArray[np.uint8]) -> None:
+    """What ``cv2.inpaint(..., INPAINT_NS)`` accepts, checked up front with errors naming the
+    argument: uint8 grey or 3-channel, uint16/float32 grey; a mask leaving a known pixel;
+    finite known float pixels."""
+    grey = arr.ndim == 2 or arr.shape[2] == 1
+    if arr.dtype == np.uint8 and not (grey or arr.shape[2] == 3):
+        raise ValueError(f"img: method 'ns' takes grey or 3-channel uint8 images; got {arr.shape}")
+    if arr.dtype != np.uint8 and not grey:
+        raise ValueError(f"img: method 'ns' takes {arr.dtype} images as grey H x W only "
+                         f"(OpenCV's limit); got {arr.shape}; use method='telea'")
+    if m.all():
+        raise ValueError("mask: covers every pixel; at least one known pixel is needed")
+    if arr.dtype == np.float32:
+        known = arr.reshape(arr.shape[0], arr.shape[1])[m == 0]
+        if not np.isfinite(known).all():
+            raise ValueError("img: unmasked pixels must be finite (NaN/Inf found)")
 
 
 def remove_markers(
@@ -285,17 +345,24 @@ def remove_markers(
         TypeError / ValueError: bad arguments (the message names the argument), or a method that
             is not available.
     """
-    if method not in ("telea", "biharmonic", "ns", *_MODEL_METHODS):
+    if not isinstance(method, str) or method not in ("telea", "biharmonic", "ns", *_MODEL_METHODS):
         raise ValueError("method: must be 'telea', 'biharmonic', 'ns', 'tacdiff' or 'hybrid'; "
                          f"got {method!r}")
     arr = _as_image(img)
+    if method in _MODEL_METHODS:
+        check_model_arg(model)
+        seed = as_seed(seed)
     if mask is None:
         from tacswitch.markers import extract_markers
 
-        grow: int | Literal["auto"] = "auto" if dilate is None or dilate == "auto" else as_count(
-            dilate, "dilate", 0)
+        auto = dilate is None or (isinstance(dilate, str) and dilate == "auto")
+        # Unbounded: extraction caps dilations at H + W (more change nothing).
+        grow: int | Literal["auto"] = "auto" if auto else as_count(dilate, "dilate", 0, None)
         # The mask covers markers cut by the frame edge whatever exclude_border says.
         m = extract_markers(arr, dilate=grow, **extract_opts).mask.view(np.uint8)
+        if m.all():
+            raise ValueError(f"dilate: the marker mask grown by {grow!r} covers every pixel; "
+                             "nothing is left to inpaint from")
     else:
         m = _as_mask(mask, arr.shape)
     if method == "telea":
@@ -313,12 +380,11 @@ def remove_markers(
         return inpaint_hybrid(arr, m, ref, steps=steps, radius=radius, seed=seed,
                               model=model)[0]
     r = _as_radius(radius)
+    _check_ns_input(arr, m)
     if not m.any():
         return arr.copy()
     import cv2
 
-    if arr.ndim == 3 and arr.shape[2] not in (1, 3):
-        raise ValueError(f"img: method 'ns' takes grey or 3-channel images; got {arr.shape}")
     filled = cv2.inpaint(arr, m, r, cv2.INPAINT_NS)
     # OpenCV leaves its own borders alone but rounds everywhere; keep unmasked pixels exact.
     out = arr.copy()

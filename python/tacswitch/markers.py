@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch import _native
-from tacswitch._checks import as_count, as_image_u8
+from tacswitch._checks import as_count, as_image_u8, check_extract_options
 
 Polarity = Literal["dark", "bright"]
 #: ``dilate`` value that grows each marker's mask adaptively (see :func:`extract_markers`).
@@ -118,6 +118,11 @@ def extract_markers(
         ValueError: bad shape or option; the message names the argument.
     """
     arr = as_image_u8(img)
+    # Conversion errors (polarity=None, threshold="abc", min_fill=None, ...) name the option.
+    check_extract_options({"polarity": polarity, "block_size": block_size, "threshold": threshold,
+                           "min_area": min_area, "max_area": max_area, "min_fill": min_fill,
+                           "max_aspect": max_aspect, "exclude_border": exclude_border})
+
     for value, name, minimum in ((block_size, "block_size", 3), (min_area, "min_area", 0),
                                  (max_area, "max_area", 0)):
         if value is not None:
@@ -127,7 +132,7 @@ def extract_markers(
         raise ValueError(f"dilate: must be an integer >= 0 or 'auto'; got {dilate!r}")
     # More dilations than H + W change nothing (the mask is full or stopped changing); capping
     # here keeps any Python integer within the native size type.
-    steps = 0 if adaptive else min(as_count(dilate, "dilate", 0), sum(arr.shape[:2]))
+    steps = 0 if adaptive else min(as_count(dilate, "dilate", 0, None), sum(arr.shape[:2]))
     out = _native.extract_markers(
         arr,
         polarity=polarity,
@@ -156,5 +161,5 @@ def dilate_mask(mask: NDArray, iterations: int = 1) -> NDArray[np.bool_]:
         raise TypeError(f"mask: expected a numpy array, got {type(mask).__name__}")
     if mask.ndim != 2:
         raise ValueError(f"mask: expected an H x W array; got shape {mask.shape}")
-    steps = min(as_count(iterations, "iterations", 0), sum(mask.shape))
+    steps = min(as_count(iterations, "iterations", 0, None), sum(mask.shape))
     return _native.dilate_mask(np.ascontiguousarray(mask != 0), steps)

@@ -9,7 +9,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch import _native
-from tacswitch._checks import as_motion, as_points, as_valid, positive_or_none
+from tacswitch._checks import (
+    as_count,
+    as_image_u8,
+    as_motion,
+    as_number,
+    as_points,
+    as_valid,
+    positive_or_none,
+)
 from tacswitch.tracking import MarkerTracker
 
 #: The paper's threshold (pixels) on 640-pixel-wide frames.
@@ -107,13 +115,13 @@ class SlipDetector:
         # Not "auto" here, so not a str (``_rigid_auto`` is the isinstance check above).
         self._rigid = None if self._rigid_auto else positive_or_none(
             cast("float | None", rigid_threshold_px), "rigid_threshold_px")
-        if not (0.0 < float(active_fraction) <= 1.0):
+        fraction = as_number(active_fraction, "active_fraction", 0.0, 1.0)
+        if fraction == 0.0:
             raise ValueError(f"active_fraction: must be in (0, 1]; got {active_fraction!r}")
-        self._active_fraction = float(active_fraction)
+        self._active_fraction = fraction
         self._points = None if points is None else as_points(points, "points")
-        if image_width is not None and int(image_width) < 1:
-            raise ValueError(f"image_width: must be a positive integer; got {image_width!r}")
-        self._image_width = image_width
+        self._image_width = None if image_width is None else as_count(
+            image_width, "image_width", 1)
         self._use_displacement = bool(use_displacement)
         if not self._use_displacement and self._rigid is None and not self._rigid_auto:
             raise ValueError("use_displacement: False needs rigid_threshold_px, or nothing is "
@@ -173,6 +181,8 @@ class SlipDetector:
             valid: ``N`` bool flags for a motion field; default: rows without NaN.
         """
         if isinstance(motion_or_img, np.ndarray) and motion_or_img.dtype == np.uint8:
+            # Checked here so that the error names this argument, not the tracker's.
+            motion_or_img = as_image_u8(motion_or_img, "motion_or_img")
             if self.tracker is None:
                 self.tracker = MarkerTracker(motion_or_img, **self._tracker_opts)
                 if self._image_width is None:

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import threading
 from typing import Any, Literal, overload
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch import _native
-from tacswitch._checks import as_image_u8, as_points, positive_or_none
+from tacswitch._checks import as_image_u8, as_points, check_extract_options, positive_or_none
 from tacswitch.markers import extract_markers
 
 Motion = NDArray[np.float32]
@@ -18,7 +19,10 @@ Valid = NDArray[np.bool_]
 def estimate_pitch(points: Any) -> float | None:
     """Marker pitch of a point set: the median nearest-neighbour distance, pixels.
 
-    Duplicated points are ignored. Returns None with fewer than two distinct points.
+    Duplicated points are ignored. Returns None with fewer than two distinct points (no
+    distance exists); otherwise a finite float, computed in float64, so two points ``1e20``
+    or even ``6e38`` apart give that distance. The median runs over up to 32 evenly spaced
+    points, each one's nearest distinct neighbour found in a 2-d tree (``O(N log N)``).
     """
     return _native.estimate_pitch(as_points(points, "points"))
 
@@ -41,7 +45,11 @@ def match_markers(
     Reference ``i`` and current ``j`` match when each is the other's nearest neighbour and they lie
     at most ``max_dist`` apart. A reference marker whose nearest detection belongs to another marker
     stays unmatched (NaN, ``valid=False``): a lost marker never borrows a neighbour's detection.
-    Equivalent to ``scipy.spatial.cKDTree`` queries both ways with a mutual check and a gate.
+    Equivalent to ``scipy.spatial.cKDTree`` queries both ways with a mutual check and a gate
+    (ties go to the lowest index, so duplicated points match at most once);
+    ``O((N + M) log(N + M))`` for any layout, duplicates included. A pair whose motion
+    overflows float32 (coordinates near ``+-3.4e38`` on opposite sides) is left unmatched
+    rather than given an infinite motion.
     For displacements beyond half the pitch use :class:`MarkerTracker`.
 
     Args:
@@ -90,6 +98,13 @@ class MarkerTracker:
             ``block_size``, ``threshold``, ``min_area``, ``max_area``, ``min_fill``,
             ``max_aspect``, ``exclude_border``).
 
+    Cost: construction ``O(N log N)`` (each marker's 6 nearest neighbours from a 2-d tree), each
+    frame ``O((N + M) log(N + M))``, memory ``O(N + M)`` (``BENCHMARKS.md``, "Tracker scaling").
+
+    Threads: one tracker may be shared between threads; calls are serialised by a lock (a frame
+    is tracked against the state the previous call left, so feed frames in order from one
+    thread if the order matters). Use one tracker per stream for parallelism.
+
     Example:
         >>> tracker = MarkerTracker(ref_frame)              # doctest: +SKIP
         >>> motion, valid = tracker.update(frame)           # doctest: +SKIP
@@ -102,6 +117,10 @@ class MarkerTracker:
         if unknown:
             raise TypeError(f"MarkerTracker: unknown option(s) {sorted(unknown)}; "
                             f"allowed: {sorted(allowed)}")
+        extract_opts = check_extract_options(extract_opts)
+        # The native tracker is mutably borrowed during a call (with the GIL released), so a
+        # second thread would get "Already borrowed": serialise calls instead.
+        self._lock = threading.Lock()
         if _is_image(ref_img_or_pts):
             ref = extract_markers(as_image_u8(ref_img_or_pts, "ref_img_or_pts"),
                                   **extract_opts).centres
@@ -115,12 +134,14 @@ class MarkerTracker:
     @property
     def reference(self) -> NDArray[np.float32]:
         """Reference centres, ``N x 2`` float32 ``(x, y)``."""
-        return self._native.reference
+        with self._lock:
+            return self._native.reference
 
     @property
     def positions(self) -> NDArray[np.float32]:
         """Last tracked centres (for a lost marker, where it was last seen)."""
-        return self._native.positions
+        with self._lock:
+            return self._native.positions
 
     @property
     def max_dist(self) -> float:
@@ -130,7 +151,8 @@ class MarkerTracker:
     @property
     def frame(self) -> int:
         """Frames processed since construction or :meth:`reset`."""
-        return self._native.frame
+        with self._lock:
+            return self._native.frame
 
     def __len__(self) -> int:
         return int(self.reference.shape[0])
@@ -148,11 +170,15 @@ class MarkerTracker:
                     f"img_or_pts: image is {arr.shape[0]}x{arr.shape[1]} but the reference was "
                     f"{self.reference_shape[0]}x{self.reference_shape[1]}"
                 )
-            motion, valid, _ = self._native.update_image(arr)
+            with self._lock:
+                motion, valid, _ = self._native.update_image(arr)
         else:
-            motion, valid, _ = self._native.update_points(as_points(img_or_pts, "img_or_pts"))
+            pts = as_points(img_or_pts, "img_or_pts")
+            with self._lock:
+                motion, valid, _ = self._native.update_points(pts)
         return motion, valid
 
     def reset(self) -> None:
         """Forgets the motion history; markers are expected back at the reference."""
-        self._native.reset()
+        with self._lock:
+            self._native.reset()

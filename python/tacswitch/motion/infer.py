@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from tacswitch._checks import as_image_u8, as_points
+from tacswitch._checks import as_image_u8, as_points, check_downsampled_size, check_model_arg
 from tacswitch._ort import cached, open_session, session_options
 
 __all__ = ["METHODS", "MotionModel", "default_model_path", "load_model", "predict_motion",
@@ -38,6 +38,10 @@ DEFAULT_MODEL = "motion_unet.onnx"
 def default_model_path() -> Path:
     """Path of the shipped default model."""
     return Path(__file__).resolve().parent.parent / "models" / DEFAULT_MODEL
+
+
+#: Smallest frame side (px, after the model's downsampling) the network's stem can take.
+MIN_SIDE_PX = 2
 
 
 class MotionModel:
@@ -102,6 +106,7 @@ class MotionModel:
         if pts.shape[0] == 0:
             return np.zeros((0, 2), np.float32)
         k = self.scale_for(w)
+        check_downsampled_size(frame.shape, k, MIN_SIDE_PX, "img")
         if k > 1:
             frame = _downsample(frame, k)
             ref_arr = None if ref_arr is None else _downsample(ref_arr, k)
@@ -177,6 +182,7 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
         ``N x 2`` float32 ``(dx, dy)`` px in ``img``'s pixels, one row per centre, never NaN
         (a centre outside the frame gets the motion at the nearest border).
     """
+    check_model_arg(model)
     if method not in METHODS:
         raise ValueError(f"method: unknown {method!r}; choose from {list(METHODS)}")
     if method != "flow":

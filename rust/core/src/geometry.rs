@@ -4,6 +4,7 @@
 //! check for NaN/Inf before calling in).
 
 use crate::error::{CoreError, Result};
+use crate::kdtree::dist2_f64;
 
 /// Query points sampled (evenly, deterministically) for the pitch median.
 const PITCH_SAMPLES: usize = 32;
@@ -102,6 +103,15 @@ impl CellGrid {
         self.cell
     }
 
+    /// Most points in one cell: a query scans at most 9 times this many.
+    pub fn max_occupancy(&self) -> usize {
+        self.starts
+            .windows(2)
+            .map(|w| (w[1] - w[0]) as usize)
+            .max()
+            .unwrap_or(0)
+    }
+
     /// Indices of the points in the 3x3 cells around `p` (nothing if `p` is far outside).
     pub fn candidates(&self, p: [f32; 2]) -> impl Iterator<Item = usize> + '_ {
         let fx = ((p[0] - self.min[0]) / self.cell).floor();
@@ -129,8 +139,19 @@ impl CellGrid {
 /// Estimated marker pitch: the median nearest-neighbour distance within `points` (pixels).
 ///
 /// Duplicated points (distance 0) are ignored so that they cannot drive the pitch to zero.
-/// Returns `None` with fewer than two distinct points.
+/// Returns `None` with fewer than two distinct points. Computed in `f64`, so two points further
+/// apart than `f32` can represent give `f32::INFINITY` (see [`estimate_pitch_f64`]).
 pub fn estimate_pitch(points: &[[f32; 2]]) -> Option<f32> {
+    estimate_pitch_f64(points).map(|d| d as f32)
+}
+
+/// [`estimate_pitch`] in `f64`: exact for any finite coordinates (`3e38` apart included).
+///
+/// The median runs over up to [`PITCH_SAMPLES`] query points taken at an even stride (a median
+/// needs no more, and the stride keeps it deterministic). Each finds its nearest distinct point
+/// among the grid cells around it, or by a full scan when none lies within one cell: at most
+/// `PITCH_SAMPLES * N` distance evaluations whatever the layout (duplicates included).
+pub fn estimate_pitch_f64(points: &[[f32; 2]]) -> Option<f64> {
     if points.len() < 2 {
         return None;
     }
@@ -143,23 +164,22 @@ pub fn estimate_pitch(points: &[[f32; 2]]) -> Option<f32> {
     }
     // Cells 1.5 mean spacings wide: on a marker grid the nearest neighbour lies within one cell,
     // and a neighbour found closer than one cell is the true nearest; otherwise a full scan
-    // settles it.
+    // settles it. (An extent beyond f32 gives one infinite cell: every query scans.)
     let area = ((hi[0] - lo[0]) * (hi[1] - lo[1])).max(1.0);
     let grid = CellGrid::new(points, 1.5 * (area / points.len() as f32).sqrt());
-    let cell2 = grid.cell() * grid.cell();
+    let cell2 = f64::from(grid.cell()) * f64::from(grid.cell());
     fn nearest_distinct(
         p: [f32; 2],
         points: &[[f32; 2]],
         within: impl Iterator<Item = usize>,
-    ) -> f32 {
+    ) -> f64 {
         within
-            .map(|j| dist2(p, points[j]))
+            .map(|j| dist2_f64(p, points[j]))
             .filter(|&d| d > 0.0)
-            .fold(f32::INFINITY, f32::min)
+            .fold(f64::INFINITY, f64::min)
     }
-    // A median needs no more than a few dozen samples; an even stride keeps it deterministic.
     let stride = points.len().div_ceil(PITCH_SAMPLES);
-    let mut nn: Vec<f32> = Vec::with_capacity(PITCH_SAMPLES);
+    let mut nn: Vec<f64> = Vec::with_capacity(PITCH_SAMPLES);
     for &p in points.iter().step_by(stride) {
         let mut d = nearest_distinct(p, points, grid.candidates(p));
         if d > cell2 {
@@ -169,7 +189,17 @@ pub fn estimate_pitch(points: &[[f32; 2]]) -> Option<f32> {
             nn.push(d.sqrt());
         }
     }
-    median(&mut nn)
+    if nn.is_empty() {
+        return None;
+    }
+    let mid = nn.len() / 2;
+    let (_, &mut m, _) = nn.select_nth_unstable_by(mid, f64::total_cmp);
+    if nn.len() % 2 == 1 {
+        Some(m)
+    } else {
+        let lower = nn[..mid].iter().copied().fold(f64::MIN, f64::max);
+        Some(0.5 * (lower + m))
+    }
 }
 
 /// Median of a slice (reorders it). `None` when empty.
@@ -278,6 +308,21 @@ mod tests {
         pts.push(pts[3]);
         assert!((estimate_pitch(&pts).unwrap() - 20.0).abs() < 1e-4);
         assert_eq!(estimate_pitch(&pts[..1]), None);
+        assert_eq!(estimate_pitch(&[[1.0, 1.0]; 1000]), None);
+    }
+
+    #[test]
+    fn pitch_of_far_apart_points_is_their_distance() {
+        assert_eq!(
+            estimate_pitch_f64(&[[0.0, 0.0], [1e20, 0.0]]),
+            Some(1e20f32 as f64)
+        );
+        let d = estimate_pitch_f64(&[[3e38, 0.0], [-3e38, 0.0]]).unwrap();
+        assert!((d / 6e38 - 1.0).abs() < 1e-6);
+        assert_eq!(
+            estimate_pitch(&[[3e38, 0.0], [-3e38, 0.0]]),
+            Some(f32::INFINITY)
+        );
     }
 
     #[test]

@@ -12,6 +12,7 @@ pub mod error;
 pub mod extract;
 pub mod geometry;
 pub mod image;
+pub mod kdtree;
 pub mod mask_grow;
 pub mod matching;
 pub mod merge;

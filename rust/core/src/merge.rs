@@ -82,6 +82,59 @@ fn reflect_101(i: usize, len: usize) -> usize {
     }
 }
 
+/// Most bytes [`tile`] will allocate for its patches (2 GiB): beyond this a patch/overlap choice
+/// is a mistake (e.g. `overlap = patch - 1`, one patch per pixel), not a workload.
+pub const MAX_TILE_BYTES: usize = 1 << 31;
+
+/// Checks that tiling an `h x w x c` image of `elem`-byte samples stays within
+/// [`MAX_TILE_BYTES`]; the error names `patch` when one patch alone is too large, else `overlap`.
+pub fn check_tile_size(
+    h: usize,
+    w: usize,
+    c: usize,
+    elem: usize,
+    patch: usize,
+    overlap: usize,
+) -> Result<usize> {
+    check_tiling(patch, overlap)?;
+    let per = patch
+        .checked_mul(patch)
+        .and_then(|v| v.checked_mul(c))
+        .and_then(|v| v.checked_mul(elem))
+        .filter(|&v| v <= MAX_TILE_BYTES)
+        .ok_or_else(|| {
+            CoreError::invalid(
+                "patch",
+                format!(
+                    "a {patch} x {patch} patch of a {h} x {w} x {c} image exceeds the {} GiB \
+                     limit of tile()",
+                    MAX_TILE_BYTES >> 30
+                ),
+            )
+        })?;
+    // Patches per axis, as `axis_starts` lays them out (without building the lists).
+    let along = |len: usize| {
+        if len <= patch {
+            1
+        } else {
+            (len - patch).div_ceil(patch - overlap) + 1
+        }
+    };
+    let count = along(w).saturating_mul(along(h));
+    match count.checked_mul(per).filter(|&v| v <= MAX_TILE_BYTES) {
+        Some(total) => Ok(total),
+        None => Err(CoreError::invalid(
+            if overlap > 0 { "overlap" } else { "patch" },
+            format!(
+                "{count} patches of {patch} x {patch} (overlap {overlap}) would need {:.1} GB, \
+                 over the {} GiB limit of tile(); use a smaller overlap or a larger patch",
+                count as f64 * per as f64 / 1e9,
+                MAX_TILE_BYTES >> 30
+            ),
+        )),
+    }
+}
+
 /// Cuts `img` into `patch x patch` patches; returns them (`N x patch x patch x C`, C-order) and
 /// their origins `(x, y)`. An image side shorter than `patch` is padded by reflection
 /// (`BORDER_REFLECT_101`); [`merge_patches`] crops the padding away again.
@@ -91,11 +144,9 @@ pub fn tile<T: Copy>(
     overlap: usize,
 ) -> Result<(Vec<T>, Vec<[usize; 2]>)> {
     let (h, w, c) = (img.height(), img.width(), img.channels());
+    check_tile_size(h, w, c, std::mem::size_of::<T>(), patch, overlap)?;
     let origins = tile_origins(h, w, patch, overlap)?;
-    let per = patch
-        .checked_mul(patch)
-        .and_then(|v| v.checked_mul(c))
-        .ok_or_else(|| CoreError::invalid("patch", format!("{patch} is too large")))?;
+    let per = patch * patch * c;
     // Built by appending (no zero-fill pass): tiling is a copy, bound by memory traffic.
     let mut out = Vec::with_capacity(per * origins.len());
     for &[ox, oy] in &origins {
@@ -328,8 +379,8 @@ fn plan(
 
 /// Per-task buffers for segments covered by more than [`MAX_FUSED`] patches.
 struct Scratch {
-    acc: Vec<f32>,
-    wsum: Vec<f32>,
+    acc: Vec<f64>,
+    wsum: Vec<f64>,
 }
 
 /// Segments covered by at most this many patches are blended in one fused pass with the
@@ -426,27 +477,63 @@ impl<T: Sample> Geometry<'_, T> {
                             .zip(vals.iter().zip(v1))
                             .enumerate()
                         {
-                            let d = v.to_f32() - r.to_f32();
+                            let d = wide(v) - wide(r);
                             match wxs {
                                 None => *s += d,
                                 Some(wxs) => {
-                                    let wgt = row_w * wxs[e];
+                                    let wgt = f64::from(row_w * wxs[e]);
                                     *ws += wgt;
                                     *s += wgt * d;
                                 }
                             }
                         }
                     }
-                    let count = count as f32;
+                    let count = count as f64;
                     for (((o, &s), &ws), &r) in out.iter_mut().zip(&*acc).zip(&*wsum).zip(v1) {
                         let div = if mode == MergeMode::Average {
                             count
                         } else {
                             ws
                         };
-                        o.write(T::from_f32(r.to_f32() + s / div));
+                        o.write(narrow64(r, wide(r), s / div));
                     }
                 }
+            }
+            if T::FLOAT && (2..=MAX_FUSED).contains(&seg.cover.len()) {
+                self.redo_overflow(seg, y, out);
+            }
+        }
+    }
+
+    /// Recomputes in `f64` the values of a fused segment that came out non-finite: the `f32`
+    /// differences of samples near `+-3.4e38` overflow although their weighted mean is finite.
+    /// A pass over the segment just written (in cache); taken only for float samples.
+    #[cold]
+    #[inline(never)]
+    fn redo_overflow_at(&self, seg: &Segment, y: usize, e: usize) -> T {
+        let (a, b) = (seg.x0, seg.x1);
+        let r = self.span(seg.cover[0], y, a, b)[e];
+        let rv = wide(r);
+        let (mut s, mut ws) = (0.0f64, 0.0f64);
+        for &k in &seg.cover {
+            let wgt = match self.mode {
+                MergeMode::Average => 1.0,
+                MergeMode::Feather => {
+                    f64::from(self.wy[y - self.origins[k][1]] * self.col_weights(k, a, b)[e])
+                }
+            };
+            ws += wgt;
+            s += wgt * (wide(self.span(k, y, a, b)[e]) - rv);
+        }
+        narrow64(r, rv, s / ws)
+    }
+
+    fn redo_overflow(&self, seg: &Segment, y: usize, out: &mut [MaybeUninit<T>]) {
+        for (e, o) in out.iter_mut().enumerate() {
+            // SAFETY: every value of the segment was written by the fused kernel just before.
+            let v = unsafe { o.assume_init_ref() };
+            if !v.is_finite() {
+                o.write(self.redo_overflow_at(seg, y, e));
             }
         }
     }
@@ -454,6 +541,7 @@ impl<T: Sample> Geometry<'_, T> {
 
 /// `r + sum_k (v_k - r) / (K + 1)` per value, in one pass (`r` the first covering patch).
 /// A power-of-two count divides by multiplying with its reciprocal, which is exact.
+/// In `f32` (fast); a value that overflows is redone in `f64` by [`Geometry::redo_overflow`].
 #[inline(always)]
 fn average<T: Sample, const K: usize>(out: &mut [MaybeUninit<T>], r: &[T], rest: [&[T]; K]) {
     let n = out.len();
@@ -468,7 +556,7 @@ fn average<T: Sample, const K: usize>(out: &mut [MaybeUninit<T>], r: &[T], rest:
             for v in &rest {
                 s += v[e].to_f32() - rv;
             }
-            o.write(T::from_f32(rv + s * inv));
+            o.write(narrow(r[e], rv, s * inv));
         }
     } else {
         for (e, o) in out.iter_mut().enumerate() {
@@ -477,13 +565,40 @@ fn average<T: Sample, const K: usize>(out: &mut [MaybeUninit<T>], r: &[T], rest:
             for v in &rest {
                 s += v[e].to_f32() - rv;
             }
-            o.write(T::from_f32(rv + s / count));
+            o.write(narrow(r[e], rv, s / count));
         }
     }
 }
 
+/// `rv + delta` as a sample; a zero `delta` returns `r` itself, bit for bit (so `-0.0` stays
+/// `-0.0`: `-0.0 + 0.0` would be `+0.0`).
+#[inline(always)]
+fn narrow<T: Sample>(r: T, rv: f32, delta: f32) -> T {
+    if delta == 0.0 {
+        r
+    } else {
+        T::from_f32(rv + delta)
+    }
+}
+
+/// [`narrow`] from `f64`.
+#[inline(always)]
+fn narrow64<T: Sample>(r: T, rv: f64, delta: f64) -> T {
+    if delta == 0.0 {
+        r
+    } else {
+        T::from_f32((rv + delta) as f32)
+    }
+}
+
+/// A sample widened to `f64` (exact for every sample type).
+#[inline(always)]
+fn wide<T: Sample>(v: T) -> f64 {
+    f64::from(v.to_f32())
+}
+
 /// `r + sum_k w_k (v_k - r) / sum_k w_k` per value, in one pass; `w_k` is the patch's row
-/// weight times its column weight, `r = v_0`.
+/// weight times its column weight, `r = v_0`. In `f32`; overflow as in [`average`].
 #[inline(always)]
 fn feather<T: Sample, const K: usize>(
     out: &mut [MaybeUninit<T>],
@@ -502,7 +617,7 @@ fn feather<T: Sample, const K: usize>(
             ws += wgt;
             s += wgt * (vals[k][e].to_f32() - rv);
         }
-        o.write(T::from_f32(rv + s / ws));
+        o.write(narrow(vals[0][e], rv, s / ws));
     }
 }
 
@@ -586,6 +701,42 @@ mod tests {
         let fea = merge_patches(&patches, 6, 256, 1, &origins, h, w, MergeMode::Feather).unwrap();
         assert!(max_second_diff(&avg) >= 0.4);
         assert!(max_second_diff(&fea) < 0.02, "{}", max_second_diff(&fea));
+    }
+
+    #[test]
+    fn tile_refuses_layouts_beyond_the_memory_limit() {
+        let img = vec![0u8; 640 * 480 * 3];
+        let view = ImageView::new(&img, 480, 640, 3, "img").unwrap();
+        // One patch per pixel column: 86 625 patches, 17 GB.
+        let err = tile(&view, 256, 255).unwrap_err().to_string();
+        assert!(err.starts_with("overlap:"), "{err}");
+        for patch in [100_000usize, 1 << 20, 1 << 31, usize::MAX] {
+            let err = tile(&view, patch, 0).unwrap_err().to_string();
+            assert!(err.starts_with("patch:"), "{err}");
+        }
+        let one = [0u8; 1];
+        let view = ImageView::new(&one, 1, 1, 1, "img").unwrap();
+        assert!(tile(&view, 1 << 20, 0)
+            .unwrap_err()
+            .to_string()
+            .starts_with("patch:"));
+        assert_eq!(tile(&view, 256, 30).unwrap().0.len(), 256 * 256);
+    }
+
+    #[test]
+    fn merge_keeps_negative_zero_and_huge_floats() {
+        let img = vec![-0.0f32, 3e38, -3e38, 1.0, -0.0, 2.5];
+        let view = ImageView::new(&img, 1, 6, 1, "img").unwrap();
+        let (p, o) = tile(&view, 4, 2).unwrap();
+        for mode in [MergeMode::Average, MergeMode::Feather] {
+            let out = merge_patches(&p, o.len(), 4, 1, &o, 1, 6, mode).unwrap();
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&out), bits(&img), "{mode:?}");
+        }
+        // Two patches of +-3e38 over one pixel: the mean is 0, not -inf.
+        let p = vec![3e38f32, -3e38];
+        let out = merge_patches(&p, 2, 1, 1, &[[0, 0], [0, 0]], 1, 1, MergeMode::Average).unwrap();
+        assert_eq!(out, vec![0.0]);
     }
 
     #[test]

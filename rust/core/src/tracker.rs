@@ -9,6 +9,7 @@
 
 use crate::error::{CoreError, Result};
 use crate::geometry::{check_finite, estimate_pitch, median};
+use crate::kdtree::KdTree;
 use crate::matching::{match_with_gate, DEFAULT_GATE_FRACTION};
 
 /// Neighbours used to predict a lost marker's motion.
@@ -20,7 +21,8 @@ pub struct Tracker {
     reference: Vec<[f32; 2]>,
     last: Vec<[f32; 2]>,
     seen: Vec<bool>,
-    neighbours: Vec<Vec<u32>>,
+    /// [`NEIGHBOURS`] slots per marker, `u32::MAX` where unused.
+    neighbours: Vec<u32>,
     gate: f32,
     frame: u64,
 }
@@ -164,8 +166,10 @@ impl Tracker {
     }
 
     fn predict_from_neighbours(&self, i: usize, found: &[bool], pos: &[[f32; 2]]) -> [f32; 2] {
-        let (mut dx, mut dy): (Vec<f32>, Vec<f32>) = self.neighbours[i]
+        let slots = &self.neighbours[i * NEIGHBOURS..(i + 1) * NEIGHBOURS];
+        let (mut dx, mut dy): (Vec<f32>, Vec<f32>) = slots
             .iter()
+            .filter(|&&k| k != u32::MAX)
             .map(|&k| k as usize)
             .filter(|&k| found[k])
             .map(|k| {
@@ -182,26 +186,21 @@ impl Tracker {
     }
 }
 
-/// The `k` nearest other points of every point (brute force; run once per reference).
-fn nearest_neighbours(points: &[[f32; 2]], k: usize) -> Vec<Vec<u32>> {
-    points
+/// The `k` nearest other points of every point, `k` slots per point (unused slots hold
+/// `u32::MAX`). One 2-d tree query each: `O(N log N)` time, `O(N k)` memory.
+fn nearest_neighbours(points: &[[f32; 2]], k: usize) -> Vec<u32> {
+    let tree = KdTree::over_all(points);
+    let mut out = vec![u32::MAX; points.len() * k];
+    for (i, (&p, slots)) in points
         .iter()
+        .zip(out.chunks_exact_mut(k.max(1)))
         .enumerate()
-        .map(|(i, &p)| {
-            let mut d: Vec<(f32, u32)> = points
-                .iter()
-                .enumerate()
-                .filter(|&(j, _)| j != i)
-                .map(|(j, &q)| (crate::geometry::dist2(p, q), j as u32))
-                .collect();
-            let k = k.min(d.len());
-            if k > 0 && k < d.len() {
-                d.select_nth_unstable_by(k - 1, |a, b| a.0.total_cmp(&b.0));
-            }
-            d.truncate(k);
-            d.into_iter().map(|(_, j)| j).collect()
-        })
-        .collect()
+    {
+        for (s, j) in slots.iter_mut().zip(tree.k_nearest(p, k, i as u32)) {
+            *s = j;
+        }
+    }
+    out
 }
 
 #[cfg(test)]
@@ -255,5 +254,29 @@ mod tests {
         assert!(st.valid.iter().all(|&v| !v));
         let st = t.update(&r).unwrap();
         assert!(st.valid.iter().all(|&v| v));
+    }
+
+    #[test]
+    fn neighbours_are_the_nearest_and_memory_is_linear() {
+        let r = grid(7, 5, 10.0);
+        let nb = nearest_neighbours(&r, NEIGHBOURS);
+        assert_eq!(nb.len(), r.len() * NEIGHBOURS);
+        // Marker 8 (x=1, y=1): its 4 axis neighbours at 10 px come first.
+        let mut first4: Vec<u32> = nb[8 * NEIGHBOURS..8 * NEIGHBOURS + 4].to_vec();
+        first4.sort_unstable();
+        assert_eq!(first4, vec![1, 7, 9, 15]);
+        let two = nearest_neighbours(&r[..2], NEIGHBOURS);
+        assert_eq!(&two[..2], &[1, u32::MAX]);
+    }
+
+    #[test]
+    fn a_large_grid_builds_and_tracks_quickly() {
+        let r = grid(320, 320, 10.0); // 102 400 markers
+        let t0 = std::time::Instant::now();
+        let mut t = Tracker::new(r.clone(), None).unwrap();
+        let cur: Vec<_> = r.iter().map(|p| [p[0] + 1.0, p[1]]).collect();
+        let st = t.update(&cur).unwrap();
+        assert!(st.valid.iter().all(|&v| v));
+        assert!(t0.elapsed().as_secs_f64() < 30.0);
     }
 }

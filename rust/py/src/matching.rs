@@ -33,12 +33,13 @@ fn match_markers<'py>(
     ))
 }
 
-/// Median nearest-neighbour distance of a point set (pixels); None with fewer than 2 points.
+/// Median nearest-neighbour distance of a point set (pixels, float64); None with fewer than 2
+/// distinct points.
 #[pyfunction]
-fn estimate_pitch(points: PyReadonlyArray2<'_, f32>) -> PyResult<Option<f32>> {
+fn estimate_pitch(py: Python<'_>, points: PyReadonlyArray2<'_, f32>) -> PyResult<Option<f64>> {
     let p = points_f32(&points, "points")?;
     geometry::check_finite(&p, "points").map_err(to_py)?;
-    Ok(geometry::estimate_pitch(&p))
+    Ok(py.detach(|| geometry::estimate_pitch_f64(&p)))
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

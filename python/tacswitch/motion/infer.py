@@ -146,11 +146,15 @@ def load_model(path: str | os.PathLike[str] | None = None) -> MotionModel:
     return cached(MotionModel, Path(path) if path is not None else default_model_path())
 
 
+#: Smallest frame side (px) the training-free methods accept: DIS works on 8 x 8 patches and
+#: both methods smooth over a marker's size.
+MIN_IMAGE_SIDE_PX = 8
+
 #: Methods of :func:`predict_motion`.
-METHODS = ("model", "flow", "outward")
+METHODS = ("auto", "model", "flow", "outward")
 
 
-def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: str = "model",
+def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: str = "auto",
                    model: str | os.PathLike[str] | None = None, algorithm: str | None = None,
                    preset: str | None = None) -> NDArray[np.float32]:
     """The 2D motion each marker would have had, from a markerless frame.
@@ -166,7 +170,9 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             training grid (the GelSight Mini preset's 9 x 11 grid, pitch 28.5 px at 320 x 240)
             scaled to the frame, for every method; pass your sensor's own centres (e.g.
             ``tacswitch.extract_markers(ref_with_markers).centres``) otherwise.
-        method: ``"model"`` (the ONNX model), ``"flow"`` (training-free dense optical flow
+        method: ``"auto"`` (default: ``"flow"`` when ``ref`` is given, ``"outward"`` without
+            it — the methods that scored best on the real-texture proxy, see the README),
+            ``"model"`` (the ONNX model), ``"flow"`` (training-free dense optical flow
             ``ref -> img`` read at the centres, :mod:`tacswitch.motion.flow`; exactly zero for
             identical frames, insensitive to a global brightness change) or ``"outward"`` (the
             no-learning baseline: outward from the contact by the local image change,
@@ -185,6 +191,11 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
     check_model_arg(model)
     if method not in METHODS:
         raise ValueError(f"method: unknown {method!r}; choose from {list(METHODS)}")
+    if method == "auto":
+        # Measured on real texture (taxim presses warped by known fields): flow from a
+        # reference beats zero motion and the shipped model by far; without a reference only
+        # the outward rule gets the direction partly right (the model does not).
+        method = "flow" if ref is not None else "outward"
     if method != "flow":
         for name, value in (("algorithm", algorithm), ("preset", preset)):
             if value is not None:
@@ -192,6 +203,9 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
     if method == "model":
         return load_model(model)(img, ref=ref, centres=centres)
     frame = _bgr(img, "img")
+    if min(frame.shape[:2]) < MIN_IMAGE_SIDE_PX:
+        raise ValueError(f"img: frame of {frame.shape[1]} x {frame.shape[0]} px is too small for "
+                         f"method={method!r} (each side needs >= {MIN_IMAGE_SIDE_PX} px)")
     ref_arr = None
     if ref is not None:
         ref_arr = _bgr(ref, "ref")

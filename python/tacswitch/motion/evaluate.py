@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -213,7 +213,7 @@ def slip_on_grasps(sources: dict[str, Callable[..., NDArray[np.float32]]], *,
         (s, c): {"correct": 0, "n": 0, "n_slip": 0, "slips_found": 0, "fa_hold": 0,
                  "n_hold": 0, "fa_vibration": 0, "n_vibration": 0, "delays": [], "t": 0.0,
                  "frames": 0} for s in names for c in crit}
-    kinds = ("slip", "hold", "vibration")
+    kinds: tuple[Literal["slip", "hold", "vibration"], ...] = ("slip", "hold", "vibration")
     for kind in kinds:
         for k in range(n_per_kind):
             seq = render_grasp(preset, kind, n_frames=n_frames,

@@ -103,7 +103,9 @@ def normalise_pair(img: NDArray[np.uint8], ref: NDArray[np.uint8]
 
 
 def _dis(preset: str) -> Any:
-    import cv2
+    import cv2 as _cv2
+
+    cv2: Any = _cv2  # OpenCV's stubs lack DIS and type Mat arguments too narrowly
 
     code = {"ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST,
             "fast": cv2.DISOPTICAL_FLOW_PRESET_FAST,
@@ -115,7 +117,9 @@ def dense_flow(ref8: NDArray[np.uint8], img8: NDArray[np.uint8], algorithm: str 
                preset: str = "medium") -> NDArray[np.float32]:
     """Forward flow ``ref8 -> img8`` (``H x W x 2`` float32, ``(dx, dy)`` px at ``ref8``'s
     pixels) between two 8-bit grey frames of the same size."""
-    import cv2
+    import cv2 as _cv2
+
+    cv2: Any = _cv2  # OpenCV's stubs reject None as the flow argument
 
     if algorithm == "dis":
         flow = _dis(preset).calc(ref8, img8, None)

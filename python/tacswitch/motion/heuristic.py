@@ -25,6 +25,8 @@ does not depend on it.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -57,7 +59,7 @@ def background(img: NDArray[np.uint8], iterations: int = 4) -> NDArray[np.float3
     basis = _poly_terms(2 * xs.ravel() / max(sw - 1, 1) - 1, 2 * ys.ravel() / max(sh - 1, 1) - 1)
     vals = small.reshape(-1, small.shape[2])
     keep = np.ones(len(vals), bool)
-    coef = np.zeros((basis.shape[1], vals.shape[1]))
+    coef: NDArray[Any] = np.zeros((basis.shape[1], vals.shape[1]))
     for _ in range(iterations + 1):
         coef, *_ = np.linalg.lstsq(basis[keep], vals[keep], rcond=None)
         res = np.linalg.norm(vals - basis @ coef, axis=1)

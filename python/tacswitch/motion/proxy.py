@@ -48,7 +48,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -304,10 +304,12 @@ def _capture(img: NDArray[np.uint8], rng: np.random.Generator, drift: bool) -> N
 
     gain = (rng.uniform(0.85, 1.15) * rng.uniform(0.95, 1.05, 3)) if drift else np.ones(3)
     offset = rng.uniform(-8, 8, 3) if drift else np.zeros(3)
-    codec = "mjpeg" if rng.random() < 0.6 else "h264"
+    codec: Literal["mjpeg", "h264"] = "mjpeg" if rng.random() < 0.6 else "h264"
     quality = int(rng.integers(75, 96)) if codec == "mjpeg" else int(rng.integers(18, 29))
-    prof = capture.CaptureProfile(read_noise=0.5, gain=tuple(float(g) for g in gain),
-                                  offset=tuple(float(o) for o in offset), codec=codec,
+    prof = capture.CaptureProfile(read_noise=0.5,
+                                  gain=(float(gain[0]), float(gain[1]), float(gain[2])),
+                                  offset=(float(offset[0]), float(offset[1]), float(offset[2])),
+                                  codec=codec,
                                   quality=quality)
     return capture.apply(img, prof, rng)
 

@@ -127,9 +127,10 @@ def _motion_panel(preset: str, seed: int, width: int) -> tuple[np.ndarray, str]:
                f"true motion (arrows x{scale:g})"),
               (viz.draw_motion(last.image, rest + start.displacement, pred,
                                np.ones(len(rest), bool), scale=scale),
-               f"predicted from the markerless frames, {ms:.0f} ms")]
+               f"optical flow between the markerless frames, {ms:.0f} ms")]
     title = "Marker motion since the grasp start, on a markerless frame of a slip grasp"
-    line = (f"motion from markerless frames (slip grasp, since grasp start): {ms:.1f} ms, "
+    line = (f"motion from markerless frames (optical flow; slip grasp, since grasp start): "
+            f"{ms:.1f} ms, "
             f"error median {np.median(err):.2f} px, mean {err.mean():.2f} px "
             f"(largest true motion {np.hypot(*truth.T).max():.1f} px)")
     return _row(panels, width, title), line

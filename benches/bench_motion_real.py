@@ -27,7 +27,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from harness import interleaved, machine, publish, table
+from harness import interleaved, machine, named_models, publish, table
 
 from tacswitch.motion import proxy
 from tacswitch.motion.evaluate import motion_metrics
@@ -194,12 +194,7 @@ def main() -> int:
     args = ap.parse_args()
     if args.calibrate_outward:
         return calibrate_outward()
-    models: dict[str, str | None] = {"shipped": None}
-    for spec in args.model:
-        name, _, path = spec.partition("=")
-        if not path:
-            ap.error(f"--model: expected NAME=PATH, got {spec!r}")
-        models[name] = path
+    models = named_models(ap, args.model)
     every = 4 if args.quick else max(1, args.every)
     notes = [f"Machine: {machine()}; OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', '-')}.",
              "",

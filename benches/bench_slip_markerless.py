@@ -18,7 +18,7 @@ import os
 from typing import Any
 
 import numpy as np
-from harness import machine, publish
+from harness import machine, named_models, publish
 
 from tacswitch.motion.evaluate import SLIP_CRITERIA, slip_on_grasps
 from tacswitch.motion.infer import MotionModel, predict_motion
@@ -48,12 +48,7 @@ def main() -> int:
     ap.add_argument("--no-model", action="store_true", help="skip the ONNX model(s)")
     ap.add_argument("--update", action="store_true", help="write the section of BENCHMARKS.md")
     args = ap.parse_args()
-    models: dict[str, str | None] = {"shipped": None}
-    for spec in args.model:
-        name, _, path = spec.partition("=")
-        if not path:
-            ap.error(f"--model: expected NAME=PATH, got {spec!r}")
-        models[name] = path
+    models = named_models(ap, args.model)
     rows = []
     for preset in args.presets:
         src = sources(models, not args.no_model)

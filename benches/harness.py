@@ -6,6 +6,7 @@ same run, which survive a noisy machine far better than absolute times.
 
 from __future__ import annotations
 
+import argparse
 import gc
 import os
 import platform
@@ -135,3 +136,14 @@ def publish(section: str, notes: list[str], header: list[str], rows: list[list[s
     if update:
         update_markdown(section, body)
 
+
+def named_models(ap: argparse.ArgumentParser, specs: list[str]) -> dict[str, str | None]:
+    """``--model NAME=PATH`` options (repeatable) as ``{name: path}``, after the shipped model
+    (``"shipped": None``); a spec without ``=PATH`` is a usage error of ``ap``."""
+    models: dict[str, str | None] = {"shipped": None}
+    for spec in specs:
+        name, _, path = spec.partition("=")
+        if not path:
+            ap.error(f"--model: expected NAME=PATH, got {spec!r}")
+        models[name] = path
+    return models

@@ -211,12 +211,13 @@ def check_model_arg(model: Any, name: str = "model") -> None:
 
 def check_downsampled_size(shape: tuple[int, ...], factor: int, minimum: int,
                            name: str = "img") -> None:
-    """A frame ``shape`` downsampled by ``factor`` must keep both sides >= ``minimum`` px.
+    """A frame ``shape`` downsampled by ``factor`` (1: as it is) must keep both sides
+    >= ``minimum`` px.
 
     ``minimum`` is the smallest side the consumer (e.g. a network's stride) can take.
     """
     h, w = int(shape[0]) // factor, int(shape[1]) // factor
     if min(h, w) < minimum:
-        raise ValueError(f"{name}: a {shape[0]} x {shape[1]} frame is {h} x {w} px after the "
-                         f"model's {factor}x downsampling; both sides must be at least "
-                         f"{minimum} px")
+        after = "" if factor == 1 else f" after the model's {factor}x downsampling ({h} x {w} px)"
+        raise ValueError(f"{name}: a {shape[0]} x {shape[1]} frame is too small{after}: both "
+                         f"sides must be at least {minimum} px")

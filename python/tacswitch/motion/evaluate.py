@@ -111,67 +111,24 @@ def evaluate_split(data: dict[str, NDArray[Any]], predict: Callable[..., NDArray
 def evaluate_slip(predict: Callable[..., NDArray[np.float32]], *, preset: str = "gelsight_mini",
                   n_per_kind: int = 6, n_frames: int = 30, seed: int = 100,
                   ref_frame: str = "none") -> dict[str, dict[str, Any]]:
-    """Slip detection on rendered grasps (hold / slip / vibration), the paper's rule with its
-    threshold scaled to the frame width, fed from the grasp start (the frame where the shear ramp
-    ends). ``ref_frame``: what the regressor gets as ``ref``: ``"none"``, ``"no_contact"`` (the
-    markerless no-contact frame) or ``"grasp_start"`` (the markerless frame at the grasp start:
-    the regressor then predicts motion since the grasp start, as the slip rule measures it).
-    Returns per source (``predicted`` on markerless frames, ``tracked`` on marker frames):
-    accuracy, false alarms per kind, detections and the delay (frames after onset) of each."""
-    import tacswitch as ts
-    from tacswitch.sim.grasp import render_grasp
-
-    res: dict[str, dict[str, Any]] = {
-        s: {"correct": 0, "n": 0, "false_alarms": {"hold": 0, "vibration": 0},
-            "missed": 0, "delays": []} for s in ("predicted", "tracked")}
-    for kind in ("slip", "hold", "vibration"):
-        for k in range(n_per_kind):
-            seq = render_grasp(preset, kind, n_frames=n_frames,
-                               seed=np.random.SeedSequence([seed, ("slip", "hold",
-                                                                   "vibration").index(kind), k]))
-            rest = seq.scene.rest
-            w = seq.reference.shape[1]
-            if ref_frame not in ("none", "no_contact", "grasp_start"):
-                raise ValueError(f"ref_frame: unknown {ref_frame!r}")
-            ref_img = None
-            if ref_frame == "no_contact":
-                ref_img = seq.scene.render(np.random.default_rng(0), depth=0.0).image
-            elif ref_frame == "grasp_start":
-                ref_img = seq.frames[seq.grasp_start].image
-            tracker = ts.MarkerTracker(seq.reference)
-            onset = int(seq.params["onset"])
-            for source in ("predicted", "tracked"):
-                det = ts.SlipDetector(image_width=w)
-                first = None
-                # The tracker follows every frame (frame-to-frame tracking); the detector starts
-                # at the grasp start, as in the paper.
-                for t in range(0 if source == "tracked" else seq.grasp_start, len(seq)):
-                    f = seq.frames[t]
-                    if source == "predicted":
-                        st = det.update(predict(f.image, ref_img, rest))
-                    else:
-                        motion, valid = tracker.update(f.image_markers)
-                        if t < seq.grasp_start:
-                            continue
-                        st = det.update(motion, valid)
-                    if st.slip and first is None:
-                        first = t
-                r = res[source]
-                r["n"] += 1
-                detected = first is not None
-                if kind == "slip":
-                    r["correct"] += int(detected)
-                    r["missed"] += int(not detected)
-                    if first is not None:
-                        r["delays"].append(first - onset)
-                else:
-                    r["correct"] += int(not detected)
-                    r["false_alarms"][kind] += int(detected)
-    for r in res.values():
-        r["accuracy"] = r["correct"] / max(r["n"], 1)
+    """Slip detection on rendered grasps (hold / slip / vibration) with the paper's rule alone:
+    :func:`slip_on_grasps` for one source, summarised per source (``predicted`` on markerless
+    frames, ``tracked`` on marker frames). ``ref_frame``: what ``predict`` gets as ``ref``:
+    ``"none"``, ``"no_contact"`` or ``"grasp_start"`` (motion since the grasp start, as the
+    slip rule measures it). Returns accuracy, correct / n, false alarms per kind, missed slips,
+    the delays (frames after onset) and their mean."""
+    res = slip_on_grasps({"predicted": predict}, preset=preset, n_per_kind=n_per_kind,
+                         n_frames=n_frames, seed=seed, ref_frame=ref_frame,
+                         criteria={"displacement": SLIP_CRITERIA["displacement"]})
+    out: dict[str, dict[str, Any]] = {}
+    for source in ("predicted", "tracked"):
+        r = res[(source, "displacement")]
         d = r["delays"]
-        r["delay_mean"] = float(np.mean(d)) if d else float("nan")
-    return res
+        out[source] = {"correct": r["correct"], "n": r["n"], "accuracy": r["accuracy"],
+                       "false_alarms": {"hold": r["fa_hold"], "vibration": r["fa_vibration"]},
+                       "missed": r["n_slip"] - r["slips_found"], "delays": d,
+                       "delay_mean": float(np.mean(d)) if d else float("nan")}
+    return out
 
 
 #: Slip criteria compared on markerless motion: SlipDetector options.
@@ -190,9 +147,10 @@ def slip_on_grasps(sources: dict[str, Callable[..., NDArray[np.float32]]], *,
     """Slip detection on rendered grasps (hold / slip / vibration) from markerless motion.
 
     Every source ``predict(img, ref, rest)`` gets each markerless frame from the grasp start on
-    with ``ref`` = the markerless grasp-start frame (``ref_frame="grasp_start"``) or the
-    markerless no-contact frame (``"no_contact"``); ``"tracked"`` (the marker tracker on the
-    marker images, followed from the first frame) is always added as the upper reference. Each
+    with ``ref`` = the markerless grasp-start frame (``ref_frame="grasp_start"``), the
+    markerless no-contact frame (``"no_contact"``) or none (``"none"``); ``"tracked"`` (the
+    marker tracker on the marker images, followed from the first frame) is always added as the
+    upper reference. Each
     criterion (:data:`SLIP_CRITERIA`, the paper's threshold scaled to the width) starts at the
     grasp start, as in the paper.
 
@@ -205,8 +163,9 @@ def slip_on_grasps(sources: dict[str, Callable[..., NDArray[np.float32]]], *,
     import tacswitch as ts
     from tacswitch.sim.grasp import render_grasp
 
-    if ref_frame not in ("grasp_start", "no_contact"):
-        raise ValueError(f"ref_frame: unknown {ref_frame!r}; use 'grasp_start' or 'no_contact'")
+    if ref_frame not in ("grasp_start", "no_contact", "none"):
+        raise ValueError(f"ref_frame: unknown {ref_frame!r}; use 'grasp_start', 'no_contact' "
+                         "or 'none'")
     crit = SLIP_CRITERIA if criteria is None else criteria
     names = [*sources, "tracked"]
     res: dict[tuple[str, str], dict[str, Any]] = {
@@ -221,7 +180,8 @@ def slip_on_grasps(sources: dict[str, Callable[..., NDArray[np.float32]]], *,
             rest = seq.scene.rest
             w = seq.reference.shape[1]
             g0 = seq.grasp_start
-            ref = (seq.frames[g0].image if ref_frame == "grasp_start"
+            ref = (seq.frames[g0].image if ref_frame == "grasp_start" else None
+                   if ref_frame == "none"
                    else seq.scene.render(np.random.default_rng([seed, 1, k]), depth=0.0).image)
             onset = int(seq.params["onset"])
             motions: dict[str, list[tuple[NDArray[np.float32], Any]]] = {}

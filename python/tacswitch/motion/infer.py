@@ -203,9 +203,7 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
     if method == "model":
         return load_model(model)(img, ref=ref, centres=centres)
     frame = _bgr(img, "img")
-    if min(frame.shape[:2]) < MIN_IMAGE_SIDE_PX:
-        raise ValueError(f"img: frame of {frame.shape[1]} x {frame.shape[0]} px is too small for "
-                         f"method={method!r} (each side needs >= {MIN_IMAGE_SIDE_PX} px)")
+    check_downsampled_size(frame.shape, 1, MIN_IMAGE_SIDE_PX, "img")
     ref_arr = None
     if ref is not None:
         ref_arr = _bgr(ref, "ref")

@@ -1,5 +1,5 @@
-"""Inputs and outputs of ``remove-markers`` and ``markers``: unreadable files in a folder,
-videos given to ``markers``, lossless video output, the marker extraction options."""
+"""Inputs and outputs of ``remove-markers``, ``markers`` and ``motion``: unreadable files in a
+folder, videos given to ``markers``, lossless video output, the marker extraction options."""
 
 from __future__ import annotations
 
@@ -91,6 +91,18 @@ def test_markers_skips_and_names_unreadable_images(
     assert sorted(p.name for p in out.iterdir()) == ["0.csv", "1.csv", "3.csv", "4.csv"]
     err = capsys.readouterr().err
     assert "skipped 2 unreadable inputs" in err and "2.png" in err and "5.png" in err
+
+
+def test_motion_skips_and_names_unreadable_images(
+        tmp_path: Path, folder: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "mo"
+    ref = str(folder / "0.png")
+    assert main(["motion", str(folder), "--ref", ref, "-o", str(out), "-q"]) == 0
+    assert sorted(p.name for p in out.glob("*.csv")) == ["0.csv", "1.csv", "3.csv", "4.csv"]
+    err = capsys.readouterr().err
+    assert "skipped 2 unreadable inputs" in err and "2.png" in err and "5.png" in err
+    assert main(["motion", str(folder / "5.png"), "-o", str(tmp_path / "x"), "-q"]) == 1
+    assert "cannot read an image from" in capsys.readouterr().err
 
 
 def test_markers_reads_a_video_frame(tmp_path: Path, grasp: sim.GraspSequence,

@@ -72,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
     from tacswitch._io import atomic_open, write_image
     from tacswitch.cli.options import UsageError, extraction_options, output_dir
     from tacswitch.cli.progress import progress, say, warn
-    from tacswitch.cli.sources import read_quiet
+    from tacswitch.cli.sources import read_quiet, report_unreadable
 
     if args.frame < 0:
         raise UsageError(f"--frame: must be >= 0; got {args.frame}")
@@ -121,12 +121,5 @@ def run(args: argparse.Namespace) -> int:
             if len(m) == 0:
                 warn("markers", f"no markers found in {source}; check --polarity and "
                      "--threshold")
-    if failed and done == 0:
-        raise ValueError(failed[0][1] if len(failed) == 1 else
-                         f"inputs: none of the {len(failed)} inputs could be read")
-    if failed:
-        names = ", ".join(repr(str(p)) for p, _ in failed[:8])
-        more = f" and {len(failed) - 8} more" if len(failed) > 8 else ""
-        warn("markers", f"skipped {len(failed)} unreadable input"
-             f"{'s' if len(failed) > 1 else ''}: {names}{more}")
+    report_unreadable("markers", failed, done)
     return 0

@@ -5,13 +5,15 @@ from __future__ import annotations
 import argparse
 import csv
 import io
+from pathlib import Path
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("motion", help="predict marker motion from markerless images",
                        description="Predicts the (dx, dy) each marker would have had from "
                                    "markerless frames; writes a CSV and an arrow overlay per "
-                                   "image.")
+                                   "image. Unreadable images are skipped, counted and named "
+                                   "in a warning on stderr.")
     p.add_argument("inputs", nargs="+", help="markerless image files or folders")
     p.add_argument("--ref", default=None,
                    help="markerless no-contact frame (needed by models trained with it)")
@@ -54,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
     from tacswitch._io import atomic_open, read_image, write_image
     from tacswitch.cli.options import UsageError, input_file, load_model_option, output_dir
     from tacswitch.cli.progress import progress, say
-    from tacswitch.cli.sources import collect_images
+    from tacswitch.cli.sources import collect_images, read_quiet, report_unreadable
     from tacswitch.motion.infer import load_model, predict_motion
 
     if args.method == "flow" and not args.ref:
@@ -65,9 +67,14 @@ def run(args: argparse.Namespace) -> int:
     centres = _read_centres(str(input_file(args.centres, "--centres"))) if args.centres else None
     files = collect_images(args.inputs)
     out = output_dir(args.out, "--out")
+    failed: list[tuple[Path, str]] = []
+    done = 0
     with progress(files, desc="motion", unit="img", quiet=args.quiet) as bar:
         for path in bar:
-            img = read_image(path, "inputs", quiet=True)
+            img = read_quiet(path)
+            if img is None:
+                failed.append((path, f"inputs: cannot read an image from {str(path)!r}"))
+                continue
             pts = model.centres_for(*img.shape[:2]) if centres is None else centres
             motion = (model(img, ref=ref, centres=pts) if args.method == "model" else
                       predict_motion(img, ref, pts, method=args.method))
@@ -87,4 +94,6 @@ def run(args: argparse.Namespace) -> int:
             mx = float(np.hypot(motion[:, 0], motion[:, 1]).max()) if len(motion) else 0.0
             say(f"{path}: {len(motion)} markers, largest motion {mx:.2f} px -> "
                 f"{out / (path.stem + '.csv')}", quiet=args.quiet)
+            done += 1
+    report_unreadable("motion", failed, done)
     return 0

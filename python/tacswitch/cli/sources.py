@@ -51,6 +51,22 @@ def read_quiet(path: str | Path) -> np.ndarray | None:
     return try_read_image(path, quiet=True)
 
 
+def report_unreadable(command: str, failed: list[tuple[Path, str]], done: int) -> None:
+    """After a batch: ``ValueError`` when nothing could be read (the one reason, or a count),
+    else a warning naming the skipped inputs (the first eight, then how many more)."""
+    from tacswitch.cli.progress import warn
+
+    if not failed:
+        return
+    if done == 0:
+        raise ValueError(failed[0][1] if len(failed) == 1 else
+                         f"inputs: none of the {len(failed)} inputs could be read")
+    names = ", ".join(repr(str(p)) for p, _ in failed[:8])
+    more = f" and {len(failed) - 8} more" if len(failed) > 8 else ""
+    warn(command, f"skipped {len(failed)} unreadable input"
+         f"{'s' if len(failed) > 1 else ''}: {names}{more}")
+
+
 def collect_images(inputs: list[str]) -> list[Path]:
     """Image files named or found (sorted) in the named folders; ``FileNotFoundError`` if none."""
     files: list[Path] = []

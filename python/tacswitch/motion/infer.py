@@ -151,7 +151,7 @@ def load_model(path: str | os.PathLike[str] | None = None) -> MotionModel:
 MIN_IMAGE_SIDE_PX = 8
 
 #: Methods of :func:`predict_motion`.
-METHODS = ("auto", "model", "flow", "outward")
+METHODS = ("auto", "model", "flow", "outward", "mechanics")
 
 
 def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: str = "auto",
@@ -174,9 +174,12 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             it — the methods that scored best on the real-texture proxy, see the README),
             ``"model"`` (the ONNX model), ``"flow"`` (training-free dense optical flow
             ``ref -> img`` read at the centres, :mod:`tacswitch.motion.flow`; exactly zero for
-            identical frames, insensitive to a global brightness change) or ``"outward"`` (the
+            identical frames, insensitive to a global brightness change), ``"outward"`` (the
             no-learning baseline: outward from the contact by the local image change,
-            :mod:`tacswitch.motion.heuristic`; works with or without ``ref``).
+            :mod:`tacswitch.motion.heuristic`; works with or without ``ref``) or
+            ``"mechanics"`` (no learning: the simulator's elastic law for a press applied to
+            the imprint the frame shows, :mod:`tacswitch.motion.mechanics`; outward motion
+            that fades over a gel thickness outside the contact; with or without ``ref``).
         model: ONNX model path (default: the shipped model); sessions are cached per path.
             Other methods use it only for the default centres.
         algorithm: ``method="flow"`` only: ``"dis"`` (default), ``"farneback"``, ``"deepflow"``,
@@ -220,6 +223,10 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
         assert ref_arr is not None
         return flow_motion(frame, ref_arr, pts, algorithm=algorithm or "dis",
                            preset=preset or "medium")
+    if method == "mechanics":
+        from tacswitch.motion.mechanics import mechanics_motion
+
+        return mechanics_motion(frame, ref_arr, pts)
     from tacswitch.motion.heuristic import outward_motion
 
     return outward_motion(frame, ref_arr, pts)

@@ -41,6 +41,9 @@ Settings (every sample of :func:`make_proxy` carries the references of all three
 - ``"press"``: ``ref`` = the unwarped press frame, ``img`` = its warp: the cleanest test of
   following real texture, optimistic because the two share the capture's noise pattern.
 - ``"single"``: ``img`` only (the paper's setting).
+
+A second proxy, :func:`make_contact_proxy`, keeps the real imprint instead and takes the motion of
+that contact from the simulator's elastic model (real frames, MODELLED field; see its section).
 """
 
 from __future__ import annotations
@@ -53,8 +56,9 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["FIELD_KINDS", "SENSORS", "SETTINGS", "Field", "ProxySample", "backward_map",
-           "load_real_presses", "make_proxy", "marker_grid", "random_field", "warp"]
+__all__ = ["CONTACT_KINDS", "FIELD_KINDS", "SENSORS", "SETTINGS", "ContactSample", "Field",
+           "ProxySample", "backward_map", "contact_fields", "load_real_presses",
+           "make_contact_proxy", "make_proxy", "marker_grid", "random_field", "warp", "warp_dense"]
 
 FIELD_KINDS = ("press", "shear", "twist", "mix")
 SETTINGS = ("no_contact", "press", "single")
@@ -343,3 +347,177 @@ def make_proxy(sensor: str = "gelsight", *, kinds: tuple[str, ...] = FIELD_KINDS
                     refs = {k: _capture(v, rng, drift=False) for k, v in refs.items()}
                 yield ProxySample(img, refs, rest, fld.at(rest), fld, i,
                                   (c[0], c[1], float(data.radii[i])))
+
+
+# --- Real frames with the simulator's field of their own contact ------------------------------
+#
+# The warp proxy above moves real texture by fields unrelated to the imprint in the frame, so
+# from one frame most of its motion is unpredictable in principle. The proxy below keeps the
+# real imprint and asks for the motion that contact would cause: the simulator's elastic model
+# (:func:`tacswitch.sim.motion.contact_displacement`) applied to a ball press at the recorded
+# contact, optionally sheared / twisted (the frame then warped by that shear's field). Its truth
+# is MODELLED (real frames, simulated field): it complements the warp proxy, it does not replace
+# real marker measurements.
+
+#: Cases of :func:`make_contact_proxy`: the press alone (frame unchanged) or the press plus a
+#: stuck shear and / or twist of the same contact (frame warped by the shear's field).
+CONTACT_KINDS = ("press", "shear", "twist", "shear_twist")
+
+
+@dataclass
+class ContactSample:
+    """One sample of :func:`make_contact_proxy`: ``img`` (the real press, warped by the
+    shear / twist field for those kinds, captured), ``refs`` (``"no_contact"``: the sensor's real
+    no-contact frame), ``rest`` marker centres, ``motion`` the modelled motion from rest
+    (``N x 2`` px), ``press`` index, ``kind`` and the contact and load parameters."""
+
+    img: NDArray[np.uint8]
+    refs: dict[str, NDArray[np.uint8]]
+    rest: NDArray[np.float32]
+    motion: NDArray[np.float32]
+    press: int
+    kind: str
+    params: dict[str, float]
+
+    def ref(self, setting: str) -> NDArray[np.uint8] | None:
+        """The reference frame of ``setting`` (``"no_contact"``; None for ``"single"``)."""
+        if setting not in ("no_contact", "single"):
+            raise ValueError(f"setting: unknown {setting!r}; choose 'no_contact' or 'single'")
+        return self.refs.get(setting)
+
+
+def _sample_coarse(fld: NDArray[Any], step: int, pts: NDArray[Any]) -> NDArray[np.float32]:
+    """The simulator's bilinear read-out of a coarse field at points ``(x, y)`` px (its cell
+    ``(i, j)`` is centred on pixel ``((j + 0.5) step - 0.5, (i + 0.5) step - 0.5)``)."""
+    from tacswitch.sim.motion import sample_field
+
+    return sample_field(fld, step, np.asarray(pts, np.float64) + (0.5 - 0.5 * step))[0]
+
+
+def warp_dense(src: NDArray[np.uint8], v: NDArray[np.float32], max_iterations: int = 200,
+               tol: float = 1e-3) -> NDArray[np.uint8]:
+    """``src`` with its content moved by the dense field ``v`` (``H x W x 2`` px at ``src``'s
+    pixels: the point at ``X`` moves to ``X + v(X)``); bicubic backward map, reflected borders.
+    ``ValueError`` if the fixed point ``X <- y - v(X)`` does not converge (too steep a field)."""
+    import cv2
+
+    h, w = src.shape[:2]
+    ys, xs = np.mgrid[0:h, 0:w].astype(np.float32)
+    vx = np.ascontiguousarray(v[..., 0], np.float32)
+    vy = np.ascontiguousarray(v[..., 1], np.float32)
+    px, py = xs.copy(), ys.copy()
+    res = np.inf
+    for _ in range(max_iterations):
+        ux = cv2.remap(vx, px, py, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        uy = cv2.remap(vy, px, py, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        res = float(max(np.abs(px + ux - xs).max(), np.abs(py + uy - ys).max()))
+        if res < tol:
+            break
+        px, py = xs - ux, ys - uy
+    if res > 1e-2:
+        raise ValueError(f"v: the backward map did not converge (residual {res:.3g} px)")
+    return np.asarray(cv2.remap(src, px, py, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT),
+                      np.uint8)
+
+
+def contact_fields(sensor: str, centre: tuple[float, float], radius_px: float, kind: str,
+                   rng: np.random.Generator) -> tuple[NDArray[np.float32], NDArray[np.float32],
+                                                      int, dict[str, float]]:
+    """The simulator's coarse fields of a ball press at ``centre`` whose contact radius is
+    ``radius_px`` (px at the sensor's working size): the press's own outward field and the
+    shear / twist field of ``kind`` (zero for ``"press"``), the grid step, and the draws.
+
+    Draws, as the simulator's scenes do (:class:`tacswitch.sim.scene.Scene`,
+    :func:`tacswitch.sim.scene.render_sample`): ball radius ``R`` ~ U(max(2, 1.2 a), 6) mm (the
+    simulator's spheres; the depth then follows from the recorded contact radius ``a``:
+    ``R - sqrt(R^2 - a^2)``), dilation gain U(0.15, 0.4), stuck shear ``pitch * U(0, 0.9)^1.5``
+    in a random direction, load ratio U(0, 0.95), twist U(-0.08, 0.08) rad.
+    """
+    import cv2
+
+    from tacswitch.sim.deform import deform_gel
+    from tacswitch.sim.indenters import ObjectSpec
+    from tacswitch.sim.motion import contact_displacement
+    from tacswitch.sim.presets import get_preset
+
+    if kind not in CONTACT_KINDS:
+        raise ValueError(f"kind: unknown {kind!r}; choose from {list(CONTACT_KINDS)}")
+    p = get_preset(sensor)
+    h, w = p.height, p.width
+    a_mm = radius_px * p.mm_per_px
+    big_r = float(rng.uniform(max(2.0, 1.2 * a_mm), 6.0))
+    depth = big_r - float(np.sqrt(big_r ** 2 - a_mm ** 2))
+    z = ObjectSpec("sphere", {"radius": big_r}).surface(h, w, p.mm_per_px, centre, 0.0, depth)
+    gel, contact = deform_gel(z, p.mm_per_px)
+    st = max(2, round(w / 80))
+    gh, gw = -(-h // st), -(-w // st)
+    pen = np.where(contact, np.maximum(gel, 0), 0).astype(np.float32)
+    pres = np.asarray(cv2.resize(pen, (gw, gh), interpolation=cv2.INTER_AREA), np.float32)
+    gel_c = np.asarray(cv2.resize(gel, (gw, gh), interpolation=cv2.INTER_AREA), np.float32)
+    dilation = float(rng.uniform(0.15, 0.4))
+    press, _ = contact_displacement(pres, st, p.mm_per_px, p.gel_thickness_mm, centre=centre,
+                                    dilation=dilation, gel=gel_c)
+    params = {"ball_radius_mm": big_r, "depth_mm": depth, "dilation": dilation}
+    shear = (0.0, 0.0)
+    twist = 0.0
+    load = float(rng.uniform(0.0, 0.95))
+    if kind in ("shear", "shear_twist"):
+        mag = p.pitch * float(rng.uniform(0.0, 0.9)) ** 1.5
+        ang = float(rng.uniform(0, 2 * np.pi))
+        shear = (mag * float(np.cos(ang)), mag * float(np.sin(ang)))
+    if kind in ("twist", "shear_twist"):
+        twist = float(rng.uniform(-0.08, 0.08))
+    if kind == "press":
+        other = np.zeros_like(press)
+    else:
+        other, _ = contact_displacement(pres, st, p.mm_per_px, p.gel_thickness_mm,
+                                        centre=centre, shear_px=shear, load_ratio=load,
+                                        twist_rad=twist)
+        params |= {"shear_x": shear[0], "shear_y": shear[1], "load_ratio": load,
+                   "twist_rad": twist}
+    return press, other, st, params
+
+
+def make_contact_proxy(sensor: str = "gelsight", *, kinds: tuple[str, ...] = CONTACT_KINDS,
+                       seed: int = 0, presses: RealPresses | None = None,
+                       capture: bool = True) -> Iterator[ContactSample]:
+    """Yields a sample per real press of ``sensor`` and case of ``kinds`` (module section doc):
+    the truth at the sensor's marker grid is the simulator's press field ``u_p`` of a ball
+    press at the recorded ``touch_center`` / ``touch_radius`` plus, for shear / twist cases, that
+    contact's shear field ``v`` read at the pressed positions: ``u_p(X) + v(X + u_p(X))``; the
+    real press frame is then warped by ``v`` (its imprint and grain move with the stuck zone).
+    The real press's own lateral motion is unknown: the modelled ``u_p`` stands for it.
+    Deterministic given ``seed``; ``capture`` as in :func:`make_proxy`."""
+    from tacswitch.sim.grain import dense_field
+
+    data = presses if presses is not None else load_real_presses(sensor)
+    rest, _ = marker_grid(data.sensor)
+    h, w = data.f0.shape[:2]
+    for i in range(len(data.imgs)):
+        for kind in kinds:
+            if kind not in CONTACT_KINDS:
+                raise ValueError(f"kinds: unknown {kind!r}; choose from {list(CONTACT_KINDS)}")
+            rng = np.random.default_rng([seed, i, CONTACT_KINDS.index(kind), 17])
+            c = (float(data.centres[i, 0]), float(data.centres[i, 1]))
+            press, other, st, params = contact_fields(data.sensor, c, float(data.radii[i]),
+                                                      kind, rng)
+            up = _sample_coarse(press, st, rest)
+            img = data.imgs[i]
+            motion = up
+            if kind != "press":
+                v = dense_field(other, st, h, w)
+                gy = np.gradient(v, axis=0)
+                gx = np.gradient(v, axis=1)
+                jac = np.stack([gx, gy], -1)  # jac[..., i, j] = d v_i / d x_j
+                g = float(np.linalg.norm(jac, ord=2, axis=(-2, -1)).max())
+                if g > MAX_GRADIENT:  # keep the backward map a contraction
+                    other = other * np.float32(MAX_GRADIENT / g)
+                    v = v * np.float32(MAX_GRADIENT / g)
+                    params["scaled"] = MAX_GRADIENT / g
+                motion = up + _sample_coarse(other, st, rest + up)
+                img = warp_dense(img, v)
+            refs = {"no_contact": data.f0}
+            if capture:
+                img = _capture(img, rng, drift=True)
+                refs = {"no_contact": _capture(data.f0, rng, drift=False)}
+            yield ContactSample(img, refs, rest, motion.astype(np.float32), i, kind, params)

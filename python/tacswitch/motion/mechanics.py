@@ -1,0 +1,122 @@
+"""No-learning contact-mechanics rule: the gel's lateral motion from the contact imprint.
+
+A normal press squeezes the (nearly incompressible) gel layer out from under the indenter: the
+surface flows outward, most at the contact's edge, and the flow reaches beyond the visibly
+changed region, fading over about one gel thickness. The simulator models it so
+(:func:`tacswitch.sim.motion.contact_displacement`, ``dilation``): the lateral displacement is
+``-dilation * thickness * grad(G_thickness * indentation)``, a Gaussian of the gel thickness
+smoothing the indentation map. This module applies the same law to the imprint that a markerless
+frame shows:
+
+1. change map ``D`` (grey levels) of the frame against a reference or, single-frame, against a
+   robust smooth background of itself (:func:`tacswitch.motion.heuristic.change_map`);
+2. the imprint ``w = max(D - floor, 0)`` with the noise floor ``median(D) + 3 * 1.4826 * MAD``
+   (the outward rule's), area-averaged onto a coarse grid (about 80 cells across: the field is
+   smooth on the scale of a marker) and divided by its robust maximum ``w_top`` (the 98th
+   percentile of the changed cells): its *shape* (where and how wide the gel is pressed), not
+   its contrast, which depends on the sensor's lighting;
+3. the displacement ``u = -gain * T^2 * grad(G_T * w / w_top)`` (``T``: gel thickness, px),
+   read bilinearly at the markers.
+
+Unlike the outward rule (motion only where the image changed), this field decays smoothly over a
+gel thickness outside the contact, as the simulated gel does; a wider imprint gives a larger
+motion. Tried and rejected on the simulator's pure presses (not on any evaluation data): the
+raw contrast instead of the normalised shape (gains 4x apart between the two presets) and a
+depth-like dome integrated from the imprint's slope (worse single-frame direction).
+
+Units and conventions: frames ``H x W x 3`` uint8 BGR, points and motion ``(x, y)`` px with pixel
+centres at integers. The gel thickness defaults to :data:`THICKNESS_FRAC` of the frame width (the
+simulator's 2 mm on the ~18.9 mm wide field of its GelSight and GelSight Mini presets: 68 px at
+640 x 480, 34 px at 320 x 240). The gain is not fitted to any evaluation data: it is the
+least-squares scale against the simulator's pure presses (40 per preset; GelSight / Mini 0.17 /
+0.14 with the no-contact reference, 0.17 / 0.13 single-frame; pooled
+``python benches/bench_motion_single.py --calibrate``), so the magnitude is the simulator's,
+which no real measurement has checked; the direction, which the cosine scores, does not depend
+on it.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["MECHANICS_GAIN", "THICKNESS_FRAC", "imprint",
+           "mechanics_field", "mechanics_motion"]
+
+#: Gel thickness as a fraction of the frame width (2 mm / 18.9 mm; see the module doc).
+THICKNESS_FRAC = 0.106
+#: Scale of the rule, with or without a reference (see the module doc).
+MECHANICS_GAIN = 0.15
+#: Coarse grid cells across the frame width.
+_GRID_WIDTH = 80
+
+
+def _step(width: int) -> int:
+    return max(1, round(width / _GRID_WIDTH))
+
+
+def imprint(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None) -> NDArray[np.float32]:
+    """The contact imprint ``max(D - floor, 0)`` (grey levels, ``H x W`` float32) of ``img``
+    against ``ref`` (None: single-frame, against the fitted background)."""
+    from tacswitch.motion.heuristic import change_map
+
+    d = change_map(img, ref)
+    sub = d[::2, ::2]
+    med = float(np.median(sub))
+    floor = med + 3.0 * 1.4826 * float(np.median(np.abs(sub - med)))
+    return np.maximum(d - floor, 0.0).astype(np.float32)
+
+
+def mechanics_field(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None, *,
+                    gain: float = MECHANICS_GAIN, thickness_px: float | None = None
+                    ) -> tuple[NDArray[np.float32], int]:
+    """The rule's displacement on its coarse grid, ``gh x gw x 2`` float32 px, and the grid step
+    ``st`` (cell ``(i, j)`` averages pixels ``[j st, (j + 1) st)``; its centre is at
+    ``((j + 0.5) st - 0.5, (i + 0.5) st - 0.5)``)."""
+    import cv2
+
+    h, w = img.shape[:2]
+    st = _step(w)
+    gh, gw = -(-h // st), -(-w // st)
+    t_px = THICKNESS_FRAC * w if thickness_px is None else float(thickness_px)
+    wmap = imprint(img, ref)
+    # cv2.resize with INTER_AREA needs an exact multiple for a true box average; pad by edge
+    # replication to gh * st x gw * st first.
+    pad = np.pad(wmap, ((0, gh * st - h), (0, gw * st - w)), mode="edge")
+    coarse = np.asarray(cv2.resize(pad, (gw, gh), interpolation=cv2.INTER_AREA), np.float32)
+    pos = coarse[coarse > 0]
+    # A robust maximum (98th percentile of the changed cells): a single-frame background fit
+    # can leave a small, intense residual (a dark corner) that must not set the scale.
+    top = float(np.percentile(pos, 98)) if pos.size else 0.0
+    if top <= 0:
+        return np.zeros((gh, gw, 2), np.float32), st
+    s = max(t_px / st, 0.5)
+    k = int(2 * np.ceil(3 * s) + 1)
+    smooth = cv2.GaussianBlur(coarse / np.float32(top), (k, k), s,
+                              borderType=cv2.BORDER_REFLECT_101)
+    gy, gx = np.gradient(smooth.astype(np.float64), float(st))
+    return (-gain * t_px * t_px * np.stack([gx, gy], -1)).astype(np.float32), st
+
+
+def mechanics_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None,
+                     centres: NDArray[np.float32], *, gain: float = MECHANICS_GAIN,
+                     thickness_px: float | None = None) -> NDArray[np.float32]:
+    """Motion ``N x 2`` float32 ``(dx, dy)`` px of markers at rest ``centres`` (``(x, y)`` px) by
+    the mechanics rule (module doc); ``ref`` may be None (single frame). Exactly zero for
+    identical frames and where nothing rises above the noise floor."""
+    import cv2
+
+    n = len(centres)
+    if n == 0 or (ref is not None and np.array_equal(img, ref)):
+        return np.zeros((n, 2), np.float32)
+    if thickness_px is not None and not (np.isfinite(thickness_px) and thickness_px > 0):
+        raise ValueError(f"thickness_px: must be a positive number of pixels; got "
+                         f"{thickness_px!r}")
+    fld, st = mechanics_field(img, ref, gain=gain, thickness_px=thickness_px)
+    pts = (np.asarray(centres, np.float32) + 0.5) / st - 0.5
+    mx = np.ascontiguousarray(pts[:, :1], np.float32)
+    my = np.ascontiguousarray(pts[:, 1:], np.float32)
+    out: Any = cv2.remap(fld, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return np.asarray(out, np.float32).reshape(-1, 2)

@@ -11,7 +11,11 @@
    measure the ghost around the real markers.
 
 Every method picks its own mask (that is what a user gets); times are medians per frame on one
-thread (GelSight, 640x480).
+thread (GelSight, 640x480). "TELEA default" is ``remove_markers``' default radius
+(:data:`tacswitch.inpaint.DEFAULT_RADIUS`); r=3, the default before, is kept as its own row, and
+hybrid's TELEA part runs at the default radius. The TacDiff and hybrid rows depend on the code
+and models in ``python/tacswitch/tacdiff`` and ``python/tacswitch/models``: the section names the
+commit and says whether those had uncommitted changes.
 
 Run: python benches/bench_real_removal.py [--quick] [--frames N] [--no-models] [--update]
 """
@@ -138,6 +142,25 @@ def profile_table() -> str | None:
             + table(["dots", *(f"{k}-{k + 1} px" for k in ks)], rows))
 
 
+def code_state() -> str:
+    """The commit, and whether the TacDiff code or models differ from it (uncommitted)."""
+    import subprocess
+
+    root = Path(__file__).resolve().parents[1]
+
+    def git(*a: str) -> str:
+        # rstrip only: porcelain lines start with a status column that may be a space.
+        return subprocess.run(["git", *a], capture_output=True, text=True,
+                              cwd=root).stdout.rstrip()
+
+    dirty = git("status", "--porcelain", "--", "python/tacswitch/tacdiff",
+                "python/tacswitch/models", "python/tacswitch/inpaint.py")
+    changed = ", ".join(line[3:] for line in dirty.splitlines())
+    return (f"commit {git('rev-parse', '--short', 'HEAD')}"
+            + (f", with uncommitted changes in {changed}" if changed else
+               ", TacDiff code and models as committed"))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="1 press per sensor, radii 3 and 12")
@@ -169,7 +192,8 @@ def main() -> None:
         "+-1. Numbers measured on real frames with painted markers (the proxy), not on real "
         "markers, except the last table.",
         *([profile] if profile else []), *parts, *([real] if real else []),
-        f"Machine: {machine()}.", f"Command: `{cmd}`"])
+        f"Machine: {machine()}. TacDiff/hybrid rows measured at {code_state()}.",
+        f"Command: `{cmd}`"])
     print(body)
     if args.update:
         update_markdown(SECTION, body)

@@ -1,18 +1,19 @@
 """TELEA inpainting vs cv2.inpaint(INPAINT_TELEA), one thread, 640x480 BGR.
 
-Speed: median [IQR] per frame of 48 / 63 / 100 markers at radius 3 and 5, both timed in
-alternating rounds of the same run (warm-up, GC off). Quality: mean absolute error over the
+Speed: median [IQR] per frame of 48 / 63 / 100 markers at radius 3 and 5 (the budget's radii)
+and 12 (``remove_markers``' default), both timed in alternating rounds of the same run (warm-up,
+GC off). Quality: mean absolute error over the
 masked pixels against the true pixels, for ours and OpenCV's, on
 
 - synthetic frames: a GelSight-like shaded gel plus a fine texture, dark soft discs painted on;
-- real markerless GelSight frames (the 48 ball presses of Taxim's calibration pack), dark soft
-  discs painted on, so the pixels under the markers are known.
+- real markerless GelSight frames (the 48 ball presses of Taxim's calibration pack, from the
+  installed ``taxim`` package or a downloaded wheel), dark soft discs painted on, so the pixels
+  under the markers are known.
 
 The mask is every pixel the painted disc touches, dilated once by a 3x3 ellipse (the paper's
 preprocessing).
 
-    pip download --no-deps taxim==1.4.1 -d /tmp/taxim    # real frames (optional)
-    python benches/bench_telea.py [--quick] [--taxim /tmp/taxim] [--update-md]
+    python benches/bench_telea.py [--quick] [--radii 3,5,12] [--taxim /tmp/taxim] [--update-md]
 """
 
 from __future__ import annotations
@@ -34,10 +35,10 @@ from tacswitch.inpaint import inpaint_telea
 
 # (markers, rows, cols, pitch px, diameter px): the paper's GelSight grid and two denser ones.
 LAYOUTS = [(48, 6, 8, 80.0, 23.0), (63, 7, 9, 66.0, 20.0), (100, 10, 10, 46.0, 16.0)]
-RADII = (3, 5)
+RADII = (3, 5, 12)
 DARKNESS = 0.85
 ELLIPSE3 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))
-COMMAND = "python benches/bench_telea.py --taxim /tmp/taxim --update-md"
+COMMAND = "python benches/bench_telea.py --update-md"
 
 
 def synthetic_frames(n: int) -> list[np.ndarray]:
@@ -52,13 +53,18 @@ def synthetic_frames(n: int) -> list[np.ndarray]:
 
 
 def real_frames(taxim: Path, n: int) -> list[np.ndarray]:
-    """Markerless GelSight frames from Taxim's calibration pack (read from the wheel)."""
+    """Markerless GelSight frames from Taxim's calibration pack: the installed ``taxim`` package
+    (the ``test`` extra), else a wheel in ``taxim``; none when neither is there."""
     wheels = sorted(glob.glob(str(taxim / "taxim-*.whl")))
-    if not wheels:
-        return []
-    with zipfile.ZipFile(wheels[0]) as z:
-        pack = np.load(io.BytesIO(z.read("taxim/calib/gelsight/dataPack.npz")))
-        imgs = pack["imgs"]
+    if wheels:
+        with zipfile.ZipFile(wheels[0]) as z:
+            imgs = np.load(io.BytesIO(z.read("taxim/calib/gelsight/dataPack.npz")))["imgs"]
+    else:
+        try:
+            import taxim as pkg
+        except ImportError:
+            return []
+        imgs = np.load(Path(pkg.__file__).parent / "calib" / "gelsight" / "dataPack.npz")["imgs"]
     step = max(1, len(imgs) // n)
     return [np.ascontiguousarray(imgs[i]) for i in range(0, len(imgs), step)][:n]
 
@@ -78,11 +84,12 @@ def mae(out: np.ndarray, truth: np.ndarray, mask: np.ndarray) -> float:
     return float(np.abs(out.astype(np.float64) - truth)[sel].mean())
 
 
-def run(name: str, frames: list[np.ndarray], rounds: int, repeat: int) -> list[list[str]]:
+def run(name: str, frames: list[np.ndarray], rounds: int, repeat: int,
+        radii: tuple[int, ...] = RADII) -> list[list[str]]:
     rows = []
     for n_markers, nr, nc, pitch, diam in LAYOUTS:
         painted = [paint(f, nr, nc, pitch, diam, seed=i) for i, f in enumerate(frames)]
-        for radius in RADII:
+        for radius in radii:
             img, mask = painted[0]
             t = interleaved(
                 {
@@ -127,7 +134,10 @@ def parse_args() -> argparse.Namespace:
     """The options of the inpainting benchmarks: --quick, --taxim, --update-md."""
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="fewer frames and samples")
-    ap.add_argument("--taxim", type=Path, default=Path("/tmp/taxim"), help="folder with the wheel")
+    ap.add_argument("--taxim", type=Path, default=Path("/tmp/taxim"),
+                    help="folder with a taxim wheel (default: the installed taxim package)")
+    ap.add_argument("--radii", default=",".join(map(str, RADII)),
+                    help="TELEA radii, px (default: 3,5,12)")
     ap.add_argument("--update-md", action="store_true", help="write the table into BENCHMARKS.md")
     return ap.parse_args()
 
@@ -150,7 +160,8 @@ def synthetic_and_real(run_fn: Callable[[str, list[np.ndarray], int, int], list[
 
 def main() -> int:
     args = parse_args()
-    rows = synthetic_and_real(run, args, (3, 3, 2), (6, 5, 6))
+    radii = tuple(int(r) for r in args.radii.split(","))
+    rows = synthetic_and_real(lambda *a: run(*a, radii=radii), args, (3, 3, 2), (6, 5, 6))
     header = [
         "frames",
         "markers",
@@ -168,7 +179,8 @@ def main() -> int:
         "MAE: mean |inpainted - true| over the masked pixels and channels (grey levels),",
         "averaged over the frames; markers are dark soft discs painted on known pixels,",
         "mask = painted pixels dilated once by a 3x3 ellipse.",
-    ], header, rows, COMMAND, args.update_md)
+    ], header, rows, COMMAND + ("" if args.radii == "3,5,12" else f" --radii {args.radii}")
+       + (" --quick" if args.quick else ""), args.update_md)
     return 0
 
 

@@ -181,7 +181,7 @@ def test_extraction_options_reach_remove_markers(tmp_path: Path, grasp: sim.Gras
     assert main([*args, "--polarity", "dark", "--threshold", "12", "--block-size", "31",
                  "--min-area", "5", "--max-area", "900", "--min-fill", "0.3",
                  "--max-aspect", "2.5", "--dilate", "3", "--exclude-border"]) == 0
-    assert seen[-1] == {"method": "telea", "radius": 3, "polarity": "dark", "threshold": 12.0,
+    assert seen[-1] == {"method": "telea", "radius": None, "polarity": "dark", "threshold": 12.0,
                         "block_size": 31, "min_area": 5, "max_area": 900, "min_fill": 0.3,
                         "max_aspect": 2.5, "dilate": 3, "exclude_border": True}
     assert main([*args, "--keep-border", "--dilate", "auto"]) == 0

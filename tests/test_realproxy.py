@@ -79,8 +79,12 @@ def test_shifted_holdout_lies_on_bare_gel_and_hides_it() -> None:
 
 
 def test_methods_fill_with_their_own_masks(mini_frames: list[R.ProxyFrame]) -> None:
+    from tacswitch.inpaint import DEFAULT_RADIUS
+
     ms = R.methods((3, 8), models=False, priors=("telea",))
-    assert "TELEA default (own mask)" in ms and "OpenCV TELEA r=8 (1-dilation threshold mask)" in ms
+    assert f"TELEA default r={DEFAULT_RADIUS} (own mask)" in ms
+    assert "TELEA r=3, previous default (own mask)" in ms
+    assert "OpenCV TELEA r=8 (1-dilation threshold mask)" in ms
     f = mini_frames[0]
     for name, fill in ms.items():
         out = fill(f.img, None)

@@ -11,6 +11,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import tacswitch as ts
+from tacswitch.inpaint import DEFAULT_RADIUS
 from tacswitch.metrics import masked_mae
 from tacswitch.tacdiff import infer, schedule
 from tacswitch.tacdiff.hybrid import inpaint_hybrid, model_mask, reconstruct
@@ -283,8 +284,8 @@ def test_hybrid_uses_the_network_only_near_contact(sample):
     np.testing.assert_array_equal(out[~mask], s.image_markers[~mask])
     assert 0 < info.holes_fraction < 1
     net = model_mask(s.image_markers, mask, s.reference)
-    # Far from the contact the result is TELEA's, exactly.
-    telea = ts.inpaint_telea(s.image_markers, mask, 3)
+    # Far from the contact the result is TELEA's (remove_markers' default radius), exactly.
+    telea = ts.inpaint_telea(s.image_markers, mask, DEFAULT_RADIUS)
     far = mask & ~net
     np.testing.assert_array_equal(out[far], telea[far])
     # Every hole in contact goes to the network, and far from all of them do.
@@ -301,7 +302,7 @@ def test_hybrid_on_untouched_gel_is_telea(sample):
     m = extract_markers(ref, dilate=2, exclude_border=False).mask
     out, info = inpaint_hybrid(ref, m, ref)
     assert info.model_pixels == 0 and info.saved == 1.0
-    np.testing.assert_array_equal(out, ts.inpaint_telea(ref, m, 3))
+    np.testing.assert_array_equal(out, ts.inpaint_telea(ref, m, DEFAULT_RADIUS))
 
 
 def test_hybrid_without_reference_runs(sample):

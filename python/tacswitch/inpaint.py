@@ -31,6 +31,25 @@ MAX_RADIUS = 100
 #: frames the error under the markers is 1.4-2x that of two dilations). Two cover all but
 #: 0.2-0.3 % of it.
 DEFAULT_DILATE = 2
+#: TELEA radius (px) of :func:`remove_markers` (and of the TELEA part of its ``"hybrid"``) when
+#: none is given. Chosen on real frames first (``benches/bench_radius.py``, our TELEA on the
+#: default adaptive mask, radii 3-24; BENCHMARKS.md): on the two real GelSight Mini frames with
+#: markers (FOTS, held-out shifted-mask pixels) the error is lowest at 12 (2.05 at r=3, 1.98 at
+#: 12, 2.00 at 16, 2.15 at 24); on the real-frame proxy (8 taxim presses per sensor x 7 marker
+#: looks and captures) r=12 beats r=3 in all 64 press x column cells (masked MAE crisp / soft /
+#: MJPEG / H.264, GelSight 1.20/1.23/1.74/2.45 -> 1.09/1.16/1.48/2.06, GelSight Mini
+#: 1.49/1.59/2.31/2.98 -> 1.25/1.37/1.87/2.50), and 12 is where crisp Mini dots are best (1.26
+#: at 16, 1.37 at 24). Larger radii keep helping GelSight's 23 px dots (H.264 1.83 at 24) but
+#: hurt the Mini's 11.5 px dots and the real frames, at 2-4x the time. Simulated crisp frames
+#: (second): masked MAE 1-5 % lower than at 3 on both sensors; in contact, where a wider mean
+#: flattens shading, up to 2.4 % higher (and 5 % on the Mini proxy's few contact markers).
+#: Speed: 3.5-5x r=3's cost (640x480: ~8 ms idle), 37-50x below ``cv2.inpaint`` at the same
+#: radius. :func:`inpaint_telea` keeps OpenCV's customary 3 as its own default (a drop-in
+#: called with the same arguments gives the same fill); ``"ns"`` keeps :data:`NS_RADIUS`.
+DEFAULT_RADIUS = 12
+#: ``remove_markers(method="ns")``'s radius when none is given: OpenCV's NS was not measured at
+#: larger radii on real frames and costs ~10x more at 12 (640x480: 23 -> 266 ms).
+NS_RADIUS = 3
 #: Methods that need the learned model (tacswitch.tacdiff, onnxruntime).
 _MODEL_METHODS = ("tacdiff", "hybrid")
 
@@ -297,7 +316,7 @@ def remove_markers(
     img: NDArray[Any],
     mask: NDArray[Any] | None = None,
     method: InpaintMethod = "telea",
-    radius: float = 3,
+    radius: float | None = None,
     dilate: int | Literal["auto"] | None = None,
     *,
     steps: int | None = None,
@@ -324,6 +343,8 @@ def remove_markers(
             on the markers in or near the contact, TELEA elsewhere,
             :func:`tacswitch.tacdiff.inpaint_hybrid`).
         radius: inpainting radius in pixels (TELEA, NS, and the TELEA part of ``"hybrid"``).
+            None (default): :data:`DEFAULT_RADIUS` (12, the best on real frames) for TELEA and
+            hybrid, :data:`NS_RADIUS` (3) for NS.
         dilate: growth of the extracted mask (ignored when ``mask`` is given). None (default)
             or ``"auto"``: adaptive, per marker, until the ring around it is consistent with
             the local background (``extract_markers(dilate="auto")``): about one pixel on crisp
@@ -365,6 +386,8 @@ def remove_markers(
                              "nothing is left to inpaint from")
     else:
         m = _as_mask(mask, arr.shape)
+    if radius is None:
+        radius = NS_RADIUS if method == "ns" else DEFAULT_RADIUS
     if method == "telea":
         return inpaint_telea(arr, m, radius)
     if method == "biharmonic":

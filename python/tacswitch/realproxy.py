@@ -437,14 +437,19 @@ def prior_fill(kind: str) -> Fill:
 
 def methods(radii: Sequence[int] = (3, 5, 8, 12), *, models: bool = True,
             priors: Sequence[str] = ()) -> dict[str, Fill]:
-    """The proxy's methods: our TELEA default pipeline and TELEA at ``radii`` (own mask),
+    """The proxy's methods: our TELEA default pipeline (:data:`tacswitch.inpaint.DEFAULT_RADIUS`)
+    and TELEA at the other ``radii`` (own mask; r=3 was the default before),
     OpenCV TELEA at ``radii`` on a one-dilation threshold mask, NS, the biharmonic fill, the
     ``priors`` named (:mod:`tacswitch.tacdiff.prior` kinds), and with ``models`` TacDiff
     (default and fast model, K=1) and hybrid."""
-    out: dict[str, Fill] = {"TELEA default (own mask)": own_mask_fill("telea")}
+    from tacswitch.inpaint import DEFAULT_RADIUS
+
+    out: dict[str, Fill] = {
+        f"TELEA default r={DEFAULT_RADIUS} (own mask)": own_mask_fill("telea")}
     for r in radii:
-        if r != 3:
-            out[f"TELEA r={r} (own mask)"] = own_mask_fill("telea", radius=r)
+        if r != DEFAULT_RADIUS:
+            old = ", previous default" if r == 3 else ""
+            out[f"TELEA r={r}{old} (own mask)"] = own_mask_fill("telea", radius=r)
     for r in radii:
         out[f"OpenCV TELEA r={r} (1-dilation threshold mask)"] = opencv_fill(r)
     out["NS r=3 (own mask)"] = own_mask_fill("ns")

@@ -58,11 +58,12 @@ class Row:
 
 def default_methods(radii: Sequence[int] = (3, 5, 8, 12), opencv: bool = True
                     ) -> dict[tuple[str, str], Inpaint]:
-    """TELEA (ours) at each radius, our biharmonic fill (no knob), and OpenCV's TELEA and NS at
-    the same radii."""
+    """TELEA (ours) at each radius (``remove_markers``' default radius marked ``(default)``),
+    our biharmonic fill (no knob), and OpenCV's TELEA and NS at the same radii."""
     import cv2
 
     import tacswitch as ts
+    from tacswitch.inpaint import DEFAULT_RADIUS
 
     def ours(r: int) -> Inpaint:
         return lambda img, m, f: ts.inpaint_telea(img, m, r)
@@ -72,7 +73,8 @@ def default_methods(radii: Sequence[int] = (3, 5, 8, 12), opencv: bool = True
 
     methods: dict[tuple[str, str], Inpaint] = {}
     for r in radii:
-        methods[("TELEA (tacswitch)", f"r={r}")] = ours(r)
+        knob = f"r={r} (default)" if r == DEFAULT_RADIUS else f"r={r}"
+        methods[("TELEA (tacswitch)", knob)] = ours(r)
     methods[("biharmonic (tacswitch)", "-")] = lambda img, m, f: ts.inpaint_biharmonic(img, m)
     if opencv:
         for r in radii:
@@ -84,7 +86,8 @@ def default_methods(radii: Sequence[int] = (3, 5, 8, 12), opencv: bool = True
 def tacdiff_methods(steps: Sequence[int] = (1, 2, 4, 8, 20), hybrid_steps: Sequence[int] = (2,),
                     model: str | None = None) -> dict[tuple[str, str], Inpaint]:
     """TacDiff (onnxruntime, all cores) at each step count K, the hybrid mode (TacDiff near
-    the contact, found against the reference frame or from texture; TELEA r=3 elsewhere), and
+    the contact, found against the reference frame or from texture; TELEA at
+    :data:`tacswitch.inpaint.DEFAULT_RADIUS` elsewhere), and
     the model's classical prior alone (what the network starts from), so the table shows what
     the learned part adds."""
     from tacswitch.tacdiff import inpaint_hybrid, inpaint_tacdiff

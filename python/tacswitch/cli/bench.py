@@ -28,7 +28,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "proxy; needs the taxim package): a second table and bench_real.png "
                    "(default: 1, x 7 style/capture cases; 0: none)")
     p.add_argument("--quick", action="store_true",
-                   help="2 frames, radii 3 and 5, 1 round, 2 real-frame cases")
+                   help="2 frames, radii 3 and 12 (the default), 1 round, 2 real-frame cases")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(run=run)
 
@@ -41,6 +41,7 @@ def run(args: argparse.Namespace) -> int:
 
     from tacswitch import tradeoff
     from tacswitch._io import atomic_open, write_image
+    from tacswitch.inpaint import DEFAULT_RADIUS
 
     cv2.setNumThreads(1)
     try:
@@ -50,7 +51,8 @@ def run(args: argparse.Namespace) -> int:
     frames, rounds = args.frames, args.rounds
     cases = tradeoff.PROXY_CASES
     if args.quick:
-        frames, rounds, radii, args.steps = 2, 1, [3, 5], "1,2"
+        # r=3 (OpenCV's customary radius) and remove_markers' default.
+        frames, rounds, radii, args.steps = 2, 1, [3, DEFAULT_RADIUS], "1,2"
         cases = tradeoff.PROXY_QUICK_CASES
     try:
         steps = [int(k) for k in args.steps.split(",") if k.strip()]

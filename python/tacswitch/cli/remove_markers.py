@@ -46,7 +46,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="telea (fast, default), biharmonic (smooth fill, better on contact "
                         "shading), ns (OpenCV), tacdiff (diffusion model), hybrid (tacdiff near "
                         "the contact, telea elsewhere)")
-    p.add_argument("--radius", type=int, default=3, help="inpainting radius, px (default: 3)")
+    p.add_argument("--radius", type=int, default=None,
+                   help="inpainting radius, px (default: 12 for telea and hybrid, the best on "
+                        "real frames; 3 for ns)")
     p.add_argument("--steps", type=int, default=None,
                    help="tacdiff/hybrid sampler steps K (default: 1)")
     p.add_argument("--ref", default=None,
@@ -120,7 +122,7 @@ def _check_options(args: argparse.Namespace) -> None:
 
     if args.workers is not None and args.workers < 1:
         raise UsageError(f"--workers: must be >= 1; got {args.workers}")
-    if args.radius < 1:
+    if args.radius is not None and args.radius < 1:
         raise UsageError(f"--radius: must be >= 1 px; got {args.radius}")
     if args.steps is not None and args.steps < 1:
         raise UsageError(f"--steps: must be >= 1; got {args.steps}")

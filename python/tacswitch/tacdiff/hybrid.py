@@ -30,6 +30,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tacswitch.inpaint import DEFAULT_RADIUS
+
 #: Box side (px) of the local means compared against the reference.
 BOX = 7
 #: Contact threshold against a reference, grey levels (outside the contact the box-mean difference
@@ -86,7 +88,7 @@ def reconstruct(seed: NDArray[np.bool_], mask: NDArray[np.bool_]) -> NDArray[np.
 
 
 def contact_region(img: NDArray[np.uint8], mask: NDArray[np.bool_],
-                   ref: NDArray[np.uint8] | None = None, *, radius: int = 3,
+                   ref: NDArray[np.uint8] | None = None, *, radius: int = DEFAULT_RADIUS,
                    threshold: float | None = None) -> NDArray[np.bool_]:
     """Pixels in contact (``ref`` given) or textured (no ``ref``), see the module docstring.
     ``img`` is the frame with its ``mask`` holes already filled (e.g. by TELEA)."""
@@ -115,7 +117,7 @@ def contact_region(img: NDArray[np.uint8], mask: NDArray[np.bool_],
 
 def model_mask(img: NDArray[np.uint8], mask: NDArray[np.bool_],
                ref: NDArray[np.uint8] | None = None, *, filled: NDArray[np.uint8] | None = None,
-               margin: int = 6, radius: int = 3, threshold: float | None = None
+               margin: int = 6, radius: int = DEFAULT_RADIUS, threshold: float | None = None
                ) -> NDArray[np.bool_]:
     """The holes of ``mask`` (whole 8-connected parts) lying within ``margin`` px of the contact
     region; ``filled`` is ``img`` with the holes filled (computed by TELEA if None)."""
@@ -129,7 +131,7 @@ def model_mask(img: NDArray[np.uint8], mask: NDArray[np.bool_],
 
 
 def inpaint_hybrid(img: Any, mask: Any, ref: Any = None, *, steps: int | None = None,
-                   radius: float = 3, margin: int = 6, threshold: float | None = None,
+                   radius: float = DEFAULT_RADIUS, margin: int = 6, threshold: float | None = None,
                    seed: int | None = 0, model: str | os.PathLike[str] | None = None
                    ) -> tuple[NDArray[np.uint8], HybridInfo]:
     """TELEA everywhere, TacDiff on the holes in or near the contact.
@@ -140,7 +142,7 @@ def inpaint_hybrid(img: Any, mask: Any, ref: Any = None, *, steps: int | None = 
         ref: optional no-contact frame of the same sensor (``H x W x 3`` uint8 BGR, with or
             without markers): the contact is found against it; without it, from local texture.
         steps: TacDiff sampler steps (default :data:`~tacswitch.tacdiff.infer.DEFAULT_STEPS`).
-        radius: TELEA radius, px.
+        radius: TELEA radius, px (default: ``remove_markers``' default).
         margin: px the contact region is grown by before picking holes.
         threshold: contact threshold (grey levels with ``ref``; texture ratio without).
         seed: noise seed of the diffusion sampler.

@@ -100,6 +100,23 @@ def test_explicit_start(tmp_path: Path) -> None:
                  "5", "--max-frames", "5", "-q"]) == 2
 
 
+def test_smooth_frames_flag(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    frames, start, onset = recording("slip", 9, release=False)
+    assert onset is not None
+    rows, _ = run_slip(tmp_path, frames, "--start", str(start))
+    first = next(int(r["frame"]) for r in rows if r["slip"] == "1")
+    rows3, _ = run_slip(tmp_path, frames, "--start", str(start), "--smooth-frames", "3")
+    first3 = next(int(r["frame"]) for r in rows3 if r["slip"] == "1")
+    # The mean of the last 3 frames reaches the threshold later than each frame does.
+    assert first < first3 <= first + 2
+    capsys.readouterr()
+    for bad in ("0", "1001"):
+        assert main(["slip", str(tmp_path / "rec"), "--log", str(tmp_path / "l.csv"),
+                     "--smooth-frames", bad, "-q"]) == 2
+        assert capsys.readouterr().err.strip() == (f"tacswitch slip: error: --smooth-frames: "
+                                                   f"must be in [1, 1000]; got {bad}")
+
+
 def test_no_contact_at_all_reports_no_grasp(tmp_path: Path) -> None:
     seq = sim.grasp_sequence("gelsight_mini", "hold", n_frames=8, seed=1)
     rows, out = run_slip(tmp_path, [seq.reference] * 6)

@@ -28,12 +28,48 @@ def test_identical_frames_give_zero_motion(mini, grid, method: str) -> None:
         assert np.abs(m).max() < 0.05
 
 
-def test_flow_ignores_a_global_brightness_change(mini, grid) -> None:
-    for img in (mini.f0, mini.imgs[5]):
-        for gain, offset in ((1.15, 5.0), (0.85, -5.0)):
-            bright = np.clip(img.astype(np.float64) * gain + offset, 0, 255).astype(np.uint8)
-            m = predict_motion(bright, img, grid, method="flow")
+def _brighter(img: np.ndarray, gain: float, offset: float) -> np.ndarray:
+    return np.clip(img.astype(np.float64) * gain + offset, 0, 255).astype(np.uint8)
+
+
+@pytest.mark.parametrize("preset", [None, "medium"])
+def test_flow_ignores_a_global_brightness_change(mini, grid, preset) -> None:
+    # None: the default preset ("balanced"); the grid's outer rows sit 5.5 px from the edge.
+    for img in (mini.f0, mini.imgs[5], mini.imgs[3]):
+        for gain, offset in ((1.15, 5.0), (0.85, -5.0), (0.85, 0.0), (1.0, 8.0)):
+            m = predict_motion(_brighter(img, gain, offset), img, grid, method="flow",
+                               preset=preset)
             assert np.hypot(m[:, 0], m[:, 1]).max() < 0.2, (gain, offset)
+
+
+def test_flow_ignores_a_global_brightness_change_at_640x480() -> None:
+    gs = proxy.load_real_presses("gelsight")
+    grid = proxy.marker_grid("gelsight")[0]
+    for gain, offset in ((0.85, 0.0), (1.15, 5.0)):
+        m = predict_motion(_brighter(gs.imgs[3], gain, offset), gs.imgs[3], grid)
+        assert np.hypot(m[:, 0], m[:, 1]).max() < 0.2, (gain, offset)
+
+
+def test_default_preset_is_balanced_and_presets_differ(mini, grid) -> None:
+    img, ref = mini.imgs[4], mini.f0
+    assert flow.DEFAULT_PRESET == "balanced"
+    default = predict_motion(img, ref, grid)
+    np.testing.assert_array_equal(default, flow.flow_motion(img, ref, grid, preset="balanced"))
+    assert not np.array_equal(default, flow.flow_motion(img, ref, grid, preset="medium"))
+    assert not np.array_equal(default, flow.flow_motion(img, ref, grid, preset="fast"))
+    with pytest.raises(ValueError, match=r"^preset: unknown 'Balanced'; choose from \['balanced'"):
+        flow.flow_motion(img, ref, grid, preset="Balanced")
+
+
+def test_padding_is_cropped_and_fits_tiny_frames() -> None:
+    rng = np.random.default_rng(3)
+    a = rng.integers(0, 256, (8, 400), dtype=np.uint8)
+    b = np.roll(a, 1, axis=1)
+    f = flow.dense_flow(a, b, pad=7)
+    assert f.shape == (8, 400, 2)
+    # A 400 px wide frame asks for 20 px of padding; an 8 px high one allows 7 at most.
+    m = predict_motion(np.dstack([b] * 3), np.dstack([a] * 3), np.float32([[200.0, 4.0]]))
+    assert m.shape == (1, 2) and np.isfinite(m).all()
 
 
 @pytest.mark.parametrize("kind", ["shear", "twist", "press"])
@@ -142,13 +178,15 @@ def test_cli_slip_markerless_flags_a_growing_shear_after_the_grasp_start(mini, t
     for t, f in enumerate(frames):
         cv2.imwrite(str(folder / f"{t:03d}.png"), f)
     log = tmp_path / "log.csv"
-    assert main(["slip", str(folder), "--markerless", "--ref", str(tmp_path / "f0.png"),
-                 "--start", "3", "--log", str(log), "-q"]) == 0
-    rows = list(csv.DictReader(open(log)))
-    flagged = [int(r["frame"]) for r in rows if r["slip"] == "1"]
     # Frames 3-5 are the same press (zero motion since the start); 1 px at frame 6 is below the
-    # threshold, 2 px and more are above it.
-    assert flagged and flagged[0] == 7
+    # threshold, 2 px and more are above it. By default (markerless) the rule sees the mean of
+    # the last 2 frames: 1.5 px at frame 7, 2.5 px at frame 8.
+    for extra, first in (([], 8), (["--smooth-frames", "1"], 7)):
+        assert main(["slip", str(folder), "--markerless", "--ref", str(tmp_path / "f0.png"),
+                     "--start", "3", "--log", str(log), "-q", *extra]) == 0
+        rows = list(csv.DictReader(open(log)))
+        flagged = [int(r["frame"]) for r in rows if r["slip"] == "1"]
+        assert flagged and flagged[0] == first, extra
     capsys.readouterr()
     assert main(["slip", str(folder), "--ref", str(tmp_path / "f0.png"), "--log", str(log),
                  "-q"]) != 0

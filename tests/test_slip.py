@@ -134,3 +134,39 @@ def test_rigid_auto_is_half_the_scaled_threshold() -> None:
     assert not state.slip and only.threshold_px is None
     with pytest.raises(ValueError, match="rigid_threshold_px"):
         ts.SlipDetector(rigid_threshold_px="sometimes")
+
+
+def test_smooth_frames_averages_the_last_n_motion_fields() -> None:
+    det = ts.SlipDetector(1.0, smooth_frames=2)
+    m = np.zeros((3, 2), np.float32)
+    assert not det.update(m).slip
+    # One frame's 1.5 px spike on marker 1 is averaged with the previous frame: 0.75 px.
+    spike = m.copy()
+    spike[1] = [1.5, 0.0]
+    state = det.update(spike)
+    assert not state.slip and state.max_displacement == pytest.approx(0.75)
+    # Sustained motion is seen in full one frame later.
+    assert det.update(spike).slip
+    # reset() forgets the window: the next frame is the new baseline, averaged with nothing.
+    det.reset()
+    state = det.update(spike)
+    assert not state.slip and state.max_displacement == 0.0
+    # A marker invalid in the newest frame is invalid; earlier invalid frames are skipped.
+    det.reset()
+    det.update(m)
+    nan = m.copy()
+    nan[2] = np.nan
+    assert det.update(nan).n_compared == 2
+    # Without smoothing the same spike fires at once (the paper's rule, the default).
+    plain = ts.SlipDetector(1.0)
+    plain.update(m)
+    assert plain.update(spike).slip
+
+
+def test_smooth_frames_bad_values_are_named() -> None:
+    with pytest.raises(ValueError, match=r"^smooth_frames: "):
+        ts.SlipDetector(smooth_frames=0)
+    with pytest.raises(TypeError, match=r"^smooth_frames: "):
+        ts.SlipDetector(smooth_frames=1.5)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match=r"^smooth_frames: "):
+        ts.SlipDetector(smooth_frames=True)

@@ -42,6 +42,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="the grasp starts at this frame (0-based; default: detected from the "
                         "contact onset)")
     p.add_argument("--max-frames", type=int, default=None, help="stop after this many frames")
+    p.add_argument("--smooth-frames", type=int, default=None, metavar="N",
+                   help="the slip rule sees the mean motion of the last N frames of the grasp "
+                        "(default: 1 with markers, the paper's rule; 2 with --markerless, whose "
+                        "predicted motion carries camera noise that changes every frame)")
     m = p.add_argument_group("markerless sensor (motion predicted instead of tracked)")
     m.add_argument("--markerless", action="store_true",
                    help="the frames have no markers: predict each frame's marker motion from "
@@ -84,6 +88,8 @@ def _check(args: argparse.Namespace) -> None:
         raise UsageError(f"--start: must be >= 0; got {args.start}")
     if args.start is not None and args.max_frames is not None and args.start >= args.max_frames:
         raise UsageError(f"--start: frame {args.start} is past --max-frames {args.max_frames}")
+    if args.smooth_frames is not None and not 1 <= args.smooth_frames <= 1000:
+        raise UsageError(f"--smooth-frames: must be in [1, 1000]; got {args.smooth_frames}")
     if args.threshold_px is not None and not args.threshold_px > 0:
         raise UsageError(f"--threshold-px: must be > 0; got {args.threshold_px}")
     if not args.markerless:
@@ -136,7 +142,8 @@ def run(args: argparse.Namespace) -> int:
                                                rigid_threshold_px=args.rigid_threshold_px,
                                                use_displacement=not args.rigid_only,
                                                points=tracker.reference,
-                                               image_width=frame.shape[1])
+                                               image_width=frame.shape[1],
+                                               smooth_frames=_smooth_frames(args))
                     segmenter = GraspSegmenter(_epsilon(args, frame.shape[1]), start=args.start)
                 elif frame.shape[:2] != tracker.reference_shape:
                     skipped += 1
@@ -225,6 +232,15 @@ class MarkerlessMotion:
         motion = predict_motion(frame, self.grasp_ref, self.reference, method=self.method,
                                 model=self.model)
         return motion, np.ones(len(motion), bool)
+
+
+def _smooth_frames(args: argparse.Namespace) -> int:
+    """The rule's moving average: given, else 2 frames on a markerless sensor, 1 with markers."""
+    from tacswitch.slip import MARKERLESS_SMOOTH_FRAMES
+
+    if args.smooth_frames is not None:
+        return int(args.smooth_frames)
+    return MARKERLESS_SMOOTH_FRAMES if args.markerless else 1
 
 
 def _epsilon(args: argparse.Namespace, width: int) -> float:

@@ -110,16 +110,18 @@ def evaluate_split(data: dict[str, NDArray[Any]], predict: Callable[..., NDArray
 
 def evaluate_slip(predict: Callable[..., NDArray[np.float32]], *, preset: str = "gelsight_mini",
                   n_per_kind: int = 6, n_frames: int = 30, seed: int = 100,
-                  ref_frame: str = "none") -> dict[str, dict[str, Any]]:
+                  ref_frame: str = "none", smooth_frames: int = 1) -> dict[str, dict[str, Any]]:
     """Slip detection on rendered grasps (hold / slip / vibration) with the paper's rule alone:
     :func:`slip_on_grasps` for one source, summarised per source (``predicted`` on markerless
     frames, ``tracked`` on marker frames). ``ref_frame``: what ``predict`` gets as ``ref``:
     ``"none"``, ``"no_contact"`` or ``"grasp_start"`` (motion since the grasp start, as the
-    slip rule measures it). Returns accuracy, correct / n, false alarms per kind, missed slips,
-    the delays (frames after onset) and their mean."""
+    slip rule measures it); ``smooth_frames``: the rule's moving average on the predicted
+    motion (:class:`tacswitch.SlipDetector`). Returns accuracy, correct / n, false alarms per
+    kind, missed slips, the delays (frames after onset) and their mean."""
     res = slip_on_grasps({"predicted": predict}, preset=preset, n_per_kind=n_per_kind,
                          n_frames=n_frames, seed=seed, ref_frame=ref_frame,
-                         criteria={"displacement": SLIP_CRITERIA["displacement"]})
+                         criteria={"displacement": SLIP_CRITERIA["displacement"]},
+                         smooth_frames=smooth_frames)
     out: dict[str, dict[str, Any]] = {}
     for source in ("predicted", "tracked"):
         r = res[(source, "displacement")]
@@ -142,8 +144,8 @@ SLIP_CRITERIA: dict[str, dict[str, Any]] = {
 def slip_on_grasps(sources: dict[str, Callable[..., NDArray[np.float32]]], *,
                    preset: str = "gelsight_mini", n_per_kind: int = 6, n_frames: int = 30,
                    seed: int = 100, ref_frame: str = "grasp_start",
-                   criteria: dict[str, dict[str, Any]] | None = None
-                   ) -> dict[tuple[str, str], dict[str, Any]]:
+                   criteria: dict[str, dict[str, Any]] | None = None,
+                   smooth_frames: int = 1) -> dict[tuple[str, str], dict[str, Any]]:
     """Slip detection on rendered grasps (hold / slip / vibration) from markerless motion.
 
     Every source ``predict(img, ref, rest)`` gets each markerless frame from the grasp start on
@@ -152,7 +154,9 @@ def slip_on_grasps(sources: dict[str, Callable[..., NDArray[np.float32]]], *,
     marker tracker on the marker images, followed from the first frame) is always added as the
     upper reference. Each
     criterion (:data:`SLIP_CRITERIA`, the paper's threshold scaled to the width) starts at the
-    grasp start, as in the paper.
+    grasp start, as in the paper. ``smooth_frames`` (the rule's moving average,
+    :class:`tacswitch.SlipDetector`) applies to the predicted sources; with ``smooth_frames > 1``
+    ``"tracked smoothed"`` (tracking with the same average) is added beside ``"tracked"``.
 
     Returns per ``(source, criterion)``: ``correct``, ``n``, ``accuracy``, ``slips_found`` /
     ``n_slip``, false alarms on ``hold`` / ``vibration`` (and their counts), the delays (frames
@@ -166,8 +170,11 @@ def slip_on_grasps(sources: dict[str, Callable[..., NDArray[np.float32]]], *,
     if ref_frame not in ("grasp_start", "no_contact", "none"):
         raise ValueError(f"ref_frame: unknown {ref_frame!r}; use 'grasp_start', 'no_contact' "
                          "or 'none'")
+    from tacswitch._checks import as_count
+
+    smooth = as_count(smooth_frames, "smooth_frames", 1, 1000)
     crit = SLIP_CRITERIA if criteria is None else criteria
-    names = [*sources, "tracked"]
+    names = [*sources, "tracked", *(["tracked smoothed"] if smooth > 1 else [])]
     res: dict[tuple[str, str], dict[str, Any]] = {
         (s, c): {"correct": 0, "n": 0, "n_slip": 0, "slips_found": 0, "fa_hold": 0,
                  "n_hold": 0, "fa_vibration": 0, "n_vibration": 0, "delays": [], "t": 0.0,
@@ -198,11 +205,13 @@ def slip_on_grasps(sources: dict[str, Callable[..., NDArray[np.float32]]], *,
                 m, v = tracker.update(seq.frames[t].image_markers)
                 if t >= g0:
                     tracked.append((m, v))
-            motions["tracked"] = tracked
+            motions["tracked"] = motions["tracked smoothed"] = tracked
             for name in names:
+                marker = name.startswith("tracked")
                 for cname, opts in crit.items():
-                    det = ts.SlipDetector(image_width=w, points=pts if name == "tracked"
-                                          else rest, **opts)
+                    det = ts.SlipDetector(image_width=w, points=pts if marker else rest,
+                                          smooth_frames=1 if name == "tracked" else smooth,
+                                          **opts)
                     first = None
                     for j, (m, v) in enumerate(motions[name]):
                         if det.update(m, v).slip and first is None:

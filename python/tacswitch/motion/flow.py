@@ -11,12 +11,24 @@ Brightness: both frames are turned into local contrast ``(g - G*g) / G*g`` of th
 ``g`` (``G*``: a wide Gaussian, sigma ``BG_SIGMA_REL`` of the frame width), which removes a global
 gain and any smooth illumination change, then mapped to 8 bits with one shared, compressive scale
 (``tanh``) so the faint grain keeps a few grey levels while the strong imprint does not saturate.
-The flow field is smoothed over about a marker's size (:data:`SMOOTH_REL`) before it is read at
-the markers. Identical frames return exactly zero (checked before any flow is computed).
+Both 8-bit frames are mirror-padded by :data:`PAD_REL` of the width before the flow (the
+markers of the outer grid rows sit ~6 px from the edge, where DIS's patches and pyramid lack
+support; the padding halved the largest motion a brightness change reports there), and the flow
+field is smoothed over about a marker's size (:data:`SMOOTH_REL`) before it is read at the
+markers. Identical frames return exactly zero (checked before any flow is computed).
 
 Algorithms (OpenCV 4.x/5.x, ``opencv-contrib`` for the ``optflow`` ones): ``"dis"`` (DIS, presets
-``ultrafast``/``fast``/``medium``), ``"farneback"``, ``"deepflow"``, ``"pcaflow"``, ``"rlof"``
-(dense RLOF).
+``balanced`` (default), ``ultrafast``/``fast``/``medium``), ``"farneback"``, ``"deepflow"``,
+``"pcaflow"``, ``"rlof"`` (dense RLOF).
+
+Presets: OpenCV's ``fast`` and ``ultrafast`` stop at a quarter of the frame's resolution (finest
+scale 2), which on the faint texture of a gel away from the contact turns the requantisation of
+a brightness change into 0.5-0.9 px of fake motion; ``medium`` works at half resolution with 25
+descent and 5 variational-refinement iterations and misses the 100 Hz budget at 320 x 240.
+``balanced`` keeps ``medium``'s half resolution with 8 descent and 2 refinement iterations on
+8 px patches every 4 px: within the budgets on 2 cores and under the 0.2 px brightness bound
+(``benches/bench_motion_methods.py`` has the speed, brightness and real-texture accuracy of
+each).
 """
 
 from __future__ import annotations
@@ -26,24 +38,35 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["ALGORITHMS", "DIS_PRESETS", "SMOOTH_REL", "dense_flow", "flow_motion",
-           "normalise_pair", "sample_field"]
+__all__ = ["ALGORITHMS", "DEFAULT_PRESET", "DIS_PRESETS", "PAD_REL", "SMOOTH_REL", "dense_flow",
+           "flow_motion", "normalise_pair", "sample_field"]
 
 #: Flow algorithms accepted by :func:`flow_motion`.
 ALGORITHMS = ("dis", "farneback", "deepflow", "pcaflow", "rlof")
-#: DIS presets (``preset=``); only DIS has presets.
-DIS_PRESETS = ("ultrafast", "fast", "medium")
+#: DIS presets (``preset=``); only DIS has presets. ``balanced`` is this module's own (see the
+#: module doc), the others are OpenCV's.
+DIS_PRESETS = ("balanced", "ultrafast", "fast", "medium")
+#: The preset used when none is given.
+DEFAULT_PRESET = "balanced"
+#: ``balanced``: OpenCV's ``fast`` preset with these DIS settings changed: finest scale 1 (half
+#: resolution), 8 gradient-descent and 2 variational-refinement iterations.
+BALANCED = {"finest_scale": 1, "gradient_descent_iterations": 8,
+            "variational_refinement_iterations": 2}
+#: Mirror padding of both frames before the flow, a fraction of the frame width (16 px at 320).
+PAD_REL = 0.05
 #: Background blur sigma as a fraction of the frame width (the illumination model's scale).
 BG_SIGMA_REL = 1.0 / 24.0
 #: Local-contrast value (in units of the reference's robust spread) mapped to ~76 grey levels.
 CONTRAST_GAIN = 3.0
 #: Gaussian smoothing of the flow field before it is read at the markers, sigma as a fraction of
-#: the frame width (9.6 px at 320 wide): a painted dot (0.034-0.036 of the width across on the
+#: the frame width (12.8 px at 320 wide): a painted dot (0.034-0.036 of the width across on the
 #: GelSight and Mini presets) and the tracker's centroid average the gel's motion over its area,
 #: and the average removes the flow's pixel-level jitter on weak texture. Chosen among 0, 0.015
 #: and 0.03 on a quarter of the real-texture proxy (seed 3): 0.03 was best on all of it (largest
-#: motion under a brightness change 0.31 -> 0.13 px at 640 x 480, e_rmse 3-19 % lower).
-SMOOTH_REL = 0.03
+#: motion under a brightness change 0.31 -> 0.13 px at 640 x 480, e_rmse 3-19 % lower); then
+#: 0.03 -> 0.04 with the padding, on the same quarter and on simulated grasps of dev seeds (200):
+#: e_rmse 1-4 % lower on the proxy (medium), largest motion of held Mini grasps 2.4 -> 2.1 px.
+SMOOTH_REL = 0.04
 #: Smallest contrast scale: below it the mapping would amplify the camera's noise and the
 #: requantisation of a brightness change into fake texture.
 MIN_SCALE = 0.0
@@ -109,18 +132,28 @@ def _dis(preset: str) -> Any:
 
     code = {"ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST,
             "fast": cv2.DISOPTICAL_FLOW_PRESET_FAST,
+            "balanced": cv2.DISOPTICAL_FLOW_PRESET_FAST,
             "medium": cv2.DISOPTICAL_FLOW_PRESET_MEDIUM}[preset]
-    return cv2.DISOpticalFlow_create(code)
+    dis = cv2.DISOpticalFlow_create(code)
+    if preset == "balanced":
+        dis.setFinestScale(BALANCED["finest_scale"])
+        dis.setGradientDescentIterations(BALANCED["gradient_descent_iterations"])
+        dis.setVariationalRefinementIterations(BALANCED["variational_refinement_iterations"])
+    return dis
 
 
 def dense_flow(ref8: NDArray[np.uint8], img8: NDArray[np.uint8], algorithm: str = "dis",
-               preset: str = "medium") -> NDArray[np.float32]:
+               preset: str = DEFAULT_PRESET, pad: int = 0) -> NDArray[np.float32]:
     """Forward flow ``ref8 -> img8`` (``H x W x 2`` float32, ``(dx, dy)`` px at ``ref8``'s
-    pixels) between two 8-bit grey frames of the same size."""
+    pixels) between two 8-bit grey frames of the same size, computed on both frames
+    mirror-padded by ``pad`` px (the padding is cropped off the result)."""
     import cv2 as _cv2
 
     cv2: Any = _cv2  # OpenCV's stubs reject None as the flow argument
 
+    if pad > 0:
+        ref8 = cv2.copyMakeBorder(ref8, pad, pad, pad, pad, cv2.BORDER_REFLECT_101)
+        img8 = cv2.copyMakeBorder(img8, pad, pad, pad, pad, cv2.BORDER_REFLECT_101)
     if algorithm == "dis":
         flow = _dis(preset).calc(ref8, img8, None)
     elif algorithm == "farneback":
@@ -137,7 +170,9 @@ def dense_flow(ref8: NDArray[np.uint8], img8: NDArray[np.uint8], algorithm: str 
                                                     cv2.cvtColor(img8, cv2.COLOR_GRAY2BGR), None)
     else:
         raise ValueError(f"algorithm: unknown {algorithm!r}; choose from {list(ALGORITHMS)}")
-    return np.asarray(flow, np.float32)
+    if pad > 0:
+        flow = flow[pad:-pad, pad:-pad]
+    return np.ascontiguousarray(flow, np.float32)
 
 
 def _smooth(field: NDArray[np.float32], sigma: float) -> NDArray[np.float32]:
@@ -170,11 +205,11 @@ def sample_field(field: NDArray[np.float32], pts: NDArray[np.float32]) -> NDArra
 
 
 def flow_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8], centres: NDArray[np.float32], *,
-                algorithm: str = "dis", preset: str = "medium") -> NDArray[np.float32]:
+                algorithm: str = "dis", preset: str = DEFAULT_PRESET) -> NDArray[np.float32]:
     """Motion ``N x 2`` float32 ``(dx, dy)`` px of markers at rest ``centres`` (``(x, y)`` px in
     ``ref``) from ``ref`` to ``img`` (validated uint8 frames of one shape, BGR or grey).
 
-    Exactly zero for identical frames. ``preset`` applies to DIS only.
+    Exactly zero for identical frames. ``preset`` applies to DIS only (:data:`DIS_PRESETS`).
     """
     if algorithm not in ALGORITHMS:
         raise ValueError(f"algorithm: unknown {algorithm!r}; choose from {list(ALGORITHMS)}")
@@ -183,7 +218,9 @@ def flow_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8], centres: NDArray
     if len(centres) == 0 or np.array_equal(img, ref):
         return np.zeros((len(centres), 2), np.float32)
     img8, ref8 = normalise_pair(img, ref)
-    flow = dense_flow(ref8, img8, algorithm, preset)
+    # Mirror padding needs pad < each side (a frame may be as small as 8 px a side).
+    pad = min(round(PAD_REL * img.shape[1]), min(img.shape[:2]) - 1)
+    flow = dense_flow(ref8, img8, algorithm, preset, pad=pad)
     if SMOOTH_REL > 0:
         flow = np.asarray(_smooth(flow, SMOOTH_REL * img.shape[1]), np.float32)
     out = sample_field(flow, centres)

@@ -184,8 +184,9 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             Other methods use it only for the default centres.
         algorithm: ``method="flow"`` only: ``"dis"`` (default), ``"farneback"``, ``"deepflow"``,
             ``"pcaflow"`` or ``"rlof"`` (the last three from opencv-contrib, 10-100x slower).
-        preset: ``method="flow"`` with DIS only: ``"ultrafast"``, ``"fast"`` or ``"medium"``
-            (default).
+        preset: ``method="flow"`` with DIS only: ``"balanced"`` (default: within the speed
+            budgets), ``"ultrafast"``, ``"fast"`` or ``"medium"`` (OpenCV's; ``"medium"`` is
+            ~2x slower, a little more accurate with a reference of the same capture).
 
     Returns:
         ``N x 2`` float32 ``(dx, dy)`` px in ``img``'s pixels, one row per centre, never NaN
@@ -218,11 +219,11 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
     pts = (load_model(model).centres_for(*frame.shape[:2]) if centres is None
            else as_points(centres, "centres"))
     if method == "flow":
-        from tacswitch.motion.flow import flow_motion
+        from tacswitch.motion.flow import DEFAULT_PRESET, flow_motion
 
         assert ref_arr is not None
         return flow_motion(frame, ref_arr, pts, algorithm=algorithm or "dis",
-                           preset=preset or "medium")
+                           preset=preset or DEFAULT_PRESET)
     if method == "mechanics":
         from tacswitch.motion.mechanics import mechanics_motion
 

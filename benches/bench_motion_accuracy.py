@@ -16,8 +16,10 @@ and share within 30 degrees over markers moving >= 3 px):
   320 x 240 presses warped by known press / shear / twist / mixed fields, exposure drift, MJPEG or
   H.264): with the real no-contact frame as reference, and single frame.
 
-Methods: zero motion, the outward-from-contact heuristic (``motion.heuristic``), dense optical
-flow (``motion.flow``, DIS medium; needs a reference), the model (pair and single-frame modes).
+Methods: zero motion, the outward-from-contact heuristic (``motion.heuristic``), the
+contact-mechanics rule (``motion.mechanics``), dense optical flow (``motion.flow``, DIS medium;
+needs a reference), the model (pair and single-frame modes). ``bench_motion_single.py`` compares
+the single-frame rules on a third data set (real frames with the simulator's field).
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ SECTION = "## Marker motion from markerless frames: model vs baselines (accuracy
 def _methods(model: MotionModel, with_ref: bool, baselines: bool = True) -> dict[str, Any]:
     from tacswitch.motion.flow import flow_motion
     from tacswitch.motion.heuristic import outward_motion
+    from tacswitch.motion.mechanics import mechanics_motion
 
     def zero(img: Any, ref: Any, c: Any) -> Any:
         return np.zeros((len(c), 2), np.float32)
@@ -49,6 +52,7 @@ def _methods(model: MotionModel, with_ref: bool, baselines: bool = True) -> dict
     out: dict[str, Any] = {"zero": zero}
     if baselines:
         out["outward heuristic"] = lambda i, r, c: outward_motion(i, r, c)
+        out["contact-mechanics rule"] = lambda i, r, c: mechanics_motion(i, r, c)
         if with_ref:
             out["flow (DIS medium)"] = lambda i, r, c: flow_motion(i, r, c)
     out["model"] = lambda i, r, c: model(i, r, c)

@@ -47,6 +47,10 @@ def _outward(img: np.ndarray, ref: Any, rest: np.ndarray) -> np.ndarray:
     return predict_motion(img, ref, rest, method="outward")
 
 
+def _mechanics(img: np.ndarray, ref: Any, rest: np.ndarray) -> np.ndarray:
+    return predict_motion(img, ref, rest, method="mechanics")
+
+
 def _outward_unit(img: np.ndarray, ref: Any, rest: np.ndarray) -> np.ndarray:
     from tacswitch.motion.heuristic import outward_motion
 
@@ -70,6 +74,7 @@ def methods(models: dict[str, str | None], slow: bool, sensor: str
         "zero motion": (_zero, proxy.SETTINGS),
         "outward from contact (no learning)": (_outward, proxy.SETTINGS),
         ORACLE: (_outward_unit, proxy.SETTINGS),
+        "contact-mechanics rule (no learning)": (_mechanics, proxy.SETTINGS),
         "flow DIS ultrafast": (_flow("dis", "ultrafast"), refs),
         "flow DIS fast": (_flow("dis", "fast"), refs),
         "flow DIS medium (default)": (_flow("dis", "medium"), refs),
@@ -136,6 +141,7 @@ def speed(models: dict[str, str | None]) -> list[list[str]]:
         "flow DIS medium (default)": _flow("dis", "medium"),
         "flow Farneback": _flow("farneback"),
         "outward from contact": _outward,
+        "contact-mechanics rule": _mechanics,
     }
     for name, path in models.items():
         m = MotionModel(path, threads=2)

@@ -58,9 +58,9 @@ def methods(with_ref: bool) -> dict[str, Predict]:
         "mechanics rule": lambda i, r, c: mechanics_motion(i, r, c),
     }
     if with_ref:
-        from tacswitch.motion.flow import flow_motion
+        from tacswitch.motion.flow import DEFAULT_PRESET, flow_motion
 
-        out["flow DIS medium"] = lambda i, r, c: flow_motion(i, r, c)
+        out[f"flow DIS {DEFAULT_PRESET} (default)"] = lambda i, r, c: flow_motion(i, r, c)
     return out
 
 
@@ -171,14 +171,14 @@ PRESS_SECTION = "## Real presses: radial texture motion (flow) vs the simulator'
 
 
 def press_flow(every: int) -> list[list[str]]:
-    """Radial motion around taxim's real presses, measured by DIS flow from the real no-contact
-    frame to the press (the real grain moves with the gel), at rings of radius ``k a`` about the
-    recorded contact (24 points each, inside the frame), the flow's mean over a ring near the
-    frame border subtracted (a capture-to-capture shift); beside it the simulator's press field
-    (:func:`tacswitch.motion.proxy.contact_fields`, ball press at the same contact). Medians over
-    presses of each ring's median; also the border ring's radial flow about the image centre (a
-    zoom between the captures would show there; the contacts lie near the image centre, so a
-    zoom and a long-range outward flow cannot be told apart)."""
+    """Radial motion around taxim's real presses, measured by DIS flow (default preset) from the
+    real no-contact frame to the press (the real grain moves with the gel), at rings of radius
+    ``k a`` about the recorded contact (24 points each, inside the frame), minus the flow's mean
+    over a ring near the frame border (a capture-to-capture shift); beside it the simulator's
+    press field (:func:`tacswitch.motion.proxy.contact_fields`, ball press at the same
+    contact). Medians over presses of each ring's median; also the border ring's radial flow
+    about the image centre (a zoom between the captures would show there; the contacts lie near
+    the image centre, so a zoom and a long-range outward flow cannot be told apart)."""
     from tacswitch.motion.flow import flow_motion
 
     rows = []
@@ -241,10 +241,11 @@ def main() -> int:
     if args.press_flow:
         rows = press_flow(max(1, args.every))
         notes = [f"{machine()}.", "",
-                 "Radial component (px, + = outward) of DIS-medium flow from taxim's real "
-                 "no-contact frame to each real press, at rings of radius k x the recorded "
-                 "contact radius a (median over the ring, then median [IQR] over presses; the "
-                 "mean flow of a ring near the frame border subtracted). The real grain moves "
+                 "Radial component (px, + = outward) of DIS flow (the default preset, "
+                 "`balanced`) from taxim's real no-contact frame to each real press, at rings "
+                 "of radius k x the recorded contact radius a (median over the ring, then "
+                 "median [IQR] over presses; the mean flow of a ring near the frame border "
+                 "subtracted). The real grain moves "
                  "with the gel, so this is the real gel's outward motion, with caveats: at "
                  "r <= 1.5 a the imprint's shading change also moves the flow; the border ring "
                  "itself expands about the image centre (a zoom between captures or a long-range "

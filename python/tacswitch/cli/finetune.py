@@ -6,14 +6,19 @@ loss target), and each real marker's appearance (its darkening relative to the g
 and compression ring included) is transplanted about half a marker pitch away, onto real gel.
 The network learns to fill those moved markers with the mask remove_markers would use; the loss
 sees only their real gel pixels. ``--no-transplant`` cuts clean shifted holes instead (the
-paper's variant). Starts from the shipped model's weights; resumable (rerun the command);
-writes ``OUT/model.onnx`` for ``remove_markers(..., method="tacdiff", model=...)``.
+paper's variant). Starts from the shipped model's weights; resumable (rerun the command).
+
+The fine-tune checks itself without ground truth: a share of the frames is held out, their
+markers are transplanted by another shift (gel never trained on), and the starting model and
+the EMA weights every ``--val-every`` steps fill them. ``OUT/model.onnx`` (for
+``remove_markers(..., method="tacdiff", model=...)``) is the best checkpoint if it beats the
+starting model beyond noise, otherwise the starting model itself; the last line says which,
+``OUT/finetune.json`` has every score.
 """
 
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from tacswitch.tacdiff.transplant import DEFAULT_RING
 
@@ -33,11 +38,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--ring", type=int, default=DEFAULT_RING,
                    help="px beyond the removal mask over which a marker's darkening is "
                         "measured and moved (default: %(default)s)")
-    p.add_argument("--steps", type=int, default=1500, help="training steps (default: 1500)")
-    p.add_argument("--batch", type=int, default=12)
+    p.add_argument("--steps", type=int, default=600,
+                   help="training steps (default: %(default)s)")
+    p.add_argument("--batch", type=int, default=8)
     p.add_argument("--crop", type=int, default=96, help="crop side, multiple of 16")
     p.add_argument("--lr", type=float, default=2e-4)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--val-every", type=int, default=100,
+                   help="validate the weights every N steps (default: %(default)s)")
+    p.add_argument("--val-frames", type=int, default=8,
+                   help="most frames held out for validation (a fifth of them; with fewer "
+                        "than 5 frames all train and validation uses other gel; default: "
+                        "%(default)s)")
     p.add_argument("--init", default=None,
                    help="starting weights: 'default' or 'fast' (a shipped model), or a "
                         ".safetensors, checkpoint or TacDiff .onnx file (default: the shipped "
@@ -53,10 +65,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError('fine-tuning needs torch: pip install "tacswitch[train]"') from None
     from tacswitch._io import read_image
     from tacswitch.cli.sources import collect_images
-    from tacswitch.tacdiff.data import marker_offset_pairs
-    from tacswitch.tacdiff.export import export_onnx
-    from tacswitch.tacdiff.infer import default_weights_path, model_path
-    from tacswitch.tacdiff.train import TrainConfig, load_network, train
+    from tacswitch.tacdiff.finetune import finetune
 
     files = collect_images(args.images)
     frames = [read_image(f) for f in files]
@@ -69,22 +78,15 @@ def run(args: argparse.Namespace) -> int:
         offset = (dx, dy)
     if args.ring < 0:
         raise ValueError(f"--ring: must be >= 0 px; got {args.ring}")
-    pairs = marker_offset_pairs(frames, offset=offset, transplant=args.transplant,
-                                ring=args.ring)
-    if not pairs["loss_mask"].any():
-        raise ValueError("--images: no shifted marker pixel lands on real gel; pass --offset")
-    init = model_path(args.init) if args.init else default_weights_path()
-    arch = load_network(init).cfg
-    cfg = TrainConfig(base=arch.base, mults=arch.mults, attention=arch.attention,
-                      prior=arch.prior,
-                      steps=args.steps, batch=args.batch, crop=args.crop, lr=args.lr,
-                      warmup=min(100, args.steps // 10), seed=args.seed,
-                      extra={"finetune": [str(f) for f in files], "offset": offset,
-                             "transplant": args.transplant, "ring": args.ring})
-    net = train([pairs], args.out, cfg, progress=not args.quiet, init=init)
-    path = export_onnx(net, Path(args.out) / "model.onnx",
-                       metadata={"finetuned_on": len(files), "steps": args.steps,
-                                 "seed": args.seed, "transplant": args.transplant})
-    if not args.quiet:
-        print(f"exported {path}")
+    for name in ("steps", "batch", "val_every", "val_frames"):
+        if getattr(args, name) < 1:
+            raise ValueError(f"--{name.replace('_', '-')}: must be >= 1; got "
+                             f"{getattr(args, name)}")
+    result = finetune(frames, args.out, init=args.init, steps=args.steps, batch=args.batch,
+                      crop=args.crop, lr=args.lr, seed=args.seed, offset=offset,
+                      transplant=args.transplant, ring=args.ring, val_every=args.val_every,
+                      val_frames=args.val_frames, progress=not args.quiet,
+                      extra={"finetune": [str(f) for f in files]})
+    # The choice is the result: printed even with -q.
+    print(result.summary())
     return 0

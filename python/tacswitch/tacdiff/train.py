@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import os
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -87,7 +88,8 @@ def masked_v_loss(net: Any, batch: dict[str, NDArray[Any]], t: NDArray[np.float3
 
 
 def train(shards: list[dict[str, NDArray[Any]]], out: str | Path, cfg: TrainConfig,
-          *, progress: bool = True, init: str | Path | None = None) -> Any:
+          *, progress: bool = True, init: str | Path | None = None,
+          callback: Callable[[int, Any], None] | None = None, callback_every: int = 0) -> Any:
     """Trains (or resumes) a denoiser on ``shards`` and returns the EMA network (eval mode).
 
     Args:
@@ -97,6 +99,9 @@ def train(shards: list[dict[str, NDArray[Any]]], out: str | Path, cfg: TrainConf
         cfg: hyper-parameters.
         init: a checkpoint or ``.safetensors`` file to start from (fine-tuning); ignored when
             resuming.
+        callback: called as ``callback(step, ema)`` every ``callback_every`` steps and after
+            the last one, before that step's checkpoint is written (a validation: see
+            :mod:`~tacswitch.tacdiff.finetune`); the EMA network is in eval mode, do not train it.
     """
     import torch
 
@@ -174,6 +179,9 @@ def train(shards: list[dict[str, NDArray[Any]]], out: str | Path, cfg: TrainConf
                 fh.write(json.dumps(entry) + "\n")
             if progress:
                 print(json.dumps(entry), flush=True)
+        if callback is not None and ((callback_every and done % callback_every == 0)
+                                     or done == cfg.steps):
+            callback(done, ema)
         if done % cfg.save_every == 0 or done == cfg.steps:
             save_torch(ckpt_path, {"model": net.state_dict(), "ema": ema.state_dict(),
                               "optim": opt.state_dict(), "step": done, "log": log,

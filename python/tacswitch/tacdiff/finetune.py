@@ -1,0 +1,347 @@
+"""``tacswitch finetune`` as a library call: fine-tune TacDiff on a sensor's own marker frames,
+validated without ground truth, and keep whichever model is best (torch).
+
+A fine-tune on a user's frames can help, do nothing or hurt (too few frames, a learning rate
+too high, markers the transplant misrepresents), and the user has no ground truth to tell which.
+So the fine-tune checks itself on pixels it never trains on:
+
+- **held-out frames**: with at least :data:`MIN_FRAMES_TO_SPLIT` frames, every k-th frame
+  (``val_share`` of them, at most ``val_frames``) is kept out of training;
+- **held-out gel**: on those frames the real markers are transplanted by another offset than
+  the training one (:func:`validation_offset`: the candidate half-pitch shift whose holes
+  overlap the training holes least), so the scored gel pixels were never a training target
+  even where every frame must be used (fewer than :data:`MIN_FRAMES_TO_SPLIT`).
+
+The score is the masked MAE (grey levels) of the model's fill, exactly as
+:func:`~tacswitch.tacdiff.infer.inpaint_tacdiff` runs it (ONNX, K=1), on the moved markers'
+real-gel pixels, per moved marker. The starting model is scored first; every ``val_every`` steps
+the EMA weights are exported and scored. The best checkpoint is kept only if it beats the
+starting model *beyond noise* (:func:`beats`: the mean per-marker improvement exceeds
+:data:`NOISE_Z` standard errors); otherwise ``OUT/model.onnx`` is the starting model itself and
+the summary says so. ``OUT/finetune.json`` records every score and the choice.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tacswitch.tacdiff.transplant import DEFAULT_RING
+
+#: Below this many frames every frame trains and validates (held-out gel only).
+MIN_FRAMES_TO_SPLIT = 5
+#: Standard errors of the per-marker improvement a checkpoint needs to replace the start model.
+NOISE_Z = 2.0
+
+
+@dataclass
+class FinetuneResult:
+    """What :func:`finetune` chose and why.
+
+    Attributes:
+        model: the ONNX file to use (``OUT/model.onnx``).
+        chosen_step: the step of the exported weights; 0: the starting model was kept.
+        start_score: validation masked MAE of the starting model (grey levels).
+        scores: ``{step: masked MAE}`` of every validated checkpoint.
+        noise: :data:`NOISE_Z` standard errors of the per-marker difference between the chosen
+            (or best) checkpoint and the starting model (grey levels).
+        train_frames, val_frames: indices of the frames used for each.
+        val_offset: ``(dx, dy)`` px of the validation transplant; ``val_markers``: markers
+            scored.
+    """
+
+    model: Path
+    chosen_step: int
+    start_score: float
+    scores: dict[int, float] = field(default_factory=dict)
+    noise: float = 0.0
+    train_frames: list[int] = field(default_factory=list)
+    val_frames: list[int] = field(default_factory=list)
+    val_offset: tuple[int, int] = (0, 0)
+    val_markers: int = 0
+
+    @property
+    def kept_start(self) -> bool:
+        """Whether no checkpoint beat the starting model (``model`` is the start model)."""
+        return self.chosen_step == 0
+
+    def summary(self) -> str:
+        """One line for the user."""
+        head = (f"validation (held-out transplanted markers: {self.val_markers} on "
+                f"{len(self.val_frames)} frame(s), masked MAE in grey levels): start "
+                f"{self.start_score:.3f}")
+        if not self.scores:
+            return head + "; no checkpoint validated"
+        best = min(self.scores, key=lambda k: self.scores[k])
+        if self.kept_start:
+            return (head + f", best step {best} {self.scores[best]:.3f}; no checkpoint beat the "
+                    f"start beyond noise ({self.noise:.3f}): {self.model} is the starting model")
+        s = self.scores[self.chosen_step]
+        return (head + f", chosen step {self.chosen_step} {s:.3f} "
+                f"({100 * (s / self.start_score - 1):+.1f} %, noise {self.noise:.3f})")
+
+
+def split_frames(n: int, val_share: float = 0.2, val_frames: int = 8
+                 ) -> tuple[list[int], list[int]]:
+    """``(train, val)`` frame indices: every k-th frame held out (``val_share`` of ``n``, at
+    least 1, at most ``val_frames``) when ``n >= MIN_FRAMES_TO_SPLIT``; otherwise all frames
+    in both (validation then relies on :func:`validation_offset` alone)."""
+    if n < 1:
+        raise ValueError(f"frames: need at least one frame; got {n}")
+    if not 0 < val_share < 1:
+        raise ValueError(f"val_share: expected a share in (0, 1); got {val_share}")
+    if val_frames < 1:
+        raise ValueError(f"val_frames: must be >= 1; got {val_frames}")
+    if n < MIN_FRAMES_TO_SPLIT:
+        return list(range(n)), list(range(n))
+    k = min(val_frames, max(1, round(n * val_share)))
+    # Evenly spread (not the last k): a recording drifts, both sets should span it.
+    val = sorted({int(i) for i in np.linspace(0, n - 1, k + 2)[1:-1].round()})
+    return [i for i in range(n) if i not in val], val
+
+
+def validation_offset(mask: NDArray[np.bool_], train_offset: tuple[int, int]
+                      ) -> tuple[int, int]:
+    """A half-pitch shift for the validation transplant whose moved holes overlap the training
+    holes (``mask`` shifted by ``train_offset``) least: on a square grid with the training shift
+    (+d, +d), the mirrored (-d, +d) lands on the very same gel (the neighbour's training spot),
+    while (d, 0) lands between two markers, on gel never trained on."""
+    from tacswitch.tacdiff.transplant import shift
+
+    d = max(abs(int(train_offset[0])), abs(int(train_offset[1])))
+    if d == 0:
+        raise ValueError(f"offset: must not be (0, 0); got {train_offset}")
+    trained = shift(mask, train_offset, False)
+    best, best_overlap = None, 2.0
+    for cand in ((d, 0), (0, d), (-d, 0), (0, -d), (-d, d), (d, -d), (-d, -d), (d, d)):
+        if cand == tuple(train_offset):
+            continue
+        moved = shift(mask, cand, False) & ~mask
+        if moved.sum() < 0.25 * max(1, mask.sum()):  # mostly on markers or out of the frame
+            continue
+        overlap = float((moved & trained).sum() / moved.sum())
+        if overlap < best_overlap - 1e-9:
+            best, best_overlap = cand, overlap
+    if best is None:
+        raise ValueError("offset: no validation shift lands on gel; pass another --offset")
+    return best
+
+
+@dataclass(frozen=True)
+class ValidationSet:
+    """Transplanted validation inputs: ``cond``/``target``/``mask``/``loss_mask`` as in
+    :func:`~tacswitch.tacdiff.data.marker_offset_pairs`, and ``labels`` (``B x H x W`` int32,
+    one label per moved marker, 0 elsewhere) for per-marker scores."""
+
+    pairs: dict[str, NDArray[Any]]
+    labels: NDArray[np.int32]
+    offset: tuple[int, int]
+
+    @property
+    def markers(self) -> int:
+        """Moved markers with at least one scored pixel."""
+        return int(sum(len(np.unique(lab[lm])) for lab, lm
+                       in zip(self.labels, self.pairs["loss_mask"], strict=True)))
+
+
+def validation_set(frames: Sequence[NDArray[np.uint8]], offset: tuple[int, int], *,
+                   ring: int = DEFAULT_RING, **extract_opts: Any) -> ValidationSet:
+    """The validation transplant of ``frames`` by ``offset`` (see the module docstring)."""
+    import cv2
+
+    from tacswitch.tacdiff.data import marker_offset_pairs
+
+    pairs = marker_offset_pairs(frames, offset=offset, transplant=True, ring=ring,
+                                **extract_opts)
+    labels = np.stack([cv2.connectedComponents(m.view(np.uint8), connectivity=8)[1]
+                       for m in pairs["mask"]]).astype(np.int32)
+    return ValidationSet(pairs, labels, offset)
+
+
+def marker_scores(model: str | Path, val: ValidationSet) -> NDArray[np.float64]:
+    """Per moved marker (all frames, in order): the masked MAE (grey levels, all channels) of
+    ``model``'s fill, run as :func:`~tacswitch.tacdiff.infer.inpaint_tacdiff` runs it, over the
+    marker's real-gel pixels."""
+    from tacswitch.tacdiff.infer import inpaint_tacdiff
+
+    out: list[float] = []
+    p = val.pairs
+    for cond, target, mask, loss, lab in zip(p["cond"], p["target"], p["mask"],
+                                             p["loss_mask"], val.labels, strict=True):
+        fill = inpaint_tacdiff(cond, mask, model=model)
+        err = np.abs(fill.astype(np.float64) - target.astype(np.float64)).mean(axis=2)
+        keys = lab[loss]
+        sums = np.bincount(keys, weights=err[loss], minlength=int(lab.max()) + 1)
+        counts = np.bincount(keys, minlength=int(lab.max()) + 1)
+        out.extend((sums[counts > 0] / counts[counts > 0]).tolist())
+    return np.asarray(out)
+
+
+def beats(start: NDArray[np.float64], cand: NDArray[np.float64], z: float = NOISE_Z
+          ) -> tuple[bool, float]:
+    """Whether ``cand``'s per-marker errors beat ``start``'s beyond noise: the mean paired
+    improvement exceeds ``z`` standard errors (and is positive). Returns ``(beats, z * SE)``."""
+    if start.shape != cand.shape or len(start) == 0:
+        raise ValueError("cand: needs one score per marker of start")
+    d = start - cand
+    noise = z * float(d.std(ddof=1)) / np.sqrt(len(d)) if len(d) > 1 else float("inf")
+    return bool(d.mean() > 0 and d.mean() > noise), noise
+
+
+def start_onnx(init: str | Path | None, out: Path) -> Path:
+    """The ONNX file of the starting model (what the user runs without a fine-tune): the
+    shipped model by name (None: the default), a ``.onnx`` path itself, or other weights
+    exported to ``out/start.onnx``."""
+    from tacswitch.tacdiff.infer import SHIPPED, model_path
+
+    if init is None or (isinstance(init, str) and init in SHIPPED):
+        return model_path(init)
+    p = Path(init)
+    if p.suffix == ".onnx":
+        return p
+    from tacswitch.tacdiff.export import export_onnx
+    from tacswitch.tacdiff.train import load_network
+
+    return export_onnx(load_network(p), out / "start.onnx")
+
+
+def init_weights(init: str | Path | None) -> Path:
+    """The weights file training starts from: the shipped default's safetensors (None or
+    ``"default"``), the fast model's ONNX (``"fast"``), or ``init`` itself."""
+    from tacswitch.tacdiff.infer import SHIPPED, default_weights_path, model_path
+
+    if init is None or init == "default":
+        return default_weights_path()
+    if isinstance(init, str) and init in SHIPPED:
+        return model_path(init)
+    return Path(init)
+
+
+def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
+             init: str | Path | None = None, steps: int = 600, batch: int = 8,
+             crop: int = 96, lr: float = 2e-4, seed: int = 0,
+             offset: tuple[int, int] | None = None, transplant: bool = True,
+             ring: int = DEFAULT_RING, val_every: int = 100, val_share: float = 0.2,
+             val_frames: int = 8, threads: int = 0, progress: bool = True,
+             extra: dict[str, Any] | None = None) -> FinetuneResult:
+    """Fine-tunes TacDiff on ``frames`` (a sensor's marker frames, no ground truth) and keeps the
+    best of the starting model and the validated checkpoints (module docstring).
+
+    Args:
+        frames: ``H x W x 3`` uint8 BGR frames with markers, all the same size.
+        out: run folder (``checkpoint.pt``, ``log.jsonl``, ``best.safetensors``,
+            ``finetune.json``, ``model.onnx``); rerunning resumes.
+        init: starting model: None/``"default"``, ``"fast"``, or a weights/ONNX path.
+        steps, batch, crop, lr, seed, threads: training (:class:`~.train.TrainConfig`).
+        offset: training shift ``(dx, dy)`` px (default: half the pitch, codec-block rounded).
+        transplant, ring: as :func:`~tacswitch.tacdiff.data.marker_offset_pairs`.
+        val_every: validate the EMA weights every this many steps (and at the end).
+        val_share, val_frames: frames held out for validation (:func:`split_frames`).
+    """
+    from tacswitch.tacdiff.data import marker_offset_pairs, removal_markers
+    from tacswitch.tacdiff.export import export_onnx
+    from tacswitch.tacdiff.train import TrainConfig, load_network, save_weights, train
+    from tacswitch.tacdiff.transplant import default_offset
+    from tacswitch.tracking import estimate_pitch
+
+    if val_every < 1:
+        raise ValueError(f"val_every: must be >= 1 step; got {val_every}")
+    run = Path(out)
+    run.mkdir(parents=True, exist_ok=True)
+    frames = list(frames)
+    if len(frames) == 0:
+        raise ValueError("frames: need at least one frame")
+    tr, va = split_frames(len(frames), val_share, val_frames)
+    first = removal_markers(frames[0])
+    if offset is None:
+        pitch = estimate_pitch(first.centres)
+        if pitch is None:
+            raise ValueError("frames: too few markers found to estimate the pitch; pass offset")
+        offset = default_offset(pitch) if transplant else (round(pitch / 2),) * 2  # type: ignore[assignment]
+    assert offset is not None
+    offset = (int(offset[0]), int(offset[1]))
+    pairs = marker_offset_pairs([frames[i] for i in tr], offset=offset, transplant=transplant,
+                                ring=ring)
+    if not pairs["loss_mask"].any():
+        raise ValueError("frames: no shifted marker pixel lands on real gel; pass offset")
+    val = validation_set([frames[i] for i in va], validation_offset(first.mask, offset),
+                         ring=ring)
+    if not val.pairs["loss_mask"].any():
+        raise ValueError("frames: no validation marker lands on real gel; pass offset")
+    start = start_onnx(init, run)
+    weights = init_weights(init)
+    arch = load_network(weights).cfg
+    state_path = run / "finetune.json"
+    state: dict[str, Any] = json.loads(state_path.read_text()) if state_path.is_file() else {}
+    if "start" not in state:
+        state["start"] = marker_scores(start, val).tolist()
+        state["scores"], state["per_marker"] = {}, {}
+    start_scores = np.asarray(state["start"])
+    if len(start_scores) != val.markers:
+        raise ValueError(f"out: {str(run)!r} holds a run on other frames; use another folder")
+    if progress:
+        print(f"start model {start.name}: validation {start_scores.mean():.3f} on "
+              f"{val.markers} held-out markers ({len(va)} frame(s), offset {val.offset})",
+              flush=True)
+
+    def validate(step: int, ema: Any) -> None:
+        path = export_onnx(ema, run / f".val_{step}.onnx")
+        try:
+            s = marker_scores(path, val)
+        finally:
+            path.unlink(missing_ok=True)
+        state["scores"][str(step)] = float(s.mean())
+        state["per_marker"][str(step)] = s.tolist()
+        ok, _ = beats(start_scores, s)
+        best = state.get("best")
+        if ok and (best is None or s.mean() < state["scores"][str(best)]):
+            save_weights(ema, run / "best.safetensors", {**asdict(arch), "mults":
+                                                          list(arch.mults)})
+            state["best"] = step
+        _write_json(state_path, state)
+        if progress:
+            print(json.dumps({"step": step, "validation": round(float(s.mean()), 4),
+                              "start": round(float(start_scores.mean()), 4),
+                              "beats_start": ok}), flush=True)
+
+    cfg = TrainConfig(base=arch.base, mults=arch.mults, attention=arch.attention,
+                      prior=arch.prior, steps=steps, batch=batch, crop=crop, lr=lr,
+                      warmup=min(100, steps // 10), seed=seed, threads=threads,
+                      extra={**(extra or {}), "offset": list(offset), "transplant": transplant,
+                             "ring": ring, "train_frames": tr, "val_frames": va})
+    train([pairs], run, cfg, progress=progress, init=weights, callback=validate,
+          callback_every=val_every)
+    best = state.get("best")
+    target = run / "model.onnx"
+    noise = float("nan")
+    if state["scores"]:
+        # The noise scale of the chosen checkpoint, or of the best one when none was chosen.
+        top = best if best is not None else min(state["scores"], key=state["scores"].get)
+        _, noise = beats(start_scores, np.asarray(state["per_marker"][str(top)]))
+    if best is None:
+        shutil.copyfile(start, target)
+        chosen = 0
+    else:
+        export_onnx(load_network(run / "best.safetensors"), target,
+                    metadata={"finetuned_on": len(tr), "step": best, "seed": seed,
+                              "transplant": transplant, "validation": state["scores"][str(best)],
+                              "validation_start": float(start_scores.mean())})
+        chosen = int(best)
+    state["chosen"] = chosen
+    _write_json(state_path, state)
+    return FinetuneResult(target, chosen, float(start_scores.mean()),
+                          {int(k): v for k, v in state["scores"].items()}, noise, tr, va,
+                          val.offset, val.markers)
+
+
+def _write_json(path: Path, obj: dict[str, Any]) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(obj, indent=1))
+    tmp.replace(path)

@@ -1,0 +1,110 @@
+"""The fine-tune's ground-truth-free validation: held-out frames and gel, the noise test, and
+the choice between the starting model and a checkpoint (training parts skip without torch)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tacswitch.cli import main
+from tacswitch.sim.scene import render_sample
+from tacswitch.tacdiff import finetune as ft
+from tacswitch.tacdiff.transplant import shift
+
+
+@pytest.fixture(scope="module")
+def marker_frames() -> list[np.ndarray]:
+    return [render_sample("gelsight_mini", 40 + i).image_markers for i in range(2)]
+
+
+def square_grid(pitch: int = 40, radius: int = 6, size: int = 320) -> np.ndarray:
+    yy, xx = np.mgrid[:size, :size]
+    mask = np.zeros((size, size), bool)
+    for cy in range(pitch // 2, size, pitch):
+        for cx in range(pitch // 2, size, pitch):
+            mask |= (yy - cy) ** 2 + (xx - cx) ** 2 <= radius ** 2
+    return mask
+
+
+def test_split_frames_holds_out_spread_frames():
+    tr, va = ft.split_frames(40)
+    assert len(va) == 8 and not set(tr) & set(va) and sorted(tr + va) == list(range(40))
+    assert va[0] > 0 and va[-1] < 39  # spread over the recording, not its tail
+    assert ft.split_frames(10) == ([0, 1, 2, 4, 5, 7, 8, 9], [3, 6])
+    assert ft.split_frames(3) == ([0, 1, 2], [0, 1, 2])  # too few: all train, other gel validates
+    with pytest.raises(ValueError, match="frames"):
+        ft.split_frames(0)
+    with pytest.raises(ValueError, match="val_share"):
+        ft.split_frames(5, val_share=1.0)
+    with pytest.raises(ValueError, match="val_frames"):
+        ft.split_frames(5, val_frames=0)
+
+
+def test_validation_offset_avoids_the_training_gel():
+    mask = square_grid()
+    d = 20  # half the pitch
+    val = ft.validation_offset(mask, (d, d))
+    # The mirrored shift lands on the very gel the training shift uses (a neighbour's spot).
+    mirrored = shift(mask, (-d, d), False) & shift(mask, (d, d), False)
+    assert mirrored.sum() > 0.8 * shift(mask, (-d, d), False).sum()
+    assert val != (-d, d)
+    moved = shift(mask, val, False)
+    assert (moved & shift(mask, (d, d), False)).sum() == 0 and not (moved & mask).any()
+    with pytest.raises(ValueError, match="offset"):
+        ft.validation_offset(mask, (0, 0))
+
+
+def test_beats_needs_an_improvement_beyond_noise():
+    rng = np.random.default_rng(0)
+    start = rng.uniform(1, 3, 400)
+    noisy = start + rng.normal(0, 0.5, 400)  # no systematic change
+    better = start - 0.1 + rng.normal(0, 0.05, 400)
+    assert not ft.beats(start, noisy)[0]
+    ok, noise = ft.beats(start, better)
+    assert ok and 0 < noise < 0.1
+    assert not ft.beats(start, start + 0.1)[0]
+    with pytest.raises(ValueError, match="cand"):
+        ft.beats(start, start[:3])
+
+
+def test_finetune_keeps_the_start_model_when_nothing_beats_it(tmp_path: Path, marker_frames):
+    pytest.importorskip("torch")
+    pytest.importorskip("onnx")
+    import cv2
+
+    from tacswitch.tacdiff.infer import model_path
+
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, f in enumerate(marker_frames):
+        cv2.imwrite(str(src / f"{i}.png"), f)
+    run = tmp_path / "ft"
+    # Two steps at a learning rate of zero: the checkpoints equal the start, none beats it.
+    args = ["finetune", "--images", str(src), "--out", str(run), "--steps", "2", "--batch", "1",
+            "--crop", "64", "--lr", "0", "--val-every", "2", "--init", "fast", "-q"]
+    assert main(args) == 0
+    assert (run / "model.onnx").read_bytes() == model_path("fast").read_bytes()
+    state = json.loads((run / "finetune.json").read_text())
+    assert state["chosen"] == 0 and set(state["scores"]) == {"2"}
+    assert len(state["start"]) == len(state["per_marker"]["2"]) > 10
+    # Validation on the start model's own weights reproduces its score (same inference).
+    assert abs(state["scores"]["2"] - np.mean(state["start"])) < 0.05
+    for bad in (["--val-every", "0"], ["--val-frames", "0"], ["--steps", "0"]):
+        assert main([*args[:4], str(tmp_path / "x"), *args[5:], *bad]) == 1
+
+
+def test_train_callback_sees_the_ema_at_its_steps(tmp_path: Path, marker_frames):
+    pytest.importorskip("torch")
+    from tacswitch.tacdiff.data import marker_offset_pairs
+    from tacswitch.tacdiff.train import TrainConfig, train
+
+    pairs = marker_offset_pairs(marker_frames, offset=(16, 16))
+    seen: list[tuple[int, bool]] = []
+    cfg = TrainConfig(base=8, mults=(1, 2), steps=5, batch=1, crop=64, warmup=1, threads=1,
+                      prior="telea", save_every=100, log_every=100)
+    train([pairs], tmp_path / "r", cfg, progress=False,
+          callback=lambda step, ema: seen.append((step, ema.training)), callback_every=2)
+    assert seen == [(2, False), (4, False), (5, False)]

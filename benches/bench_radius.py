@@ -18,7 +18,9 @@ kept) at each radius, scored on
 
 Images are uint8 BGR; errors in grey levels over all channels.
 
-Run: python benches/bench_radius.py [--presses N] [--sim N] [--quick] [--update]
+Run: python benches/bench_radius.py [--presses N] [--sim N] [--quick] [--json OUT] [--update]
+     python benches/bench_radius.py --load OUT [--speed] [--update]   # re-render a saved run,
+                                                 # optionally re-timing only the speed part
 """
 
 from __future__ import annotations
@@ -263,7 +265,9 @@ def render(data: dict, cmd: str) -> str:
                      f"{d['masked_px']} masked px; median ms per frame, one thread, interleaved):"
                      "\n\n" + table(["radius", "inpaint_telea", "cv2.inpaint TELEA (same mask)",
                                      "speed-up", "remove_markers (mask + fill)"], rows))
-    parts += [f"Machine: {machine()}.", f"Command: `{cmd}`"]
+    parts += [f"Machine: {data.get('machine', machine())}.", f"Command: `{cmd}`"]
+    if "speed_machine" in data:
+        parts.append(f"Speed tables re-timed on: {data['speed_machine']}.")
     return "\n\n".join(parts)
 
 
@@ -274,6 +278,8 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=5, help="timing rounds")
     ap.add_argument("--quick", action="store_true", help="1 press, 2 sim frames, 3 radii")
     ap.add_argument("--json", type=Path, help="also write the raw numbers here")
+    ap.add_argument("--load", type=Path, help="render the raw numbers of an earlier --json run")
+    ap.add_argument("--speed", action="store_true", help="with --load: re-time the speed part")
     ap.add_argument("--update", action="store_true", help="write the section of BENCHMARKS.md")
     args = ap.parse_args()
     single_thread()
@@ -283,14 +289,24 @@ def main() -> None:
     n, n_sim, rounds = args.presses, args.sim, args.rounds
     if args.quick:
         radii, cv_radii, sp_radii, n, n_sim, rounds = (3, 8, 12), (3, 12), (3, 12), 1, 2, 2
-    data = {"proxy": {s: proxy(s, n, radii, cv_radii) for s in SENSORS},
-            "fots": fots(radii, cv_radii),
-            "sim": {p: simulated(p, n_sim, radii) for p in SENSORS},
-            "speed": {s: speed(s, sp_radii, rounds) for s in SENSORS}}
+    if args.load:
+        data = json.loads(args.load.read_text())
+        cmd = data["command"]
+        if args.speed:
+            data["speed"] = {s: speed(s, sp_radii, rounds) for s in SENSORS}
+            data["speed_machine"] = machine()
+            cmd += f"; speed re-timed: `--load RUN.json --speed --rounds {rounds}`"
+    else:
+        data = {"proxy": {s: proxy(s, n, radii, cv_radii) for s in SENSORS},
+                "fots": fots(radii, cv_radii),
+                "sim": {p: simulated(p, n_sim, radii) for p in SENSORS},
+                "speed": {s: speed(s, sp_radii, rounds) for s in SENSORS},
+                "machine": machine()}
+        cmd = ("python benches/bench_radius.py" + (" --quick" if args.quick else
+               f" --presses {n} --sim {n_sim} --rounds {rounds}"))
+        data["command"] = cmd
     if args.json:
         args.json.write_text(json.dumps(data, indent=1))
-    cmd = ("python benches/bench_radius.py" + (" --quick" if args.quick else
-           f" --presses {n} --sim {n_sim} --rounds {rounds}"))
     body = render(data, cmd)
     print(body)
     if args.update:

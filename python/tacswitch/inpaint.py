@@ -38,14 +38,16 @@ DEFAULT_DILATE = 2
 #: 12, 2.00 at 16, 2.15 at 24); on the real-frame proxy (8 taxim presses per sensor x 7 marker
 #: looks and captures) r=12 beats r=3 in all 64 press x column cells (masked MAE crisp / soft /
 #: MJPEG / H.264, GelSight 1.20/1.23/1.74/2.45 -> 1.09/1.16/1.48/2.06, GelSight Mini
-#: 1.49/1.59/2.31/2.98 -> 1.25/1.37/1.87/2.50), and 12 is where crisp Mini dots are best (1.26
-#: at 16, 1.37 at 24). Larger radii keep helping GelSight's 23 px dots (H.264 1.83 at 24) but
-#: hurt the Mini's 11.5 px dots and the real frames, at 2-4x the time. Simulated crisp frames
-#: (second): masked MAE 1-5 % lower than at 3 on both sensors; in contact, where a wider mean
-#: flattens shading, up to 2.4 % higher (and 5 % on the Mini proxy's few contact markers).
-#: Speed: 3.5-5x r=3's cost (640x480: ~8 ms idle), 37-50x below ``cv2.inpaint`` at the same
-#: radius. :func:`inpaint_telea` keeps OpenCV's customary 3 as its own default (a drop-in
-#: called with the same arguments gives the same fill); ``"ns"`` keeps :data:`NS_RADIUS`.
+#: 1.49/1.59/2.31/2.98 -> 1.25/1.37/1.87/2.50). 12 against 16 is a near tie: 16 is 3-6 % lower
+#: on the proxy's soft and compressed columns and on GelSight's crisp dots, but 1 % higher on the
+#: real frames and on crisp Mini dots, 6-8 % higher on the Mini's contact markers, ~1.8x the
+#: cost; speed breaks the tie. Beyond 16 the real frames get worse (2.07 at 20, 2.15 at 24) while
+#: GelSight's 23 px dots keep gaining (the best radius grows with the dot size: pass
+#: ``radius=16..24`` for large dots if the time allows). Simulated crisp frames (second): masked
+#: MAE 1-5 % lower than at 3 on both sensors; in contact, where a wider mean flattens shading, up
+#: to 2.4 % higher. Speed: 3.5-5x r=3's cost (640x480: ~8 ms idle), 37-50x below ``cv2.inpaint``
+#: at the same radius. :func:`inpaint_telea` keeps OpenCV's customary 3 as its own default (a
+#: drop-in called with the same arguments gives the same fill); ``"ns"`` keeps :data:`NS_RADIUS`.
 DEFAULT_RADIUS = 12
 #: ``remove_markers(method="ns")``'s radius when none is given: OpenCV's NS was not measured at
 #: larger radii on real frames and costs ~10x more at 12 (640x480: 23 -> 266 ms).

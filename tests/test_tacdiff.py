@@ -176,6 +176,10 @@ def test_whole_mask_and_bad_inputs_are_refused(sample):
         ts.remove_markers(img, mask, method="tacdiff", steps=0)
     with pytest.raises(ValueError, match="patch"):
         infer.inpaint_tacdiff(img, mask, patch=100)
+    with pytest.raises(TypeError, match="patch"):
+        infer.inpaint_tacdiff(img, mask, patch="crop")
+    with pytest.raises(ValueError, match="context"):
+        infer.inpaint_tacdiff(img, mask, patch="crops", context=-1)
     with pytest.raises(ValueError, match="mask"):
         infer.inpaint_tacdiff(img, mask[:10])
     with pytest.raises(FileNotFoundError, match="model"):
@@ -208,8 +212,11 @@ def test_tiles_without_holes_are_not_run(sample, monkeypatch):
     np.testing.assert_array_equal(out[~mask], img[~mask])
     count.pixels = 0
     infer.inpaint_tacdiff(img, mask, 1, patch="auto")
-    # auto picks the window around the hole (grown by 16 px of context, in 16-px cells) over
-    # the tile and the 240 x 640 frame
+    # auto picks the crop around the hole (10 px + 8 px of context a side, rounded up to 16)
+    # over the window in 16-px cells (48 x 48), the tile and the 240 x 640 frame
+    assert count.pixels == 32 * 32
+    count.pixels = 0
+    infer.inpaint_tacdiff(img, mask, 1, patch="holes")
     assert count.pixels == 48 * 48
     count.pixels = 0
     infer.inpaint_tacdiff(img, mask, 1, patch=None)
@@ -252,6 +259,72 @@ def test_hole_windows_match_the_whole_frame():
     e_w = masked_mae(whole, s.image, mask)
     e_h = masked_mae(holes, s.image, mask)
     assert abs(e_w - e_h) < 0.1 * e_w
+
+
+def test_hole_crops_hold_each_hole_with_its_context():
+    rng = np.random.default_rng(4)
+    mask = np.zeros((100, 150), bool)
+    for _ in range(10):
+        y, x = rng.integers(0, 100), rng.integers(0, 150)
+        mask[y:y + rng.integers(1, 20), x:x + rng.integers(1, 12)] = True
+    mask[0:3, 140:150] = True  # a sliver at the border
+    crops, labels = infer.hole_crops(mask, 16, 8)
+    assert labels.shape == (112, 160)
+    np.testing.assert_array_equal(labels[:100, :150] > 0, mask)
+    assert len(crops) == labels.max()
+    for i, (y0, x0, y1, x1) in enumerate(crops):
+        assert (y1 - y0) % 16 == (x1 - x0) % 16 == 0
+        assert 0 <= y0 < y1 <= 112 and 0 <= x0 < x1 <= 160
+        ys, xs = np.nonzero(labels == i + 1)
+        # the hole with 8 px of context on every side the padded frame has
+        assert y0 <= max(0, ys.min() - 8) and y1 >= min(112, ys.max() + 1 + 8)
+        assert x0 <= max(0, xs.min() - 8) and x1 >= min(160, xs.max() + 1 + 8)
+        # the smallest such crop: shrinking it by 16 would lose context or the hole
+        assert y1 - y0 - 16 < min(112, ys.max() + 1 - ys.min() + 16)
+        assert x1 - x0 - 16 < min(160, xs.max() + 1 - xs.min() + 16)
+
+
+def test_crops_run_one_call_per_size_and_match_the_whole_frame(monkeypatch):
+    from tacswitch.sim.scene import render_sample
+
+    s = render_sample("gelsight", 1)
+    mask = ts.dilate_mask(s.marker_mask)
+    crops, _ = infer.hole_crops(mask, 16, infer.CROP_CONTEXT)
+    sizes = {(y1 - y0, x1 - x0) for y0, x0, y1, x1 in crops}
+    assert len(crops) > 20 and len(sizes) < len(crops)
+    model = infer.load_model()
+    calls = []
+    orig = model.session.run
+
+    class _Session:
+        def run(self, names, feed):
+            calls.append(feed["cond"].shape)
+            return orig(names, feed)
+
+    monkeypatch.setattr(model, "session", _Session())
+    out = infer.inpaint_tacdiff(s.image_markers, mask, 1, patch="crops")
+    assert sorted(c[2:] for c in calls) == sorted(sizes)
+    assert sum(c[0] for c in calls) == len(crops)
+    monkeypatch.undo()
+    np.testing.assert_array_equal(out[~mask], s.image_markers[~mask])
+    whole = infer.inpaint_tacdiff(s.image_markers, mask, 1, patch=None)
+    e_w = masked_mae(whole, s.image, mask)
+    e_c = masked_mae(out, s.image, mask)
+    assert abs(e_w - e_c) < 0.1 * e_w
+
+
+def test_network_input_prior_is_prior_planes_exactly(sample):
+    # _planes fills the prior and spread only on the mask (the frame and 0 elsewhere); that
+    # must be bit-identical to the whole-frame prior_planes.
+    from tacswitch.tacdiff.prior import prior_planes
+
+    s, mask = sample
+    net = infer.load_model("fast")
+    planes = infer._planes(s.image_markers, mask, net, np.random.default_rng(0))
+    h, w = mask.shape
+    prior, spread = prior_planes(s.image_markers, mask, net.prior)
+    np.testing.assert_array_equal(planes[7:10, :h, :w], prior.transpose(2, 0, 1))
+    np.testing.assert_array_equal(planes[10:13, :h, :w], spread.transpose(2, 0, 1))
 
 
 def test_tiled_result_close_to_whole_frame(sample):

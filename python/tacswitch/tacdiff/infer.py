@@ -6,10 +6,13 @@
    mean of our TELEA and biharmonic fills, or TELEA for older models; what is diffused is the
    residual over it, see :mod:`~tacswitch.tacdiff.model`). Noise is drawn once for the whole
    frame (seeded), so overlapping patches start from the same noise.
-2. Regions: the whole frame (padded by reflection to a multiple of 16) or ``patch x patch``
-   tiles from the Rust :func:`tacswitch.tile`; tiles without a pixel to fill are not run (their
-   output is the input). ``patch="auto"`` picks whichever runs fewer pixels through the network,
-   so sparse masks (few markers, or the contact-only mask of ``method="hybrid"``) cost little.
+2. Regions: the whole frame (padded by reflection to a multiple of 16), ``patch x patch``
+   tiles from the Rust :func:`tacswitch.tile` (tiles without a pixel to fill are not run: their
+   output is the input), windows around groups of holes, or one small crop per hole, all crops of
+   one size in one network call (:func:`hole_crops`). ``patch="auto"`` picks whichever runs
+   fewest pixels through the network, so sparse masks (few markers, or the contact-only mask of
+   ``method="hybrid"``) cost little, and on a dense 640 x 480 grid the per-hole crops run about
+   a third of the frame's pixels.
 3. K sampler steps from pure noise (:mod:`~tacswitch.tacdiff.schedule`: DPM-Solver++(2M) or DDIM,
    v-prediction, zero terminal SNR); known pixels are pasted into the network input at every
    step (inside the ONNX graph).
@@ -35,7 +38,7 @@ from tacswitch.tacdiff.prior import (
     from_net,
     has_spread,
     input_channels,
-    prior_planes,
+    prior_on_mask,
     to_net,
 )
 from tacswitch.tacdiff.schedule import Sampler, Solver, alpha_sigma, timesteps, v_to_x0_eps
@@ -50,10 +53,20 @@ DEFAULT_STEPS = 1
 DEFAULT_PATCH, DEFAULT_OVERLAP = 128, 32
 #: Most regions sent to onnxruntime in one call (bounds memory on huge frames).
 MAX_BATCH = 16
+#: Most pixels of one batch of same-size crops sent in one call (``patch="crops"``; bounds the
+#: activations' memory, ~0.4 GB for the default model).
+MAX_BATCH_PX = 1 << 19
 #: Context (px) kept around each hole in ``patch="holes"`` windows.
 DEFAULT_CONTEXT = 16
+#: Least context (px) kept around each hole in ``patch="crops"`` crops (the network was trained
+#: on 96 px crops). On the real-frame proxy (taxim's 640 x 480 GelSight presses with painted
+#: markers, 3 presses x 7 capture cases, adaptive masks) 48 x 48 crops with this context change
+#: the masked MAE of whole-frame runs by +0.9 % (fast model) and +1.0 % (default), on 4 held-out
+#: simulated GelSight frames by +1.0 % / -1.2 %, at 36 % of the pixels (BENCHMARKS.md, TacDiff
+#: speed). 16 px (64 x 64 crops) is within 0.5 % but barely cheaper than the whole frame.
+CROP_CONTEXT = 8
 
-PatchArg = int | Literal["auto", "holes"] | None
+PatchArg = int | Literal["auto", "holes", "crops"] | None
 
 
 def default_model_path() -> Path:
@@ -115,13 +128,15 @@ class TacDiffModel:
     def v(self, cond: NDArray[np.float32], mask: NDArray[np.float32], x_t: NDArray[np.float32],
           noise: NDArray[np.float32], prior: NDArray[np.float32], sigma: float,
           spread: NDArray[np.float32] | None = None) -> NDArray[np.float32]:
-        """The network's v-prediction for a batch (arrays as in the export's docstring)."""
+        """The network's v-prediction for a batch (arrays as in the export's docstring), in
+        calls of at most :data:`MAX_BATCH` regions or :data:`MAX_BATCH_PX` pixels."""
         if (spread is not None) != has_spread(self.prior):
             raise ValueError(f"spread: this model's prior is {self.prior!r}; pass spread "
                              "exactly for 'telea+biharmonic'")
+        per = max(MAX_BATCH, MAX_BATCH_PX // max(1, cond.shape[2] * cond.shape[3]))
         outs = []
-        for i in range(0, len(cond), MAX_BATCH):
-            sl = slice(i, i + MAX_BATCH)
+        for i in range(0, len(cond), per):
+            sl = slice(i, i + per)
             n = len(cond[sl])
             feed = {"cond": cond[sl], "mask": mask[sl], "x_t": x_t[sl], "noise": noise[sl],
                     "prior": prior[sl], "sigma": np.full(n, sigma, np.float32)}
@@ -142,24 +157,40 @@ def load_model(path: str | os.PathLike[str] | None = None) -> TacDiffModel:
 #: covering 93 % of the frame took 230 ms against 160 ms for the whole frame, about 1.7 ms
 #: (~3 300 px of network time) per call.
 CALL_COST_PX = 4096
+#: Cost of one crop of ``patch="crops"`` beyond its pixels, in pixel-equivalents: crops of one
+#: size share a network call, so a crop costs its gathering and pasting and the network's lower
+#: throughput on small images (48 x 48 crops: ~1.3x the time per pixel of a whole frame).
+CROP_COST_PX = 1024
+
+
+def _ceil(n: int, multiple: int) -> int:
+    return -(-n // multiple) * multiple
 
 
 def _choose(mask: NDArray[np.bool_], multiple: int, patch: PatchArg, overlap: int,
-            context: int) -> tuple[str, Any]:
+            context: int | None) -> tuple[str, Any]:
     """What goes through the network: ``("whole", None)``, ``("holes", (windows, owner))``
-    (:func:`hole_windows`) or ``("tiles", (origins, run))`` (tiles of the Rust
-    :func:`tacswitch.tile`, ``run`` flagging those holding a pixel to fill). ``"auto"`` takes
-    the cheapest: pixels through the network plus :data:`CALL_COST_PX` per network call; ties
-    go to the whole frame (one call), then the windows."""
+    (:func:`hole_windows`), ``("crops", (crops, labels))`` (:func:`hole_crops`) or
+    ``("tiles", (origins, run))`` (tiles of the Rust :func:`tacswitch.tile`, ``run`` flagging
+    those holding a pixel to fill). ``"auto"`` takes the cheapest: pixels through the network
+    plus :data:`CALL_COST_PX` per network call (:data:`CROP_COST_PX` per crop for the batched
+    crops); ties go to the whole frame (one call), then the crops, then the windows.
+    ``context`` None is each mode's default (:data:`DEFAULT_CONTEXT`, :data:`CROP_CONTEXT`)."""
     from tacswitch.inpaint import tile
 
     h, w = mask.shape
-    ph, pw = -(-h // multiple) * multiple, -(-w // multiple) * multiple
+    ph, pw = _ceil(h, multiple), _ceil(w, multiple)
     options: dict[str, tuple[int, Any]] = {}
     if patch in (None, "auto"):
         options["whole"] = (ph * pw + CALL_COST_PX, None)
+    if patch in ("crops", "auto"):
+        crops, labels = hole_crops(mask, multiple, CROP_CONTEXT if context is None else context)
+        sizes = [(y1 - y0) * (x1 - x0) for y0, x0, y1, x1 in crops]
+        options["crops"] = (sum(sizes) + CROP_COST_PX * len(crops)
+                            + CALL_COST_PX * len(set(sizes)), (crops, labels))
     if patch in ("holes", "auto"):
-        windows, owner = hole_windows(mask, multiple, context)
+        windows, owner = hole_windows(mask, multiple,
+                                      DEFAULT_CONTEXT if context is None else context)
         options["holes"] = (sum((y1 - y0) * (x1 - x0) for y0, x0, y1, x1 in windows)
                             + CALL_COST_PX * len(windows), (windows, owner))
     if isinstance(patch, int) or (patch == "auto" and min(h, w) >= DEFAULT_PATCH):
@@ -168,7 +199,8 @@ def _choose(mask: NDArray[np.bool_], multiple: int, patch: PatchArg, overlap: in
         flags, origins = tile(mask.view(np.uint8)[:, :, None], side, overlap)
         run = flags.reshape(len(flags), -1).any(axis=1)
         options["tiles"] = (int(run.sum()) * (side * side + CALL_COST_PX), (origins, run, side))
-    kind = min(options, key=lambda k: (options[k][0], ("whole", "holes", "tiles").index(k)))
+    order = ("whole", "crops", "holes", "tiles")
+    kind = min(options, key=lambda k: (options[k][0], order.index(k)))
     return kind, options[kind][1]
 
 
@@ -188,32 +220,77 @@ def hole_windows(mask: NDArray[np.bool_], multiple: int, context: int
         multiple of ``multiple``, and the ``ceil(H / m) x ceil(W / m)`` map giving, for each cell
         holding a pixel to fill, the index of the window that fills it (-1 elsewhere).
     """
+    import cv2
+
     h, w = mask.shape
     ch, cw = -(-h // multiple), -(-w // multiple)
     cells = np.zeros((ch * multiple, cw * multiple), bool)
     cells[:h, :w] = mask
-    occupied: NDArray[np.bool_] = np.asarray(
-        cells.reshape(ch, multiple, cw, multiple).any(axis=(1, 3)))
+    occupied: NDArray[np.uint8] = np.ascontiguousarray(
+        cells.reshape(ch, multiple, cw, multiple).any(axis=(1, 3)), np.uint8)
     k = -(-context // multiple)
-    owner = np.full((ch, cw), -1, np.int32)
-    windows: list[tuple[int, int, int, int]] = []
-    for sy, sx in zip(*np.nonzero(occupied), strict=True):
-        if owner[sy, sx] >= 0:
-            continue
-        idx = len(windows)
-        owner[sy, sx] = idx
-        todo, y0, x0, y1, x1 = [(int(sy), int(sx))], int(sy), int(sx), int(sy), int(sx)
-        while todo:  # flood fill over at most ch * cw cells
-            y, x = todo.pop()
-            y0, x0, y1, x1 = min(y0, y), min(x0, x), max(y1, y), max(x1, x)
-            for ny in range(max(0, y - 1), min(ch, y + 2)):
-                for nx in range(max(0, x - 1), min(cw, x + 2)):
-                    if occupied[ny, nx] and owner[ny, nx] < 0:
-                        owner[ny, nx] = idx
-                        todo.append((ny, nx))
-        windows.append((max(0, y0 - k) * multiple, max(0, x0 - k) * multiple,
-                        min(ch, y1 + 1 + k) * multiple, min(cw, x1 + 1 + k) * multiple))
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(occupied, connectivity=8,
+                                                           ltype=cv2.CV_32S)
+    owner = (labels - 1).astype(np.int32)
+    windows = [(max(0, int(y) - k) * multiple, max(0, int(x) - k) * multiple,
+                min(ch, int(y + bh) + k) * multiple, min(cw, int(x + bw) + k) * multiple)
+               for x, y, bw, bh in stats[1:n, :4]]
     return windows, owner
+
+
+def hole_crops(mask: NDArray[np.bool_], multiple: int, context: int
+               ) -> tuple[list[tuple[int, int, int, int]], NDArray[np.int32]]:
+    """One crop per hole for ``patch="crops"``: only these pixels go through the network.
+
+    Each hole (8-connected component of ``mask``) gets the smallest crop whose sides are
+    multiples of ``multiple`` and hold its bounding box grown by ``context`` px on every side,
+    centred on the hole and shifted inside the padded frame (a crop never exceeds it). Unlike
+    :func:`hole_windows` the crops are not aligned to a grid, so a round marker of 30 px at
+    ``context=8`` gets a 48 x 48 crop, and crops of one size run as one batch. Neighbouring
+    holes inside a crop are seen as holes; each crop fills only its own hole.
+
+    Returns:
+        ``(crops, labels)``: crops ``(y0, x0, y1, x1)`` in px of the frame padded to a multiple
+        of ``multiple``, and the padded ``H' x W'`` map of hole labels (crop ``i`` fills the
+        pixels labelled ``i + 1``; 0 = no hole).
+    """
+    import cv2
+
+    h, w = mask.shape
+    ph, pw = _ceil(h, multiple), _ceil(w, multiple)
+    labels = np.zeros((ph, pw), np.int32)
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(np.ascontiguousarray(mask, np.uint8),
+                                                        connectivity=8, ltype=cv2.CV_32S)
+    labels[:h, :w] = lab
+    crops = []
+    for x, y, bw, bh in stats[1:n, :4].tolist():
+        sh, sw = min(ph, _ceil(bh + 2 * context, multiple)), min(pw, _ceil(bw + 2 * context,
+                                                                          multiple))
+        y0 = min(max(0, y + (bh - sh) // 2), ph - sh)
+        x0 = min(max(0, x + (bw - sw) // 2), pw - sw)
+        crops.append((y0, x0, y0 + sh, x0 + sw))
+    return crops, labels
+
+
+def _sample_crops(model: TacDiffModel, planes: NDArray[np.float32],
+                  crops: list[tuple[int, int, int, int]], labels: NDArray[np.int32],
+                  steps: int, sampler: Sampler) -> NDArray[np.float32]:
+    """Samples every crop of the padded ``C x H x W`` planes (one batch per crop size) and
+    returns the ``3 x H x W`` image estimate: each crop's output on its own hole, the prior
+    elsewhere."""
+    out = planes[7:10].copy()
+    by_shape: dict[tuple[int, int], list[int]] = {}
+    for i, (y0, x0, y1, x1) in enumerate(crops):
+        by_shape.setdefault((y1 - y0, x1 - x0), []).append(i)
+    for idx in by_shape.values():
+        batch = np.stack([planes[:, crops[i][0]:crops[i][2], crops[i][1]:crops[i][3]]
+                          for i in idx])
+        res = _sample(model, batch, steps, sampler)
+        for i, r in zip(idx, res, strict=True):
+            y0, x0, y1, x1 = crops[i]
+            own = labels[y0:y1, x0:x1] == i + 1
+            out[:, y0:y1, x0:x1][:, own] = r[:, own]
+    return out
 
 
 def _sample_windows(model: TacDiffModel, planes: NDArray[np.float32],
@@ -276,10 +353,13 @@ def _planes(arr: NDArray[np.uint8], m: NDArray[np.bool_], model: TacDiffModel,
     planes[0:3] = to_net(arr).transpose(2, 0, 1)
     planes[3] = m
     planes[4:7][:, m] = rng.standard_normal((3, int(m.sum())), dtype=np.float32)
-    prior, spread = prior_planes(arr, m, model.prior)
-    planes[7:10] = prior.transpose(2, 0, 1)
+    # The prior is the frame off the mask and the spread 0 there (prior_on_mask), so only the
+    # masked pixels are converted and combined (identical to prior_planes, a third of the work).
+    planes[7:10] = planes[0:3]
+    prior, spread = prior_on_mask(arr, m, model.prior)
+    planes[7:10][:, m] = prior.T
     if spread is not None:
-        planes[10:13] = spread.transpose(2, 0, 1)
+        planes[10:13][:, m] = spread.T
     k = model.multiple
     ph, pw = -(-h // k) * k, -(-w // k) * k
     if (ph, pw) == (h, w):
@@ -293,7 +373,7 @@ def _planes(arr: NDArray[np.uint8], m: NDArray[np.bool_], model: TacDiffModel,
 def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
                     sampler: Sampler = "dpmpp2m", seed: int | None = 0,
                     patch: PatchArg = "auto", overlap: int = DEFAULT_OVERLAP,
-                    context: int = DEFAULT_CONTEXT,
+                    context: int | None = None,
                     model: str | os.PathLike[str] | None = None) -> NDArray[np.uint8]:
     """Fills the masked pixels of a BGR frame with the TacDiff diffusion model.
 
@@ -306,11 +386,15 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
         seed: seed of the initial noise (None: fresh randomness); the default 0 makes the output
             reproducible.
         patch: ``None`` (whole frame at once), a tile side in px (multiple of 16),
-            ``"holes"`` (only windows around the holes, each with ``context`` px of gel around
-            them: :func:`hole_windows`), or ``"auto"`` (whichever of the whole frame, tiles of
-            128 and the hole windows runs the fewest pixels through the network).
+            ``"holes"`` (only windows around groups of holes, each with ``context`` px of gel
+            around them, in 16 px cells: :func:`hole_windows`), ``"crops"`` (one crop per hole
+            with at least ``context`` px of gel around it, batched: :func:`hole_crops`), or
+            ``"auto"`` (whichever of the whole frame, tiles of 128, the crops and the windows
+            costs least, see :func:`_choose`).
         overlap: tile overlap in px.
-        context: px of known gel kept around the holes in ``"holes"`` windows.
+        context: px of known gel kept around the holes in ``"holes"`` windows and
+            ``"crops"`` crops (None: :data:`DEFAULT_CONTEXT` = 16 for windows,
+            :data:`CROP_CONTEXT` = 8 for crops).
         model: ONNX model path, or a shipped model by name: ``"default"`` (the default) or
             ``"fast"`` (narrower, about twice as fast, slightly less accurate).
 
@@ -331,12 +415,12 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
     if m.all():
         raise ValueError("mask: covers the whole image; nothing is known to inpaint from")
     net = load_model(model)
-    if patch not in (None, "auto", "holes"):
+    if patch not in (None, "auto", "holes", "crops"):
         side = as_count(patch, "patch", net.multiple)
         if side % net.multiple:
             raise ValueError(f"patch: must be a multiple of {net.multiple}; got {side}")
     ov = as_count(overlap, "overlap", 0)
-    ctx = as_count(context, "context", 0)
+    ctx = None if context is None else as_count(context, "context", 0)
     h, w = m.shape
     planes = _planes(arr, m, net, np.random.default_rng(seed))
     kind, data = _choose(m, net.multiple, patch, ov, ctx)
@@ -345,6 +429,9 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
     elif kind == "holes":
         windows, owner = data
         x0 = _sample_windows(net, planes, windows, owner, steps, sampler)
+    elif kind == "crops":
+        crops, labels = data
+        x0 = _sample_crops(net, planes, crops, labels, steps, sampler)
     else:
         origins, run, side = data
         hwc = np.ascontiguousarray(planes[:, :h, :w].transpose(1, 2, 0))

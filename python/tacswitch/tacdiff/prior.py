@@ -131,6 +131,17 @@ def combine(telea: NDArray[np.float32], smooth: NDArray[np.float32] | None
     return prior, (telea - smooth).astype(np.float32)
 
 
+def prior_on_mask(img: NDArray[np.uint8], mask: NDArray[np.bool_], kind: str
+                  ) -> tuple[NDArray[np.float32], NDArray[np.float32] | None]:
+    """``(prior, spread)`` of :func:`prior_planes` on the masked pixels only (``N x 3``, in the
+    order of ``img[mask]``). Off the mask the prior is the frame itself and the spread is 0
+    exactly (both fills keep the known pixels), so a caller can fill those from ``img`` without
+    converting and combining three whole frames."""
+    m = np.asarray(mask, bool)
+    telea, smooth = fills(img, m, kind)
+    return combine(to_net(telea[m]), None if smooth is None else to_net(smooth[m]))
+
+
 def prior_planes(img: NDArray[np.uint8], mask: NDArray[np.bool_], kind: str
                  ) -> tuple[NDArray[np.float32], NDArray[np.float32] | None]:
     """``(prior, spread)`` of one uint8 BGR frame in [-1, 1], ``H x W x 3``: its classical

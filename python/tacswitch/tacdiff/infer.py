@@ -39,7 +39,6 @@ from tacswitch.tacdiff.prior import (
     has_spread,
     input_channels,
     prior_on_mask,
-    to_net,
 )
 from tacswitch.tacdiff.schedule import Sampler, Solver, alpha_sigma, timesteps, v_to_x0_eps
 
@@ -350,16 +349,22 @@ def _planes(arr: NDArray[np.uint8], m: NDArray[np.bool_], model: TacDiffModel,
     the classical prior and, for two-fill priors, the spread."""
     h, w = m.shape
     planes = np.zeros((model.channels, h, w), np.float32)
-    planes[0:3] = to_net(arr).transpose(2, 0, 1)
-    planes[3] = m
-    planes[4:7][:, m] = rng.standard_normal((3, int(m.sum())), dtype=np.float32)
+    # to_net written straight into the planes (same float32 operations, no temporaries).
+    np.divide(arr.transpose(2, 0, 1), np.float32(127.5), out=planes[0:3], dtype=np.float32)
+    np.subtract(planes[0:3], np.float32(1.0), out=planes[0:3])
+    # Masked pixels by flat index (row-major, as img[m]): several times faster than boolean
+    # indexing of the channel planes.
+    idx = np.flatnonzero(m)
+    flat = planes.reshape(len(planes), h * w)
+    flat[3, idx] = 1.0
+    flat[4:7, idx] = rng.standard_normal((3, len(idx)), dtype=np.float32)
     # The prior is the frame off the mask and the spread 0 there (prior_on_mask), so only the
     # masked pixels are converted and combined (identical to prior_planes, a third of the work).
-    planes[7:10] = planes[0:3]
-    prior, spread = prior_on_mask(arr, m, model.prior)
-    planes[7:10][:, m] = prior.T
+    flat[7:10] = flat[0:3]
+    prior, spread = prior_on_mask(arr, m, model.prior, idx)
+    flat[7:10, idx] = prior.T
     if spread is not None:
-        planes[10:13][:, m] = spread.T
+        flat[10:13, idx] = spread.T
     k = model.multiple
     ph, pw = -(-h // k) * k, -(-w // k) * k
     if (ph, pw) == (h, w):
@@ -443,5 +448,7 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
             merged[run] = res.transpose(0, 2, 3, 1)
         x0 = merge_patches(merged, origins, (h, w, 3), mode="feather").transpose(2, 0, 1)
     out = arr.copy()
-    out[m] = from_net(x0[:, :h, :w][:, m].T)
+    idx = np.flatnonzero(m)
+    out.reshape(h * w, 3)[idx] = from_net(np.ascontiguousarray(x0[:, :h, :w]).reshape(3, h * w)
+                                          [:, idx].T)
     return out

@@ -85,26 +85,37 @@ def input_channels(kind: str) -> int:
     return 13 if has_spread(kind) else 10
 
 
+def _solves(img: NDArray[np.uint8], m: NDArray[np.bool_], kind: str
+            ) -> tuple[NDArray[np.uint8], NDArray[np.uint8] | None]:
+    """TELEA of ``img`` on ``m`` and the biharmonic fill ``kind`` uses (None for the TELEA-only
+    prior). For ``"telea+biharmonic-grown"`` the biharmonic image is solved on the grown holes:
+    only its values on ``m`` are the prior's (the grown ring is the frame in :func:`fills`)."""
+    from tacswitch.inpaint import inpaint_biharmonic, inpaint_telea
+
+    telea = inpaint_telea(img, m, PRIOR_RADIUS)
+    if not has_spread(kind):
+        return telea, None
+    if kind != "telea+biharmonic-grown":
+        return telea, inpaint_biharmonic(img, m)
+    try:
+        return telea, inpaint_biharmonic(img, grow_holes(m, PRIOR_GROW))
+    except ValueError:
+        # A hole that grown is beyond the biharmonic solver's size limit: the ungrown holes
+        # still give a prior (or the same error as the plain biharmonic prior).
+        return telea, inpaint_biharmonic(img, m)
+
+
 def fills(img: NDArray[np.uint8], mask: NDArray[np.bool_], kind: str
           ) -> tuple[NDArray[np.uint8], NDArray[np.uint8] | None]:
     """The classical fills of one uint8 BGR frame: TELEA, and the biharmonic fill when ``kind``
     uses it (else None; for ``"telea+biharmonic-grown"`` solved on the grown holes, the pixels
     outside ``mask`` left as in ``img``)."""
-    from tacswitch.inpaint import inpaint_biharmonic, inpaint_telea
-
-    telea = inpaint_telea(img, mask, PRIOR_RADIUS)
-    if not has_spread(kind):
-        return telea, None
-    if kind != "telea+biharmonic-grown":
-        return telea, inpaint_biharmonic(img, mask)
     m = np.asarray(mask, bool)
+    telea, solved = _solves(img, m, kind)
+    if solved is None or kind != "telea+biharmonic-grown":
+        return telea, solved
     smooth = img.copy()
-    try:
-        smooth[m] = inpaint_biharmonic(img, grow_holes(m, PRIOR_GROW))[m]
-    except ValueError:
-        # A hole that grown is beyond the biharmonic solver's size limit: the ungrown holes
-        # still give a prior (or the same error as the plain biharmonic prior).
-        smooth = inpaint_biharmonic(img, m)
+    smooth[m] = solved[m]
     return telea, smooth
 
 
@@ -131,15 +142,22 @@ def combine(telea: NDArray[np.float32], smooth: NDArray[np.float32] | None
     return prior, (telea - smooth).astype(np.float32)
 
 
-def prior_on_mask(img: NDArray[np.uint8], mask: NDArray[np.bool_], kind: str
+def prior_on_mask(img: NDArray[np.uint8], mask: NDArray[np.bool_], kind: str,
+                  index: NDArray[np.intp] | None = None
                   ) -> tuple[NDArray[np.float32], NDArray[np.float32] | None]:
     """``(prior, spread)`` of :func:`prior_planes` on the masked pixels only (``N x 3``, in the
-    order of ``img[mask]``). Off the mask the prior is the frame itself and the spread is 0
-    exactly (both fills keep the known pixels), so a caller can fill those from ``img`` without
-    converting and combining three whole frames."""
+    row-major order of ``img[mask]``; ``index`` is ``np.flatnonzero(mask)`` if the caller has
+    it). Off the mask the prior is the frame itself and the spread is 0 exactly (both fills keep
+    the known pixels), so a caller can fill those from ``img`` without converting and combining
+    three whole frames; the values are bit-identical to :func:`prior_planes`'."""
     m = np.asarray(mask, bool)
-    telea, smooth = fills(img, m, kind)
-    return combine(to_net(telea[m]), None if smooth is None else to_net(smooth[m]))
+    idx = np.flatnonzero(m) if index is None else index
+
+    def on_mask(a: NDArray[np.uint8]) -> NDArray[np.uint8]:
+        return a.reshape(-1, a.shape[-1] if a.ndim == 3 else 1)[idx]
+
+    telea, solved = _solves(img, m, kind)
+    return combine(to_net(on_mask(telea)), None if solved is None else to_net(on_mask(solved)))
 
 
 def prior_planes(img: NDArray[np.uint8], mask: NDArray[np.bool_], kind: str

@@ -61,6 +61,27 @@ def test_default_preset_is_balanced_and_presets_differ(mini, grid) -> None:
         flow.flow_motion(img, ref, grid, preset="Balanced")
 
 
+def test_balanced_works_on_640x480_downsampled_in_the_callers_pixels() -> None:
+    assert [flow.work_factor(w) for w in (320, 479, 480, 640, 1280)] == [1, 1, 2, 2, 4]
+    assert flow.work_factor(640, preset="medium") == 1
+    assert flow.work_factor(640, algorithm="farneback") == 1
+    gs = proxy.load_real_presses("gelsight")
+    grid = proxy.marker_grid("gelsight")[0]
+    i = 5
+    fld = proxy.random_field("shear", tuple(gs.centres[i]), float(gs.radii[i]), 40.0,
+                             np.random.default_rng(2), shape=(480, 640))
+    img = proxy.warp(gs.imgs[i], fld)
+    true = fld.at(grid)
+    pred = predict_motion(img, gs.imgs[i], grid)
+    mag = np.linalg.norm(true, axis=1)
+    assert mag.max() > 6.0
+    # Motion in full-size pixels (x2 of the working size), read at the right markers.
+    assert np.linalg.norm(pred - true, axis=1).mean() < 0.3 * mag.mean()
+    moved = mag > 4.0
+    cos = (pred[moved] * true[moved]).sum(1) / (np.linalg.norm(pred[moved], axis=1) * mag[moved])
+    assert cos.mean() > 0.9
+
+
 def test_padding_is_cropped_and_fits_tiny_frames() -> None:
     rng = np.random.default_rng(3)
     a = rng.integers(0, 256, (8, 400), dtype=np.uint8)

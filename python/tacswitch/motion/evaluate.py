@@ -156,7 +156,8 @@ def slip_on_grasps(sources: dict[str, Callable[..., NDArray[np.float32]]], *,
     criterion (:data:`SLIP_CRITERIA`, the paper's threshold scaled to the width) starts at the
     grasp start, as in the paper. ``smooth_frames`` (the rule's moving average,
     :class:`tacswitch.SlipDetector`) applies to the predicted sources; with ``smooth_frames > 1``
-    ``"tracked smoothed"`` (tracking with the same average) is added beside ``"tracked"``.
+    the same motion is also judged without it (``"NAME unsmoothed"``) and tracking with it
+    (``"tracked smoothed"``), so each row differs from another by one thing.
 
     Returns per ``(source, criterion)``: ``correct``, ``n``, ``accuracy``, ``slips_found`` /
     ``n_slip``, false alarms on ``hold`` / ``vibration`` (and their counts), the delays (frames
@@ -174,7 +175,12 @@ def slip_on_grasps(sources: dict[str, Callable[..., NDArray[np.float32]]], *,
 
     smooth = as_count(smooth_frames, "smooth_frames", 1, 1000)
     crit = SLIP_CRITERIA if criteria is None else criteria
-    names = [*sources, "tracked", *(["tracked smoothed"] if smooth > 1 else [])]
+    # (row name, motion source, smooth_frames of its detector)
+    rows = [(n, n, smooth) for n in sources] + [("tracked", "tracked", 1)]
+    if smooth > 1:
+        rows += [(f"{n} unsmoothed", n, 1) for n in sources]
+        rows += [("tracked smoothed", "tracked", smooth)]
+    names = [r[0] for r in rows]
     res: dict[tuple[str, str], dict[str, Any]] = {
         (s, c): {"correct": 0, "n": 0, "n_slip": 0, "slips_found": 0, "fa_hold": 0,
                  "n_hold": 0, "fa_vibration": 0, "n_vibration": 0, "delays": [], "t": 0.0,
@@ -205,22 +211,20 @@ def slip_on_grasps(sources: dict[str, Callable[..., NDArray[np.float32]]], *,
                 m, v = tracker.update(seq.frames[t].image_markers)
                 if t >= g0:
                     tracked.append((m, v))
-            motions["tracked"] = motions["tracked smoothed"] = tracked
-            for name in names:
-                marker = name.startswith("tracked")
+            motions["tracked"] = tracked
+            for name, src, n_smooth in rows:
                 for cname, opts in crit.items():
-                    det = ts.SlipDetector(image_width=w, points=pts if marker else rest,
-                                          smooth_frames=1 if name == "tracked" else smooth,
-                                          **opts)
+                    det = ts.SlipDetector(image_width=w, points=pts if src == "tracked" else rest,
+                                          smooth_frames=n_smooth, **opts)
                     first = None
-                    for j, (m, v) in enumerate(motions[name]):
+                    for j, (m, v) in enumerate(motions[src]):
                         if det.update(m, v).slip and first is None:
                             first = g0 + j
                     r = res[(name, cname)]
                     r["n"] += 1
-                    if name in times:
-                        r["t"] += times[name]
-                        r["frames"] += len(motions[name])
+                    if src in times:
+                        r["t"] += times[src]
+                        r["frames"] += len(motions[src])
                     if kind == "slip":
                         r["n_slip"] += 1
                         r["slips_found"] += int(first is not None)

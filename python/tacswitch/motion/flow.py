@@ -28,7 +28,11 @@ descent and 5 variational-refinement iterations and misses the 100 Hz budget at 
 ``balanced`` keeps ``medium``'s half resolution with 8 descent and 2 refinement iterations on
 8 px patches every 4 px: within the budgets on 2 cores and under the 0.2 px brightness bound
 (``benches/bench_motion_methods.py`` has the speed, brightness and real-texture accuracy of
-each).
+each). On frames at least 480 px wide it works on the pair area-downsampled to about 320 px wide
+(:data:`BALANCED_WORK_WIDTH`) at full resolution there: the same flow grid as half resolution
+at 640 x 480, with the normalisation, padding and smoothing done on a quarter of the pixels
+(a quarter-resolution grid at 640 x 480, as OpenCV's ``fast`` gives, fails the brightness
+bound).
 """
 
 from __future__ import annotations
@@ -38,8 +42,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["ALGORITHMS", "DEFAULT_PRESET", "DIS_PRESETS", "PAD_REL", "SMOOTH_REL", "dense_flow",
-           "flow_motion", "normalise_pair", "sample_field"]
+__all__ = ["ALGORITHMS", "BALANCED_WORK_WIDTH", "DEFAULT_PRESET", "DIS_PRESETS", "PAD_REL",
+           "SMOOTH_REL", "dense_flow", "flow_motion", "normalise_pair", "sample_field",
+           "work_factor"]
 
 #: Flow algorithms accepted by :func:`flow_motion`.
 ALGORITHMS = ("dis", "farneback", "deepflow", "pcaflow", "rlof")
@@ -52,6 +57,9 @@ DEFAULT_PRESET = "balanced"
 #: resolution), 8 gradient-descent and 2 variational-refinement iterations.
 BALANCED = {"finest_scale": 1, "gradient_descent_iterations": 8,
             "variational_refinement_iterations": 2}
+#: ``balanced`` area-downsamples frames at least 1.5x this wide by ``round(width / this)`` and
+#: computes the flow there at finest scale 0 (see the module doc).
+BALANCED_WORK_WIDTH = 320
 #: Mirror padding of both frames before the flow, a fraction of the frame width (16 px at 320).
 PAD_REL = 0.05
 #: Background blur sigma as a fraction of the frame width (the illumination model's scale).
@@ -103,17 +111,29 @@ def _local_contrast(g: NDArray[np.float32], sigma: float) -> NDArray[np.float32]
     return np.asarray((g - bg) / np.maximum(bg, 4.0), np.float32)
 
 
-def normalise_pair(img: NDArray[np.uint8], ref: NDArray[np.uint8]
+def _shrink(g: NDArray[np.float32], k: int) -> NDArray[np.float32]:
+    """``g`` area-averaged by ``k`` (float: keeps the sub-grey-level detail); ``k = 1``: as is."""
+    import cv2
+
+    if k == 1:
+        return g
+    h, w = g.shape
+    return np.asarray(cv2.resize(g, (w // k, h // k), interpolation=cv2.INTER_AREA), np.float32)
+
+
+def normalise_pair(img: NDArray[np.uint8], ref: NDArray[np.uint8], k: int = 1
                    ) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
-    """``(img, ref)`` as 8-bit grey local contrast on one shared scale (see the module doc).
+    """``(img, ref)`` as 8-bit grey local contrast on one shared scale (see the module doc),
+    area-downsampled by the integer ``k`` (``k = 1``: full size).
 
     The scale is the reference's robust spread (median absolute deviation) of local contrast, so a
     brightness change of ``img`` alone changes neither frame's mapping.
     """
-    w = img.shape[1]
+    gi, gr = _shrink(_grey(img), k), _shrink(_grey(ref), k)
+    w = gi.shape[1]
     sigma = max(2.0, BG_SIGMA_REL * w)
-    ci = _local_contrast(_grey(img), sigma)
-    cr = _local_contrast(_grey(ref), sigma)
+    ci = _local_contrast(gi, sigma)
+    cr = _local_contrast(gr, sigma)
     # The spread from every other pixel in each direction: same statistic, a quarter the work.
     sub = cr[::2, ::2]
     mad = float(np.median(np.abs(sub - np.median(sub))))
@@ -125,7 +145,7 @@ def normalise_pair(img: NDArray[np.uint8], ref: NDArray[np.uint8]
     return out[0], out[1]
 
 
-def _dis(preset: str) -> Any:
+def _dis(preset: str, finest_scale: int | None = None) -> Any:
     import cv2 as _cv2
 
     cv2: Any = _cv2  # OpenCV's stubs lack DIS and type Mat arguments too narrowly
@@ -136,17 +156,19 @@ def _dis(preset: str) -> Any:
             "medium": cv2.DISOPTICAL_FLOW_PRESET_MEDIUM}[preset]
     dis = cv2.DISOpticalFlow_create(code)
     if preset == "balanced":
-        dis.setFinestScale(BALANCED["finest_scale"])
+        dis.setFinestScale(BALANCED["finest_scale"] if finest_scale is None else finest_scale)
         dis.setGradientDescentIterations(BALANCED["gradient_descent_iterations"])
         dis.setVariationalRefinementIterations(BALANCED["variational_refinement_iterations"])
     return dis
 
 
 def dense_flow(ref8: NDArray[np.uint8], img8: NDArray[np.uint8], algorithm: str = "dis",
-               preset: str = DEFAULT_PRESET, pad: int = 0) -> NDArray[np.float32]:
+               preset: str = DEFAULT_PRESET, pad: int = 0, finest_scale: int | None = None
+               ) -> NDArray[np.float32]:
     """Forward flow ``ref8 -> img8`` (``H x W x 2`` float32, ``(dx, dy)`` px at ``ref8``'s
     pixels) between two 8-bit grey frames of the same size, computed on both frames
-    mirror-padded by ``pad`` px (the padding is cropped off the result)."""
+    mirror-padded by ``pad`` px (the padding is cropped off the result). ``finest_scale``
+    overrides the ``balanced`` preset's (pyramid level where DIS stops; 0 = full size)."""
     import cv2 as _cv2
 
     cv2: Any = _cv2  # OpenCV's stubs reject None as the flow argument
@@ -155,7 +177,7 @@ def dense_flow(ref8: NDArray[np.uint8], img8: NDArray[np.uint8], algorithm: str 
         ref8 = cv2.copyMakeBorder(ref8, pad, pad, pad, pad, cv2.BORDER_REFLECT_101)
         img8 = cv2.copyMakeBorder(img8, pad, pad, pad, pad, cv2.BORDER_REFLECT_101)
     if algorithm == "dis":
-        flow = _dis(preset).calc(ref8, img8, None)
+        flow = _dis(preset, finest_scale).calc(ref8, img8, None)
     elif algorithm == "farneback":
         # A 15 px Gaussian window, 5 levels: smooth gel fields, motions up to a marker pitch.
         flow = cv2.calcOpticalFlowFarneback(ref8, img8, None, 0.5, 5, 15, 5, 7, 1.5,
@@ -217,11 +239,24 @@ def flow_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8], centres: NDArray
         raise ValueError(f"preset: unknown {preset!r}; choose from {list(DIS_PRESETS)}")
     if len(centres) == 0 or np.array_equal(img, ref):
         return np.zeros((len(centres), 2), np.float32)
-    img8, ref8 = normalise_pair(img, ref)
+    k = work_factor(img.shape[1], algorithm, preset)
+    img8, ref8 = normalise_pair(img, ref, k)
+    h, w = img8.shape
     # Mirror padding needs pad < each side (a frame may be as small as 8 px a side).
-    pad = min(round(PAD_REL * img.shape[1]), min(img.shape[:2]) - 1)
-    flow = dense_flow(ref8, img8, algorithm, preset, pad=pad)
+    pad = min(round(PAD_REL * w), min(h, w) - 1)
+    flow = dense_flow(ref8, img8, algorithm, preset, pad=pad, finest_scale=0 if k > 1 else None)
     if SMOOTH_REL > 0:
-        flow = np.asarray(_smooth(flow, SMOOTH_REL * img.shape[1]), np.float32)
-    out = sample_field(flow, centres)
+        flow = np.asarray(_smooth(flow, SMOOTH_REL * w), np.float32)
+    # Pixel centres at integers: x_small = (x + 0.5) / k - 0.5.
+    pts = centres if k == 1 else ((centres + 0.5) / k - 0.5).astype(np.float32)
+    out = sample_field(flow, pts) * np.float32(k)
     return np.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0)
+
+
+def work_factor(width: int, algorithm: str = "dis", preset: str = DEFAULT_PRESET) -> int:
+    """Integer area-downsampling factor :func:`flow_motion` applies to a frame ``width`` px wide
+    before the flow (1 = none): ``round(width / BALANCED_WORK_WIDTH)`` for DIS ``balanced`` on
+    frames at least 1.5x that wide."""
+    if algorithm != "dis" or preset != "balanced" or width < 1.5 * BALANCED_WORK_WIDTH:
+        return 1
+    return max(1, round(width / BALANCED_WORK_WIDTH))

@@ -21,11 +21,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="CSV with x,y columns (e.g. from `tacswitch markers`); default: the "
                         "model's grid scaled to the frame")
     p.add_argument("--model", default=None, help="ONNX model (default: the shipped one)")
-    p.add_argument("--method", choices=("auto", "model", "flow", "outward"), default="auto",
+    p.add_argument("--method", choices=("auto", "model", "flow", "outward", "mechanics"),
+                   default="auto",
                    help="auto (default): flow with --ref, outward without; model: the ONNX "
                         "model; flow: dense optical flow from --ref (training-free, needs "
                         "--ref); outward: the no-learning baseline (markers move outward from "
-                        "the contact)")
+                        "the contact); mechanics: the simulator's elastic press law applied to "
+                        "the imprint (no learning; with or without --ref)")
     p.add_argument("-o", "--out", default="motion-out", help="output folder (default: %(default)s)")
     p.add_argument("--scale", type=float, default=3.0, help="arrow length per px of motion")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")

@@ -4,6 +4,11 @@
 - :mod:`tacswitch.motion.data`: synthetic training/evaluation pairs from :mod:`tacswitch.sim`;
 - :mod:`tacswitch.motion.model`, :mod:`~tacswitch.motion.train`, :mod:`~tacswitch.motion.export`:
   the networks, training and ONNX export (need torch, ``pip install "tacswitch[train]"``);
+- :mod:`tacswitch.motion.flow` (dense optical flow from a reference),
+  :mod:`~tacswitch.motion.heuristic` (the outward-from-contact rule) and
+  :mod:`~tacswitch.motion.mechanics` (an elastic press law on the imprint): the training-free
+  methods of :func:`predict_motion`;
+- :mod:`tacswitch.motion.proxy`: real-texture proxies (real frames warped by known fields);
 - :mod:`tacswitch.motion.evaluate`: the paper's metrics, the baselines and slip on markerless
   streams.
 

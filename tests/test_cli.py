@@ -257,6 +257,12 @@ def test_motion_command_matches_predict_motion(tmp_path: Path, motion_pair: dict
     np.testing.assert_allclose(pts, load_model().centres_for(*img.shape[:2]), atol=1e-3)
     # The shipped model's reference is optional: without --ref, the single-frame motion.
     assert main(["motion", str(tmp_path / "img.png"), "-o", str(tmp_path / "n"), "-q"]) == 0
+    # Every method of predict_motion is reachable, with the same numbers.
+    assert main(["motion", str(tmp_path / "img.png"), "--centres", str(centres),
+                 "--method", "mechanics", "-o", str(tmp_path / "k"), "-q"]) == 0
+    _, motion = _read_motion_csv(tmp_path / "k" / "img.csv")
+    np.testing.assert_allclose(motion, ts.predict_motion(img, None, rest, method="mechanics"),
+                               atol=1e-3)
     centres.write_bytes(b"\x93NUMPY")
     assert main(["motion", str(tmp_path / "img.png"), "--ref", str(tmp_path / "ref.png"),
                  "--centres", str(centres), "-o", str(out), "-q"]) == 1

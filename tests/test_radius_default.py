@@ -7,6 +7,7 @@ The frames are taxim's real markerless presses with markers painted and captured
 from __future__ import annotations
 
 import inspect
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -57,3 +58,19 @@ def test_every_entry_point_shares_the_default_radius() -> None:
     assert not np.array_equal(ts.remove_markers(img, mask), ts.inpaint_telea(img, mask, 3))
     np.testing.assert_array_equal(ts.remove_markers(img, mask, method="ns"),
                                   ts.remove_markers(img, mask, method="ns", radius=NS_RADIUS))
+
+
+def test_cli_uses_the_library_default(tmp_path: Path) -> None:
+    from tacswitch import sim
+    from tacswitch.cli import main
+
+    pts = sim.marker_grid(120, 160, 3, 4, 36.0, seed=0)
+    frame = sim.render_markers(sim.gel_background(120, 160, seed=2), pts, 10.0, darkness=0.8)
+    cv2.imwrite(str(tmp_path / "f.png"), frame)
+    for extra, want in (([], ts.remove_markers(frame)),
+                        (["--radius", "3"], ts.remove_markers(frame, radius=3))):
+        out = tmp_path / f"o{len(extra)}"
+        assert main(["remove-markers", str(tmp_path / "f.png"), "-o", str(out), "-q",
+                     *extra]) == 0
+        np.testing.assert_array_equal(cv2.imread(str(out / "f.png")), want)
+    assert not np.array_equal(ts.remove_markers(frame), ts.remove_markers(frame, radius=3))

@@ -20,6 +20,7 @@ Remover = Callable[[np.ndarray], np.ndarray]
 def add_parser(sub: argparse._SubParsersAction) -> None:
     from tacswitch.cli.batch import CODECS
     from tacswitch.cli.options import add_extraction_options
+    from tacswitch.inpaint import DEFAULT_RADIUS, NS_RADIUS
 
     p = sub.add_parser(
         "remove-markers",
@@ -47,8 +48,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "shading), ns (OpenCV), tacdiff (diffusion model), hybrid (tacdiff near "
                         "the contact, telea elsewhere)")
     p.add_argument("--radius", type=int, default=None,
-                   help="inpainting radius, px (default: 12 for telea and hybrid, the best on "
-                        "real frames; 3 for ns)")
+                   help=f"inpainting radius, px (default: {DEFAULT_RADIUS} for telea and "
+                        f"hybrid, the best on real frames; {NS_RADIUS} for ns)")
     p.add_argument("--steps", type=int, default=None,
                    help="tacdiff/hybrid sampler steps K (default: 1)")
     p.add_argument("--ref", default=None,

@@ -327,6 +327,35 @@ def test_network_input_prior_is_prior_planes_exactly(sample):
     np.testing.assert_array_equal(planes[10:13, :h, :w], spread.transpose(2, 0, 1))
 
 
+def test_prior_radius_is_read_from_the_model(sample, tmp_path):
+    pytest.importorskip("onnx")
+    import shutil
+
+    from tacswitch.tacdiff.metadata import set_metadata
+    from tacswitch.tacdiff.prior import PRIOR_RADIUS, prior_on_mask
+
+    s, mask = sample
+    assert infer.load_model("fast").prior_radius == PRIOR_RADIUS == 3  # shipped: none recorded
+    path = tmp_path / "m.onnx"
+    shutil.copy(infer.model_path("fast"), path)
+    set_metadata(path, {"tacswitch.prior_radius": "8"})
+    net = infer.TacDiffModel(path)
+    assert net.prior_radius == 8.0
+    planes = infer._planes(s.image_markers, mask, net, np.random.default_rng(0))
+    h, w = mask.shape
+    prior, _ = prior_on_mask(s.image_markers, mask, net.prior, radius=8)
+    np.testing.assert_array_equal(planes[7:10, :h, :w][:, mask], prior.T)
+    prior3, _ = prior_on_mask(s.image_markers, mask, net.prior)
+    assert not np.array_equal(prior, prior3)
+    set_metadata(path, {"tacswitch.prior_radius": None})
+    assert infer.TacDiffModel(path).prior_radius == 3.0
+    set_metadata(path, {"tacswitch.prior_radius": "wide"})
+    with pytest.raises(ValueError, match="model"):
+        infer.TacDiffModel(path)
+    with pytest.raises(ValueError, match="updates"):
+        set_metadata(path, {"prior_radius": "3"})
+
+
 def test_tiled_result_close_to_whole_frame(sample):
     s, mask = sample
     whole = infer.inpaint_tacdiff(s.image_markers, mask, 2, patch=None)

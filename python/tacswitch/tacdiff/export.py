@@ -28,7 +28,7 @@ import torch
 from torch import nn
 
 from tacswitch.tacdiff.model import MULTIPLE, RESIDUAL_SCALE, DenoiserUNet, network_input
-from tacswitch.tacdiff.prior import has_spread
+from tacswitch.tacdiff.prior import PRIOR_RADIUS, has_spread
 
 OPSET = 17
 #: Image inputs of every model, then ``spread`` for two-fill priors, then ``sigma``.
@@ -85,6 +85,8 @@ def export_onnx(net: DenoiserUNet, path: str | Path, *, metadata: dict[str, Any]
     meta = {"tacswitch.kind": "tacdiff", "tacswitch.prediction": "v",
             "tacswitch.target": f"residual-over-{net.cfg.prior}",
             "tacswitch.prior": net.cfg.prior,
+            # The TELEA radius the training priors used (infer.prior_radius reads it).
+            "tacswitch.prior_radius": str(PRIOR_RADIUS),
             "tacswitch.residual_scale": str(RESIDUAL_SCALE),
             "tacswitch.schedule": "cosine-ztsnr", "tacswitch.colour_order": "BGR",
             "tacswitch.multiple": str(MULTIPLE), "tacswitch.unet": json.dumps(net.cfg.to_dict())}

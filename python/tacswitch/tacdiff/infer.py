@@ -3,8 +3,9 @@
 :func:`inpaint_tacdiff` fills the masked pixels of a BGR frame with the diffusion model:
 
 1. The holes are filled classically first (the prior, :mod:`~tacswitch.tacdiff.prior`: the
-   mean of our TELEA and biharmonic fills, or TELEA for older models; what is diffused is the
-   residual over it, see :mod:`~tacswitch.tacdiff.model`). Noise is drawn once for the whole
+   mean of our TELEA and biharmonic fills, or TELEA for older models, TELEA at the radius the
+   model records, :func:`prior_radius`; what is diffused is the residual over it, see
+   :mod:`~tacswitch.tacdiff.model`). Noise is drawn once for the whole
    frame (seeded), so overlapping patches start from the same noise.
 2. Regions: the whole frame (padded by reflection to a multiple of 16), ``patch x patch``
    tiles from the Rust :func:`tacswitch.tile` (tiles without a pixel to fill are not run: their
@@ -34,6 +35,7 @@ from numpy.typing import NDArray
 from tacswitch._checks import as_image_u8
 from tacswitch._ort import cached, open_session
 from tacswitch.tacdiff.prior import (
+    PRIOR_RADIUS,
     check_prior,
     from_net,
     has_spread,
@@ -113,6 +115,7 @@ class TacDiffModel:
         self.residual_scale = float(meta.get("tacswitch.residual_scale", "1"))
         # Models exported before the prior was recorded diffuse the residual over TELEA.
         self.prior = check_prior(meta.get("tacswitch.prior", "telea"))
+        self.prior_radius = prior_radius(meta, self.path)
         inputs = [i.name for i in self.session.get_inputs()]
         if ("spread" in inputs) != has_spread(self.prior):
             raise ValueError(f"model: {str(self.path)!r} has inputs {inputs}, which do not "
@@ -143,6 +146,27 @@ class TacDiffModel:
                 feed["spread"] = spread[sl]
             outs.append(self.session.run(None, feed)[0])
         return np.concatenate(outs)
+
+
+def prior_radius(meta: dict[str, str], path: Path) -> float:
+    """The TELEA radius (px) of a model's prior at inference: its ``tacswitch.prior_radius``
+    metadata (:func:`tacswitch.tacdiff.metadata.set_metadata` records one on an existing
+    model), or :data:`~tacswitch.tacdiff.prior.PRIOR_RADIUS` (3, the training radius of every
+    model so far) when absent. The shipped 0.3 models record none: zero-shot at 12 they are
+    4-5 % better on real frames with painted markers and 1-2 % on real FOTS frames, but 1 %
+    worse on simulated frames and 4-5 % worse in contact there (MODEL_CARD_tacdiff.md,
+    ``benches/bench_prior_radius.py``)."""
+    raw = meta.get("tacswitch.prior_radius")
+    if raw is None:
+        return float(PRIOR_RADIUS)
+    try:
+        r = float(raw)
+    except ValueError:
+        r = float("nan")
+    if not (0.0 < r <= 64.0):
+        raise ValueError(f"model: {str(path)!r} records tacswitch.prior_radius={raw!r}; "
+                         "expected a radius in px in (0, 64]")
+    return r
 
 
 def load_model(path: str | os.PathLike[str] | None = None) -> TacDiffModel:
@@ -361,7 +385,7 @@ def _planes(arr: NDArray[np.uint8], m: NDArray[np.bool_], model: TacDiffModel,
     # The prior is the frame off the mask and the spread 0 there (prior_on_mask), so only the
     # masked pixels are converted and combined (identical to prior_planes, a third of the work).
     flat[7:10] = flat[0:3]
-    prior, spread = prior_on_mask(arr, m, model.prior, idx)
+    prior, spread = prior_on_mask(arr, m, model.prior, idx, model.prior_radius)
     flat[7:10, idx] = prior.T
     if spread is not None:
         flat[10:13, idx] = spread.T

@@ -37,7 +37,9 @@ PriorKind = Literal["telea", "telea+biharmonic", "telea+biharmonic-grown"]
 PRIORS: tuple[str, ...] = ("telea", "telea+biharmonic", "telea+biharmonic-grown")
 #: Prior of newly trained models (older models record theirs and keep it).
 DEFAULT_PRIOR: PriorKind = "telea+biharmonic-grown"
-#: TELEA radius of the prior (training and inference alike).
+#: TELEA radius of the prior in training (every model so far was trained with 3), and at
+#: inference for models that do not record their own (ONNX metadata ``tacswitch.prior_radius``,
+#: :class:`~tacswitch.tacdiff.infer.TacDiffModel`).
 PRIOR_RADIUS = 3
 #: Growth of each hole (px) before the biharmonic solve of ``"telea+biharmonic-grown"``.
 PRIOR_GROW = 4
@@ -85,14 +87,14 @@ def input_channels(kind: str) -> int:
     return 13 if has_spread(kind) else 10
 
 
-def _solves(img: NDArray[np.uint8], m: NDArray[np.bool_], kind: str
-            ) -> tuple[NDArray[np.uint8], NDArray[np.uint8] | None]:
+def _solves(img: NDArray[np.uint8], m: NDArray[np.bool_], kind: str,
+            radius: float = PRIOR_RADIUS) -> tuple[NDArray[np.uint8], NDArray[np.uint8] | None]:
     """TELEA of ``img`` on ``m`` and the biharmonic fill ``kind`` uses (None for the TELEA-only
     prior). For ``"telea+biharmonic-grown"`` the biharmonic image is solved on the grown holes:
     only its values on ``m`` are the prior's (the grown ring is the frame in :func:`fills`)."""
     from tacswitch.inpaint import inpaint_biharmonic, inpaint_telea
 
-    telea = inpaint_telea(img, m, PRIOR_RADIUS)
+    telea = inpaint_telea(img, m, radius)
     if not has_spread(kind):
         return telea, None
     if kind != "telea+biharmonic-grown":
@@ -105,13 +107,13 @@ def _solves(img: NDArray[np.uint8], m: NDArray[np.bool_], kind: str
         return telea, inpaint_biharmonic(img, m)
 
 
-def fills(img: NDArray[np.uint8], mask: NDArray[np.bool_], kind: str
-          ) -> tuple[NDArray[np.uint8], NDArray[np.uint8] | None]:
-    """The classical fills of one uint8 BGR frame: TELEA, and the biharmonic fill when ``kind``
-    uses it (else None; for ``"telea+biharmonic-grown"`` solved on the grown holes, the pixels
-    outside ``mask`` left as in ``img``)."""
+def fills(img: NDArray[np.uint8], mask: NDArray[np.bool_], kind: str,
+          radius: float = PRIOR_RADIUS) -> tuple[NDArray[np.uint8], NDArray[np.uint8] | None]:
+    """The classical fills of one uint8 BGR frame: TELEA of ``radius`` px, and the biharmonic
+    fill when ``kind`` uses it (else None; for ``"telea+biharmonic-grown"`` solved on the grown
+    holes, the pixels outside ``mask`` left as in ``img``)."""
     m = np.asarray(mask, bool)
-    telea, solved = _solves(img, m, kind)
+    telea, solved = _solves(img, m, kind, radius)
     if solved is None or kind != "telea+biharmonic-grown":
         return telea, solved
     smooth = img.copy()
@@ -143,7 +145,7 @@ def combine(telea: NDArray[np.float32], smooth: NDArray[np.float32] | None
 
 
 def prior_on_mask(img: NDArray[np.uint8], mask: NDArray[np.bool_], kind: str,
-                  index: NDArray[np.intp] | None = None
+                  index: NDArray[np.intp] | None = None, radius: float = PRIOR_RADIUS
                   ) -> tuple[NDArray[np.float32], NDArray[np.float32] | None]:
     """``(prior, spread)`` of :func:`prior_planes` on the masked pixels only (``N x 3``, in the
     row-major order of ``img[mask]``; ``index`` is ``np.flatnonzero(mask)`` if the caller has
@@ -156,13 +158,15 @@ def prior_on_mask(img: NDArray[np.uint8], mask: NDArray[np.bool_], kind: str,
     def on_mask(a: NDArray[np.uint8]) -> NDArray[np.uint8]:
         return a.reshape(-1, a.shape[-1] if a.ndim == 3 else 1)[idx]
 
-    telea, solved = _solves(img, m, kind)
+    telea, solved = _solves(img, m, kind, radius)
     return combine(to_net(on_mask(telea)), None if solved is None else to_net(on_mask(solved)))
 
 
-def prior_planes(img: NDArray[np.uint8], mask: NDArray[np.bool_], kind: str
+def prior_planes(img: NDArray[np.uint8], mask: NDArray[np.bool_], kind: str,
+                 radius: float = PRIOR_RADIUS
                  ) -> tuple[NDArray[np.float32], NDArray[np.float32] | None]:
     """``(prior, spread)`` of one uint8 BGR frame in [-1, 1], ``H x W x 3``: its classical
-    fills (:func:`fills`) combined (:func:`combine`); spread is None for the TELEA-only prior."""
-    telea, smooth = fills(img, mask, kind)
+    fills (:func:`fills`, TELEA of ``radius`` px) combined (:func:`combine`); spread is None for
+    the TELEA-only prior."""
+    telea, smooth = fills(img, mask, kind, radius)
     return combine(to_net(telea), None if smooth is None else to_net(smooth))

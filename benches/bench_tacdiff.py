@@ -14,10 +14,12 @@ Times per frame, median over frames of the median over rounds, in two columns:
   bounds what 2 cores take; unlike wall time it barely moves when other jobs share the cores.
 
 The machine's load average is printed with the table: wall times on a loaded machine are not
-budget figures; the CPU column is.
+budget figures; the CPU column is. On a shared machine, run it under real-time scheduling
+(``chrt -f 10 python benches/...``, root) so the other jobs do not share its cores; the table
+says when it was (on this machine it reproduced the idle-machine figures of the 0.3 models).
 
-    python benches/bench_tacdiff.py [--frames 2] [--rounds 3] [--threads 2] [--profile]
-                                    [--update]
+    [chrt -f 10] python benches/bench_tacdiff.py [--frames 2] [--rounds 3] [--threads 2]
+                                                 [--profile] [--update]
 
 ``--profile`` adds the stages of the fast setting at 640x480 (one thread, CPU time).
 Quality: ``benches/bench_real_removal.py`` (real-frame proxy) and ``tacswitch evaluate tacdiff``
@@ -205,8 +207,10 @@ def main() -> None:
             c = cpu[sensor][name]  # type: ignore[index]
             rows.append([sensor, name, f"{ms:.1f}", f"{ms / base:.0f}x", f"{c:.1f}",
                          f"{c / base_cpu:.0f}x"])
-    cmd = (f"python benches/bench_tacdiff.py --frames {args.frames} --rounds {args.rounds} "
-           f"--threads {args.threads}" + (" --profile" if args.profile else ""))
+    fifo = os.sched_getscheduler(0) == os.SCHED_FIFO
+    cmd = (("chrt -f 10 " if fifo else "") + f"python benches/bench_tacdiff.py --frames "
+           f"{args.frames} --rounds {args.rounds} --threads {args.threads}"
+           + (" --profile" if args.profile else ""))
     parts = [
         "Real frames with painted markers: taxim's markerless presses (GelSight 640x480, Mini "
         f"320x240; {args.frames} per sensor) with painted grey dots, H.264-captured "
@@ -220,7 +224,11 @@ def main() -> None:
         table(["sensor", "method", f"wall ms ({args.threads} threads)", "vs TELEA r=3",
                "CPU ms (1 thread)", "vs TELEA r=3"], rows),
         f"Load average (1 min) {load0:.1f} before, {load1:.1f} after the wall run on "
-        f"{os.cpu_count()} cores. Budgets per 640x480 frame: default setting <= "
+        f"{os.cpu_count()} cores"
+        + (", which ran under SCHED_FIFO (`chrt -f 10`): the other jobs did not share its "
+           "cores, so its wall times stand for an idle machine" if fifo else
+           ": wall times include other jobs' share of the cores")
+        + f". Budgets per 640x480 frame: default setting <= "
         f"{BUDGET_MS['default']:.0f} ms, fast setting <= {BUDGET_MS['fast']:.0f} ms on 2 "
         "cores.",
     ]

@@ -120,8 +120,8 @@ def main() -> int:
     load1 = os.getloadavg()[0]
     notes = [f"Machine: {machine()}; OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', '-')}; "
              f"load average (1 min) {load0:.1f} before / {load1:.1f} after the timing (2 cores; "
-             "above ~1 other jobs were running: compare the ratios, not the Hz, with other "
-             "runs).", "",
+             "above ~1 means other jobs were running: compare the ratios, not the Hz, with "
+             "other runs).", "",
              "Speed: `predict_motion` end to end on a real press vs its no-contact frame "
              f"(median of {args.rounds} x {args.repeat} calls, methods interleaved). Budgets: "
              ">= 100 Hz at 320x240, >= 30 Hz at 640x480 on 2 cores."]

@@ -54,8 +54,9 @@ DEFAULT_STEPS = 1
 DEFAULT_PATCH, DEFAULT_OVERLAP = 128, 32
 #: Most regions sent to onnxruntime in one call (bounds memory on huge frames).
 MAX_BATCH = 16
-#: Most pixels of one batch of same-size crops sent in one call (``patch="crops"``; bounds the
-#: activations' memory, ~0.4 GB for the default model).
+#: Most pixels of one batch of same-size regions sent in one call (bounds the activations'
+#: memory: 227 crops of 48 x 48 through the default model peak at 262 MB of process memory,
+#: against 169 MB after a whole 640 x 480 frame).
 MAX_BATCH_PX = 1 << 19
 #: Context (px) kept around each hole in ``patch="holes"`` windows.
 DEFAULT_CONTEXT = 16

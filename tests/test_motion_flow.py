@@ -91,6 +91,13 @@ def test_padding_is_cropped_and_fits_tiny_frames() -> None:
     # A 400 px wide frame asks for 20 px of padding; an 8 px high one allows 7 at most.
     m = predict_motion(np.dstack([b] * 3), np.dstack([a] * 3), np.float32([[200.0, 4.0]]))
     assert m.shape == (1, 2) and np.isfinite(m).all()
+    # The smallest frames accepted (8 px a side; DIS alone refuses under 12 px): padded enough.
+    for shape in ((8, 8), (8, 11), (11, 11)):
+        small = rng.integers(0, 256, (*shape, 3), dtype=np.uint8)
+        for preset in flow.DIS_PRESETS:
+            m = predict_motion(small, np.roll(small, 1, axis=1), np.float32([[4.0, 4.0]]),
+                               preset=preset)
+            assert m.shape == (1, 2) and np.isfinite(m).all(), (shape, preset)
 
 
 @pytest.mark.parametrize("kind", ["shear", "twist", "press"])

@@ -60,6 +60,8 @@ BALANCED = {"finest_scale": 1, "gradient_descent_iterations": 8,
 #: ``balanced`` area-downsamples frames at least 1.5x this wide by ``round(width / this)`` and
 #: computes the flow there at finest scale 0 (see the module doc).
 BALANCED_WORK_WIDTH = 320
+#: OpenCV's DIS needs the width or the height to be at least this (px).
+DIS_MIN_SIDE = 12
 #: Mirror padding of both frames before the flow, a fraction of the frame width (16 px at 320).
 PAD_REL = 0.05
 #: Background blur sigma as a fraction of the frame width (the illumination model's scale).
@@ -242,8 +244,10 @@ def flow_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8], centres: NDArray
     k = work_factor(img.shape[1], algorithm, preset)
     img8, ref8 = normalise_pair(img, ref, k)
     h, w = img8.shape
-    # Mirror padding needs pad < each side (a frame may be as small as 8 px a side).
+    # Mirror padding needs pad < each side (a frame may be as small as 8 px a side); DIS refuses
+    # frames with no side of at least DIS_MIN_SIDE px, which the padding also provides.
     pad = min(round(PAD_REL * w), min(h, w) - 1)
+    pad = max(pad, (DIS_MIN_SIDE - max(h, w) + 1) // 2)
     flow = dense_flow(ref8, img8, algorithm, preset, pad=pad, finest_scale=0 if k > 1 else None)
     if SMOOTH_REL > 0:
         flow = np.asarray(_smooth(flow, SMOOTH_REL * w), np.float32)

@@ -170,3 +170,13 @@ def test_smooth_frames_bad_values_are_named() -> None:
         ts.SlipDetector(smooth_frames=1.5)  # type: ignore[arg-type]
     with pytest.raises(TypeError, match=r"^smooth_frames: "):
         ts.SlipDetector(smooth_frames=True)
+
+
+def test_markerless_slip_evaluation_checks_smooth_frames_first() -> None:
+    from tacswitch.motion.evaluate import evaluate_slip, slip_on_grasps
+
+    # Checked before any grasp is rendered: one line naming the argument.
+    with pytest.raises(ValueError, match=r"^smooth_frames: "):
+        slip_on_grasps({}, smooth_frames=0)
+    with pytest.raises(TypeError, match=r"^smooth_frames: "):
+        evaluate_slip(lambda i, r, c: np.zeros_like(c), smooth_frames=2.0)  # type: ignore[arg-type]

@@ -85,7 +85,8 @@ def finetune_case(frames: np.ndarray, run: Path, args: argparse.Namespace, seed:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--sensors", default="gelsight", help="gelsight, gelsight_mini (comma list)")
+    ap.add_argument("--sensors", default="gelsight",
+                    help="gelsight, gelsight_mini (comma list; '' none, e.g. with --fots)")
     ap.add_argument("--style", default="painted", choices=("painted", "pasted", "crisp"))
     ap.add_argument("--codecs", default="h264",
                     help="the proxy's captures (realproxy.CAPTURES), comma-separated")
@@ -104,7 +105,7 @@ def main() -> None:
     args = ap.parse_args()
     work = Path(tempfile.mkdtemp(prefix="ftbench_"))
     rows: list[dict[str, Any]] = []
-    for sensor in args.sensors.split(","):
+    for sensor in [v for v in args.sensors.split(",") if v]:
         for codec in args.codecs.split(","):
             for seed in (int(v) for v in args.seeds.split(",")):
                 rec, clean, footprint = sensor_recording(sensor, args.style, codec, seed)
@@ -126,7 +127,8 @@ def main() -> None:
                     row[name] = [float(v) for v in np.mean(vals, axis=0)]
                 row["validation"] = {"start": res.start_score, "scores": res.scores,
                                      "chosen_step": res.chosen_step, "noise": res.noise,
-                                     "markers": res.val_markers, "frames": res.val_frames}
+                                     "markers": res.val_markers, "frames": res.val_frames,
+                                     "offset": res.val_offset, "overlap": res.val_overlap}
                 rows.append(row)
                 print(json.dumps(row), flush=True)
     print(f"\nFine-tune from '{args.model}' ({args.steps} steps, batch {args.batch}, lr "
@@ -147,7 +149,8 @@ def main() -> None:
         res, _ = finetune_case(frames, work / "fots", args, 0)
         result["fots"] = {"start": res.start_score, "scores": res.scores,
                           "chosen_step": res.chosen_step, "noise": res.noise,
-                          "markers": res.val_markers}
+                          "markers": res.val_markers, "offset": res.val_offset,
+                          "overlap": res.val_overlap}
         print("\nFOTS real GelSight Mini frames (no ground truth):", res.summary())
     if args.json:
         Path(args.json).write_text(json.dumps(result, indent=1))

@@ -46,13 +46,18 @@ def test_split_frames_holds_out_spread_frames():
 def test_validation_offset_avoids_the_training_gel():
     mask = square_grid()
     d = 20  # half the pitch
-    val = ft.validation_offset(mask, (d, d))
+    val, overlap = ft.validation_offset(mask, (d, d))
     # The mirrored shift lands on the very gel the training shift uses (a neighbour's spot).
     mirrored = shift(mask, (-d, d), False) & shift(mask, (d, d), False)
     assert mirrored.sum() > 0.8 * shift(mask, (-d, d), False).sum()
-    assert val != (-d, d)
+    assert val != (-d, d) and overlap == 0.0
     moved = shift(mask, val, False)
     assert (moved & shift(mask, (d, d), False)).sum() == 0 and not (moved & mask).any()
+    # A dense grid: half-pitch axis shifts land on the neighbours' footprints, only diagonals
+    # move markers, and the overlap with the training gel is reported.
+    dense = square_grid(pitch=20, radius=6)
+    val, overlap = ft.validation_offset(dense, (10, 10))
+    assert val[0] != 0 and val[1] != 0 and overlap > 0.8
     with pytest.raises(ValueError, match="offset"):
         ft.validation_offset(mask, (0, 0))
 

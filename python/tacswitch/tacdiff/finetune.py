@@ -54,7 +54,8 @@ class FinetuneResult:
             (or best) checkpoint and the starting model (grey levels).
         train_frames, val_frames: indices of the frames used for each.
         val_offset: ``(dx, dy)`` px of the validation transplant; ``val_markers``: markers
-            scored.
+            scored; ``val_overlap``: share of their pixels that were training targets too (0
+            unless the grid is too dense for any other shift; held-out frames still differ).
     """
 
     model: Path
@@ -66,6 +67,7 @@ class FinetuneResult:
     val_frames: list[int] = field(default_factory=list)
     val_offset: tuple[int, int] = (0, 0)
     val_markers: int = 0
+    val_overlap: float = 0.0
 
     @property
     def kept_start(self) -> bool:
@@ -75,8 +77,9 @@ class FinetuneResult:
     def summary(self) -> str:
         """One line for the user."""
         head = (f"validation (held-out transplanted markers: {self.val_markers} on "
-                f"{len(self.val_frames)} frame(s), masked MAE in grey levels): start "
-                f"{self.start_score:.3f}")
+                f"{len(self.val_frames)} frame(s)"
+                + (f", {100 * self.val_overlap:.0f} % on training gel" if self.val_overlap
+                   else "") + f"; masked MAE in grey levels): start {self.start_score:.3f}")
         if not self.scores:
             return head + "; no checkpoint validated"
         best = min(self.scores, key=lambda k: self.scores[k])
@@ -107,31 +110,48 @@ def split_frames(n: int, val_share: float = 0.2, val_frames: int = 8
     return [i for i in range(n) if i not in val], val
 
 
-def validation_offset(mask: NDArray[np.bool_], train_offset: tuple[int, int]
-                      ) -> tuple[int, int]:
-    """A half-pitch shift for the validation transplant whose moved holes overlap the training
-    holes (``mask`` shifted by ``train_offset``) least: on a square grid with the training shift
-    (+d, +d), the mirrored (-d, +d) lands on the very same gel (the neighbour's training spot),
-    while (d, 0) lands between two markers, on gel never trained on."""
-    from tacswitch.tacdiff.transplant import shift
+def validation_offset(mask: NDArray[np.bool_], train_offset: tuple[int, int], *,
+                      ring: int = DEFAULT_RING) -> tuple[tuple[int, int], float]:
+    """A half-pitch shift for the validation transplant, and the share of its moved holes that
+    overlaps the training holes (``mask`` shifted by ``train_offset``).
+
+    Candidates are the eight half-pitch shifts; those moving fewer than half as many markers as
+    the training shift (:func:`~tacswitch.tacdiff.transplant.movable`: on dense grids the axis
+    shifts land on the neighbours' footprints) are dropped, and the one overlapping the training
+    holes least is taken. On a square grid with the training shift (+d, +d) the mirrored
+    (-d, +d) lands on the very same gel (the neighbour's training spot) while (d, 0) lands
+    between two markers, on gel never trained on; where only the diagonals can move markers the
+    overlap is returned so the caller can say so."""
+    import cv2
+
+    from tacswitch.markers import dilate_mask
+    from tacswitch.tacdiff.transplant import Appearance, movable, shift
 
     d = max(abs(int(train_offset[0])), abs(int(train_offset[1])))
     if d == 0:
         raise ValueError(f"offset: must not be (0, 0); got {train_offset}")
+    # movable() reads only the labels and footprint of an appearance: no fill is needed.
+    footprint = dilate_mask(mask, ring) if ring else mask.astype(bool)
+    labels = cv2.connectedComponents(footprint.view(np.uint8), connectivity=8)[1]
+    app = Appearance(np.empty((0, 0, 3), np.float32), footprint, labels.astype(np.int32),
+                     np.empty((0, 0, 3), np.uint8))
     trained = shift(mask, train_offset, False)
-    best, best_overlap = None, 2.0
+    need = 0.5 * max(1, int(movable(app, mask, tuple(train_offset)).sum()))
+    options = []
     for cand in ((d, 0), (0, d), (-d, 0), (0, -d), (-d, d), (d, -d), (-d, -d), (d, d)):
         if cand == tuple(train_offset):
             continue
-        moved = shift(mask, cand, False) & ~mask
-        if moved.sum() < 0.25 * max(1, mask.sum()):  # mostly on markers or out of the frame
+        ok = movable(app, mask, cand)
+        if ok.sum() < need:
             continue
-        overlap = float((moved & trained).sum() / moved.sum())
-        if overlap < best_overlap - 1e-9:
-            best, best_overlap = cand, overlap
-    if best is None:
-        raise ValueError("offset: no validation shift lands on gel; pass another --offset")
-    return best
+        moved = shift(mask, cand, False) & ok[shift(labels, cand, 0)]
+        overlap = float((moved & trained).sum() / max(1, moved.sum()))
+        options.append((overlap, -int(ok.sum()), cand))
+    if not options:
+        raise ValueError("offset: no validation shift moves enough markers onto gel; pass "
+                         "another offset")
+    overlap, _, best = min(options)
+    return best, overlap
 
 
 @dataclass(frozen=True)
@@ -271,8 +291,8 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
                                 ring=ring)
     if not pairs["loss_mask"].any():
         raise ValueError("frames: no shifted marker pixel lands on real gel; pass offset")
-    val = validation_set([frames[i] for i in va], validation_offset(first.mask, offset),
-                         ring=ring)
+    val_offset, overlap = validation_offset(first.mask, offset, ring=ring)
+    val = validation_set([frames[i] for i in va], val_offset, ring=ring)
     if not val.pairs["loss_mask"].any():
         raise ValueError("frames: no validation marker lands on real gel; pass offset")
     start = start_onnx(init, run)
@@ -288,8 +308,8 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
         raise ValueError(f"out: {str(run)!r} holds a run on other frames; use another folder")
     if progress:
         print(f"start model {start.name}: validation {start_scores.mean():.3f} on "
-              f"{val.markers} held-out markers ({len(va)} frame(s), offset {val.offset})",
-              flush=True)
+              f"{val.markers} held-out markers ({len(va)} frame(s), offset {val.offset}, "
+              f"{100 * overlap:.0f} % of their pixels on training gel)", flush=True)
 
     def validate(step: int, ema: Any) -> None:
         path = export_onnx(ema, run / f".val_{step}.onnx")
@@ -338,7 +358,7 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
     _write_json(state_path, state)
     return FinetuneResult(target, chosen, float(start_scores.mean()),
                           {int(k): v for k, v in state["scores"].items()}, noise, tr, va,
-                          val.offset, val.markers)
+                          val.offset, val.markers, overlap)
 
 
 def _write_json(path: Path, obj: dict[str, Any]) -> None:

@@ -62,6 +62,17 @@ def _outward_unit(img: np.ndarray, ref: Any, rest: np.ndarray) -> np.ndarray:
 ORACLE = "outward, scale fitted on this data (upper bound)"
 
 
+#: DIS presets compared (OpenCV's three and the library's own).
+DIS_PRESETS = ("ultrafast", "fast", "balanced", "medium")
+
+
+def _dis_label(preset: str) -> str:
+    """Row name of a DIS preset; the library's default one says so."""
+    from tacswitch.motion import flow
+
+    return f"flow DIS {preset}" + (" (default)" if preset == flow.DEFAULT_PRESET else "")
+
+
 def _zero(img: np.ndarray, ref: Any, rest: np.ndarray) -> np.ndarray:
     return np.zeros_like(rest)
 
@@ -75,9 +86,7 @@ def methods(models: dict[str, str | None], slow: bool, sensor: str
         "outward from contact (no learning)": (_outward, proxy.SETTINGS),
         ORACLE: (_outward_unit, proxy.SETTINGS),
         "contact-mechanics rule (no learning)": (_mechanics, proxy.SETTINGS),
-        "flow DIS ultrafast": (_flow("dis", "ultrafast"), refs),
-        "flow DIS fast": (_flow("dis", "fast"), refs),
-        "flow DIS medium (default)": (_flow("dis", "medium"), refs),
+        **{_dis_label(p): (_flow("dis", p), refs) for p in DIS_PRESETS},
         "flow Farneback": (_flow("farneback"), refs),
     }
     if slow and sensor == "gelsight_mini":  # 2-5 s a frame at 640 x 480 on this machine
@@ -136,9 +145,7 @@ def speed(models: dict[str, str | None]) -> list[list[str]]:
         pr = proxy.load_real_presses(sensor)
         frames[sensor] = (pr.imgs[0], pr.f0, proxy.marker_grid(sensor)[0])
     fns: dict[str, Predict] = {
-        "flow DIS ultrafast": _flow("dis", "ultrafast"),
-        "flow DIS fast": _flow("dis", "fast"),
-        "flow DIS medium (default)": _flow("dis", "medium"),
+        **{_dis_label(p): _flow("dis", p) for p in DIS_PRESETS},
         "flow Farneback": _flow("farneback"),
         "outward from contact": _outward,
         "contact-mechanics rule": _mechanics,

@@ -32,7 +32,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 
 import tacswitch as ts
@@ -145,7 +144,9 @@ def main() -> None:
               f"{v['start']:.3f} -> {pick} |")
     result: dict[str, Any] = {"rows": rows}
     if args.fots:
-        frames = np.stack([cv2.imread(str(p)) for p in sorted(Path(args.fots).glob("*.png"))])
+        from tacswitch._io import read_image
+
+        frames = np.stack([read_image(p) for p in sorted(Path(args.fots).glob("*.png"))])
         res, _ = finetune_case(frames, work / "fots", args, 0)
         result["fots"] = {"start": res.start_score, "scores": res.scores,
                           "chosen_step": res.chosen_step, "noise": res.noise,

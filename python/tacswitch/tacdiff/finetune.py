@@ -135,11 +135,12 @@ def validation_offset(mask: NDArray[np.bool_], train_offset: tuple[int, int], *,
     labels = cv2.connectedComponents(footprint.view(np.uint8), connectivity=8)[1]
     app = Appearance(np.empty((0, 0, 3), np.float32), footprint, labels.astype(np.int32),
                      np.empty((0, 0, 3), np.uint8))
+    train_offset = (int(train_offset[0]), int(train_offset[1]))
     trained = shift(mask, train_offset, False)
-    need = 0.5 * max(1, int(movable(app, mask, tuple(train_offset)).sum()))
+    need = 0.5 * max(1, int(movable(app, mask, train_offset).sum()))
     options = []
     for cand in ((d, 0), (0, d), (-d, 0), (0, -d), (-d, d), (d, -d), (-d, -d), (d, d)):
-        if cand == tuple(train_offset):
+        if cand == train_offset:
             continue
         ok = movable(app, mask, cand)
         if ok.sum() < need:

@@ -229,3 +229,42 @@ def test_default_method_is_flow_with_a_reference_and_outward_without(mini, grid)
     np.testing.assert_array_equal(predict_motion(img, None, grid),
                                   predict_motion(img, None, grid, method="outward"))
     assert np.abs(predict_motion(ref, ref.copy(), grid)).max() < 0.05
+
+
+def test_suppress_imprint_keeps_zero_and_the_brightness_bound(mini, grid) -> None:
+    for img in (mini.f0, mini.imgs[3]):
+        assert np.abs(predict_motion(img, img.copy(), grid, suppress_imprint=True)).max() == 0
+    for img in (mini.f0, mini.imgs[5]):
+        for gain, offset in ((1.15, 5.0), (0.85, -5.0), (1.0, 8.0)):
+            m = predict_motion(_brighter(img, gain, offset), img, grid, suppress_imprint=True)
+            assert np.hypot(m[:, 0], m[:, 1]).max() < 0.2, (gain, offset)
+    # Untouched gel: the weight is ~1 under a gain change (matched by the median ratio); an
+    # offset is not matched, but 3 grey levels still leave it above 0.8.
+    g = flow._grey(mini.f0)
+    assert flow.imprint_weight(g * 1.1, g).min() > 0.99
+    assert flow.imprint_weight(g + 3.0, g).min() > 0.8
+
+
+def test_suppress_imprint_trusts_the_flow_less_where_a_contact_appeared(mini, grid) -> None:
+    # A real press against the real no-contact frame: the imprint's shading is not motion, and
+    # plain flow follows it (several px at the contact). Suppressed: the weight is low at the
+    # contact, high on the far gel, and the motion at the markers near the contact shrinks.
+    for i in (2, 6):
+        g, g0 = flow._grey(mini.imgs[i]), flow._grey(mini.f0)
+        wt = flow.imprint_weight(g, g0)
+        yy, xx = np.mgrid[:240, :320]
+        disk = np.hypot(xx - mini.centres[i][0], yy - mini.centres[i][1]) < mini.radii[i]
+        assert wt[disk].min() < 0.3 and np.median(wt) > 0.9
+        near = np.linalg.norm(grid - mini.centres[i], axis=1) < 1.5 * mini.radii[i]
+        plain = np.linalg.norm(predict_motion(mini.imgs[i], mini.f0, grid)[near], axis=1)
+        supp = np.linalg.norm(predict_motion(mini.imgs[i], mini.f0, grid,
+                                             suppress_imprint=True)[near], axis=1)
+        assert supp.mean() < 0.6 * plain.mean(), (supp.mean(), plain.mean())
+
+
+def test_suppress_imprint_bad_inputs(mini, grid) -> None:
+    img = mini.imgs[0]
+    with pytest.raises(TypeError, match=r"^suppress_imprint: expected a bool"):
+        predict_motion(img, mini.f0, grid, suppress_imprint="yes")
+    with pytest.raises(ValueError, match=r"^suppress_imprint: applies to method='flow'"):
+        predict_motion(img, mini.f0, grid, method="outward", suppress_imprint=True)

@@ -42,8 +42,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["ALGORITHMS", "BALANCED_WORK_WIDTH", "DEFAULT_PRESET", "DIS_PRESETS", "PAD_REL",
-           "SMOOTH_REL", "dense_flow", "flow_motion", "normalise_pair", "sample_field",
+__all__ = ["ALGORITHMS", "BALANCED_WORK_WIDTH", "DEFAULT_PRESET", "DIS_PRESETS",
+           "IMPRINT_CHANGE", "IMPRINT_SIGMA_REL", "IMPRINT_SMOOTH_REL", "PAD_REL", "SMOOTH_REL",
+           "dense_flow", "flow_motion", "imprint_weight", "normalise_pair", "sample_field",
            "work_factor"]
 
 #: Flow algorithms accepted by :func:`flow_motion`.
@@ -77,6 +78,14 @@ CONTRAST_GAIN = 3.0
 #: 0.03 -> 0.04 with the padding, on the same quarter and on simulated grasps of dev seeds (200):
 #: e_rmse 1-4 % lower on the proxy (medium), largest motion of held Mini grasps 2.4 -> 2.1 px.
 SMOOTH_REL = 0.04
+#: ``suppress_imprint``: blur sigma of the grey levels whose change marks an imprint, a
+#: fraction of the width (4 px at 320 wide: the imprint's shading, not the grain).
+IMPRINT_SIGMA_REL = 1.0 / 80.0
+#: ``suppress_imprint``: relative grey-level change at which the flow's weight falls to 1/e.
+IMPRINT_CHANGE = 0.04
+#: ``suppress_imprint``: the weighted smoothing's sigma, a fraction of the width (2x
+#: :data:`SMOOTH_REL`: the fill must reach across an imprint).
+IMPRINT_SMOOTH_REL = 0.08
 #: Smallest contrast scale: below it the mapping would amplify the camera's noise and the
 #: requantisation of a brightness change into fake texture.
 MIN_SCALE = 0.0
@@ -131,7 +140,12 @@ def normalise_pair(img: NDArray[np.uint8], ref: NDArray[np.uint8], k: int = 1
     The scale is the reference's robust spread (median absolute deviation) of local contrast, so a
     brightness change of ``img`` alone changes neither frame's mapping.
     """
-    gi, gr = _shrink(_grey(img), k), _shrink(_grey(ref), k)
+    return _normalise_grey(_shrink(_grey(img), k), _shrink(_grey(ref), k))
+
+
+def _normalise_grey(gi: NDArray[np.float32], gr: NDArray[np.float32]
+                    ) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+    """:func:`normalise_pair` on float grey frames already at the working size."""
     w = gi.shape[1]
     sigma = max(2.0, BG_SIGMA_REL * w)
     ci = _local_contrast(gi, sigma)
@@ -229,12 +243,18 @@ def sample_field(field: NDArray[np.float32], pts: NDArray[np.float32]) -> NDArra
 
 
 def flow_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8], centres: NDArray[np.float32], *,
-                algorithm: str = "dis", preset: str = DEFAULT_PRESET) -> NDArray[np.float32]:
+                algorithm: str = "dis", preset: str = DEFAULT_PRESET,
+                suppress_imprint: bool = False) -> NDArray[np.float32]:
     """Motion ``N x 2`` float32 ``(dx, dy)`` px of markers at rest ``centres`` (``(x, y)`` px in
     ``ref``) from ``ref`` to ``img`` (validated uint8 frames of one shape, BGR or grey).
 
     Exactly zero for identical frames. ``preset`` applies to DIS only (:data:`DIS_PRESETS`).
+    ``suppress_imprint``: for a reference without the contact (the no-contact frame), trust the
+    flow less where an imprint appeared (:func:`imprint_weight`) and fill it from the
+    surrounding gel, smoothing over :data:`IMPRINT_SMOOTH_REL` of the width (see the module doc).
     """
+    if not isinstance(suppress_imprint, (bool, np.bool_)):
+        raise TypeError(f"suppress_imprint: expected a bool, got {type(suppress_imprint).__name__}")
     if algorithm not in ALGORITHMS:
         raise ValueError(f"algorithm: unknown {algorithm!r}; choose from {list(ALGORITHMS)}")
     if preset not in DIS_PRESETS:
@@ -242,19 +262,44 @@ def flow_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8], centres: NDArray
     if len(centres) == 0 or np.array_equal(img, ref):
         return np.zeros((len(centres), 2), np.float32)
     k = work_factor(img.shape[1], algorithm, preset)
-    img8, ref8 = normalise_pair(img, ref, k)
+    gi, gr = _shrink(_grey(img), k), _shrink(_grey(ref), k)
+    img8, ref8 = _normalise_grey(gi, gr)
     h, w = img8.shape
     # Mirror padding needs pad < each side (a frame may be as small as 8 px a side); DIS refuses
     # frames with no side of at least DIS_MIN_SIDE px, which the padding also provides.
     pad = min(round(PAD_REL * w), min(h, w) - 1)
     pad = max(pad, (DIS_MIN_SIDE - max(h, w) + 1) // 2)
     flow = dense_flow(ref8, img8, algorithm, preset, pad=pad, finest_scale=0 if k > 1 else None)
-    if SMOOTH_REL > 0:
+    if suppress_imprint:
+        # Normalised convolution: the weighted mean of the flow over a wide Gaussian, so inside
+        # an imprint that appeared the field comes from the gel around it.
+        wt = imprint_weight(gi, gr)
+        sigma = IMPRINT_SMOOTH_REL * w
+        num = _smooth(np.ascontiguousarray(flow * wt[..., None]), sigma)
+        den = _smooth(np.ascontiguousarray(np.repeat(wt[..., None], 2, axis=2)), sigma)
+        flow = np.asarray(num / np.maximum(den, 1e-3), np.float32)
+    elif SMOOTH_REL > 0:
         flow = np.asarray(_smooth(flow, SMOOTH_REL * w), np.float32)
     # Pixel centres at integers: x_small = (x + 0.5) / k - 0.5.
     pts = centres if k == 1 else ((centres + 0.5) / k - 0.5).astype(np.float32)
     out = sample_field(flow, pts) * np.float32(k)
     return np.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0)
+
+
+def imprint_weight(gi: NDArray[np.float32], gr: NDArray[np.float32]) -> NDArray[np.float32]:
+    """Confidence ``H x W`` float32 in (0, 1] of the flow ``gr -> gi`` (float grey frames of one
+    shape): ``exp(-(d / IMPRINT_CHANGE)^2)`` with ``d`` the relative change of the grey level
+    blurred over :data:`IMPRINT_SIGMA_REL` of the width, after matching the frames' median
+    gain. ``d`` is large where a contact's imprint appeared (shading, not motion) and ~0.001-0.01
+    on untouched gel of taxim's real presses."""
+    import cv2
+
+    s = max(2.0, IMPRINT_SIGMA_REL * gi.shape[1])
+    bi = cv2.GaussianBlur(gi, (0, 0), s, borderType=cv2.BORDER_REFLECT)
+    br = cv2.GaussianBlur(gr, (0, 0), s, borderType=cv2.BORDER_REFLECT)
+    gain = float(np.median(bi)) / max(float(np.median(br)), 1.0)
+    d = np.abs(bi / max(gain, 1e-3) - br) / np.maximum(br, 4.0)
+    return np.asarray(np.exp(-np.square(d / IMPRINT_CHANGE)), np.float32)
 
 
 def work_factor(width: int, algorithm: str = "dis", preset: str = DEFAULT_PRESET) -> int:

@@ -156,7 +156,8 @@ METHODS = ("auto", "model", "flow", "outward", "mechanics")
 
 def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: str = "auto",
                    model: str | os.PathLike[str] | None = None, algorithm: str | None = None,
-                   preset: str | None = None) -> NDArray[np.float32]:
+                   preset: str | None = None, suppress_imprint: bool | None = None
+                   ) -> NDArray[np.float32]:
     """The 2D motion each marker would have had, from a markerless frame.
 
     Args:
@@ -187,6 +188,10 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
         preset: ``method="flow"`` with DIS only: ``"balanced"`` (default: within the speed
             budgets), ``"ultrafast"``, ``"fast"`` or ``"medium"`` (OpenCV's; ``"medium"`` is
             ~2x slower, a little more accurate with a reference of the same capture).
+        suppress_imprint: ``method="flow"`` only: ``True`` when ``ref`` is the no-contact frame:
+            the flow is trusted less where an imprint appeared (its shading is not motion) and
+            filled from the gel around it (:func:`tacswitch.motion.flow.flow_motion`); default
+            ``False`` (a reference of the same contact).
 
     Returns:
         ``N x 2`` float32 ``(dx, dy)`` px in ``img``'s pixels, one row per centre, never NaN
@@ -201,7 +206,8 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
         # the outward rule gets the direction partly right (the model does not).
         method = "flow" if ref is not None else "outward"
     if method != "flow":
-        for name, value in (("algorithm", algorithm), ("preset", preset)):
+        for name, value in (("algorithm", algorithm), ("preset", preset),
+                            ("suppress_imprint", suppress_imprint)):
             if value is not None:
                 raise ValueError(f"{name}: applies to method='flow' only; got method={method!r}")
     if method == "model":
@@ -223,7 +229,8 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
 
         assert ref_arr is not None
         return flow_motion(frame, ref_arr, pts, algorithm=algorithm or "dis",
-                           preset=preset or DEFAULT_PRESET)
+                           preset=preset or DEFAULT_PRESET,
+                           suppress_imprint=False if suppress_imprint is None else suppress_imprint)
     if method == "mechanics":
         from tacswitch.motion.mechanics import mechanics_motion
 

@@ -229,6 +229,19 @@ def _smooth(field: NDArray[np.float32], sigma: float) -> NDArray[np.float32]:
     return np.asarray(cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR), np.float32)
 
 
+def _smooth_wide(field: NDArray[np.float32], sigma: float) -> NDArray[np.float32]:
+    """Gaussian smoothing of an ``H x W x C`` field (C <= 4) computed at 1/k size, k ~ sigma / 6
+    (the result is smooth at that scale, see :func:`_smooth`)."""
+    import cv2
+
+    h, w = field.shape[:2]
+    k = max(1, int(sigma // 6))
+    small = cv2.resize(np.ascontiguousarray(field, np.float32), (max(1, w // k), max(1, h // k)),
+                       interpolation=cv2.INTER_AREA)
+    small = cv2.GaussianBlur(small, (0, 0), sigma / k, borderType=cv2.BORDER_REPLICATE)
+    return np.asarray(cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR), np.float32)
+
+
 def sample_field(field: NDArray[np.float32], pts: NDArray[np.float32]) -> NDArray[np.float32]:
     """Bilinear samples of an ``H x W x 2`` field at ``N x 2`` points ``(x, y)`` (pixel centres at
     integers); points outside take the nearest border value."""
@@ -274,10 +287,11 @@ def flow_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8], centres: NDArray
         # Normalised convolution: the weighted mean of the flow over a wide Gaussian, so inside
         # an imprint that appeared the field comes from the gel around it.
         wt = imprint_weight(gi, gr)
-        sigma = IMPRINT_SMOOTH_REL * w
-        num = _smooth(np.ascontiguousarray(flow * wt[..., None]), sigma)
-        den = _smooth(np.ascontiguousarray(np.repeat(wt[..., None], 2, axis=2)), sigma)
-        flow = np.asarray(num / np.maximum(den, 1e-3), np.float32)
+        packed = np.empty((*wt.shape, 3), np.float32)
+        np.multiply(flow, wt[..., None], out=packed[..., :2])
+        packed[..., 2] = wt
+        both = _smooth_wide(packed, IMPRINT_SMOOTH_REL * w)
+        flow = np.asarray(both[..., :2] / np.maximum(both[..., 2:], 1e-3), np.float32)
     elif SMOOTH_REL > 0:
         flow = np.asarray(_smooth(flow, SMOOTH_REL * w), np.float32)
     # Pixel centres at integers: x_small = (x + 0.5) / k - 0.5.
@@ -294,12 +308,18 @@ def imprint_weight(gi: NDArray[np.float32], gr: NDArray[np.float32]) -> NDArray[
     on untouched gel of taxim's real presses."""
     import cv2
 
-    s = max(2.0, IMPRINT_SIGMA_REL * gi.shape[1])
-    bi = cv2.GaussianBlur(gi, (0, 0), s, borderType=cv2.BORDER_REFLECT)
-    br = cv2.GaussianBlur(gr, (0, 0), s, borderType=cv2.BORDER_REFLECT)
+    h, w = gi.shape
+    s = max(2.0, IMPRINT_SIGMA_REL * w)
+    # At half size (the blurred frames are smooth at that scale): a quarter of the work.
+    k = 2 if s >= 4 and min(h, w) >= 16 else 1
+    bi, br = (cv2.GaussianBlur(_shrink(g, k), (0, 0), s / k, borderType=cv2.BORDER_REFLECT)
+              for g in (gi, gr))
     gain = float(np.median(bi)) / max(float(np.median(br)), 1.0)
     d = np.abs(bi / max(gain, 1e-3) - br) / np.maximum(br, 4.0)
-    return np.asarray(np.exp(-np.square(d / IMPRINT_CHANGE)), np.float32)
+    wt = np.exp(-np.square(d / IMPRINT_CHANGE)).astype(np.float32)
+    if k > 1:
+        wt = cv2.resize(wt, (w, h), interpolation=cv2.INTER_LINEAR)
+    return np.asarray(wt, np.float32)
 
 
 def work_factor(width: int, algorithm: str = "dis", preset: str = DEFAULT_PRESET) -> int:

@@ -15,7 +15,8 @@ a global gain / offset (gain 0.85-1.15, offset -5..8 grey levels; 3 real frames 
 against the issue's 0.2 px bound. Accuracy: the real-texture proxy (:mod:`tacswitch.motion.proxy`,
 taxim's real presses warped by known press / shear / twist / mixed fields, exposure drift and
 compression; seed 0): e_rmse, e_mag, cosine and share within 30 degrees over markers that moved
->= 0.168 mm, with the no-contact frame and the unwarped press as reference.
+>= 0.168 mm, with the no-contact frame and the unwarped press as reference. Variants: the DIS
+presets and the default with ``suppress_imprint=True`` (meant for a no-contact reference).
 """
 
 from __future__ import annotations
@@ -35,11 +36,16 @@ SECTION = "## Markerless motion: flow presets (speed, brightness, real-texture a
 SENSORS = ("gelsight_mini", "gelsight")
 PRESETS = ("balanced", "medium", "fast", "ultrafast")
 BRIGHTNESS = ((1.15, 5.0), (0.85, -5.0), (1.15, 0.0), (0.85, 0.0), (1.0, 8.0))
+#: Flow variants of the brightness and accuracy tables: name -> predict_motion keywords.
+VARIANTS = {p: {"preset": p} for p in PRESETS}
+VARIANTS["balanced, suppress_imprint"] = {"preset": "balanced", "suppress_imprint": True}
+SUPPRESS = "flow, DIS balanced, suppress_imprint"
 
 
 def speed_methods() -> dict[str, dict[str, str]]:
     out = {f"flow, DIS {p}" + (" (default)" if p == flow.DEFAULT_PRESET else ""):
            {"method": "flow", "preset": p} for p in PRESETS}
+    out[SUPPRESS] = {"method": "flow", "preset": "balanced", "suppress_imprint": True}
     out["outward rule"] = {"method": "outward"}
     if "mechanics" in PREDICT_METHODS:
         out["mechanics rule"] = {"method": "mechanics"}
@@ -57,15 +63,18 @@ def speed(presses: dict[str, proxy.RealPresses], rounds: int, repeat: int) -> li
                      predict_motion(img, ref, grid, **kw)) for n, kw in meths.items()}
         res[sensor] = interleaved(calls, rounds=rounds, repeat=repeat)
     base = {s: res[s]["flow, DIS medium"].median for s in SENSORS}
+    default = f"flow, DIS {flow.DEFAULT_PRESET} (default)"
+    dflt = {s: res[s][default].median for s in SENSORS}
     rows = []
     for n in meths:
         a, b = (res[s][n].median for s in SENSORS)
         rows.append([n, f"{1e3 * a:.1f}", f"{1e3 * b:.1f}", f"{1 / a:.0f}", f"{1 / b:.0f}",
-                     f"{a / base['gelsight_mini']:.2f}", f"{b / base['gelsight']:.2f}"])
+                     f"{a / base['gelsight_mini']:.2f}", f"{b / base['gelsight']:.2f}",
+                     f"{a / dflt['gelsight_mini']:.2f}", f"{b / dflt['gelsight']:.2f}"])
     return rows
 
 
-def brightness(presses: dict[str, proxy.RealPresses], preset: str) -> dict[str, float]:
+def brightness(presses: dict[str, proxy.RealPresses], kw: dict) -> dict[str, float]:
     """Largest motion (px) under a pure brightness change, per sensor."""
     out = {}
     for sensor in SENSORS:
@@ -75,7 +84,7 @@ def brightness(presses: dict[str, proxy.RealPresses], preset: str) -> dict[str, 
         for img in (pr.f0, pr.imgs[3], pr.imgs[5]):
             for gain, offset in BRIGHTNESS:
                 bright = np.clip(img.astype(np.float64) * gain + offset, 0, 255).astype(np.uint8)
-                m = predict_motion(bright, img, grid, method="flow", preset=preset)
+                m = predict_motion(bright, img, grid, method="flow", **kw)
                 worst = max(worst, float(np.hypot(m[:, 0], m[:, 1]).max()))
         out[sensor] = worst
     return out
@@ -83,7 +92,7 @@ def brightness(presses: dict[str, proxy.RealPresses], preset: str) -> dict[str, 
 
 def accuracy(presses: dict[str, proxy.RealPresses], every: int
              ) -> dict[tuple[str, str, str], dict[str, float]]:
-    """Proxy metrics per (sensor, setting, method): the flow presets and zero motion."""
+    """Proxy metrics per (sensor, setting, method): the flow variants and zero motion."""
     res = {}
     for sensor in SENSORS:
         preds: dict[tuple[str, str], list[np.ndarray]] = {}
@@ -93,8 +102,8 @@ def accuracy(presses: dict[str, proxy.RealPresses], every: int
                 continue
             trues.append(s.motion)
             for setting in ("no_contact", "press"):
-                for p in PRESETS:
-                    m = predict_motion(s.img, s.ref(setting), s.rest, method="flow", preset=p)
+                for p, kw in VARIANTS.items():
+                    m = predict_motion(s.img, s.ref(setting), s.rest, method="flow", **kw)
                     preds.setdefault((setting, p), []).append(m)
         true = np.concatenate(trues)
         min_px = 0.1 * proxy.MAX_AMPLITUDE_MM / proxy.MM_PER_PX[sensor]
@@ -126,17 +135,18 @@ def main() -> int:
              f"(median of {args.rounds} x {args.repeat} calls, methods interleaved). Budgets: "
              ">= 100 Hz at 320x240, >= 30 Hz at 640x480 on 2 cores."]
     header = ["method", "320x240 ms", "640x480 ms", "320x240 Hz", "640x480 Hz",
-              "320x240 / medium", "640x480 / medium"]
+              "320x240 / medium", "640x480 / medium", "320x240 / default",
+              "640x480 / default"]
     body = [*notes, "", table(header, rows)]
     if not args.no_accuracy:
         brows = []
-        for p in PRESETS:
-            b = brightness(presses, p)
+        for p, kw in VARIANTS.items():
+            b = brightness(presses, kw)
             brows.append([p, f"{b['gelsight_mini']:.2f}", f"{b['gelsight']:.2f}"])
         body += ["", "Largest marker motion under a pure brightness change (px; bound 0.2; "
                  "real frames f0, 3 and 5 of each sensor, gain x offset "
                  f"{', '.join(f'{g}/{o:+g}' for g, o in BRIGHTNESS)}):", "",
-                 table(["preset", "Mini 320x240", "GelSight 640x480"], brows)]
+                 table(["flow variant", "Mini 320x240", "GelSight 640x480"], brows)]
         acc = accuracy(presses, max(1, args.every))
         arows = []
         for (sensor, setting, p), m in acc.items():

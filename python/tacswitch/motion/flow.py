@@ -17,6 +17,21 @@ support; the padding halved the largest motion a brightness change reports there
 field is smoothed over about a marker's size (:data:`SMOOTH_REL`) before it is read at the
 markers. Identical frames return exactly zero (checked before any flow is computed).
 
+Reference without the contact (``suppress_imprint=True``): against the no-contact frame the
+imprint that appears is shading, not motion, and DIS follows it (on taxim's real presses 4-10 px
+at GelSight Mini's contact, tens of px at GelSight's, where the gel moves under 1 px). The option
+weights the flow by :func:`imprint_weight` (low where the blurred grey level changed by more than
+:data:`IMPRINT_CHANGE`, relative, after matching the median gain) and smooths it by normalised
+convolution over :data:`IMPRINT_SMOOTH_REL` of the width (instead of :data:`SMOOTH_REL`), so the
+field inside the imprint comes from the gel around it. Measured (``benches/
+bench_motion_methods.py``, BENCHMARKS.md): it lowers the error from the no-contact frame on the
+real-texture proxy, on real presses with a modelled field and on simulated pairs, but it stays
+worse than zero motion on the last two (DIS still picks up the imprint's rim), and it costs
+accuracy with a reference of the same contact (the imprint is then the best texture), so it is
+off by default. Thresholds chosen on every 6th / 3rd real press (seed 0) among 0.01-0.2 and
+smoothing 0.04-0.12; blanking the imprint before DIS (a harder mask) and a high-pass (sigma
+3-6 px) before DIS were worse on the real-texture proxy.
+
 Algorithms (OpenCV 4.x/5.x, ``opencv-contrib`` for the ``optflow`` ones): ``"dis"`` (DIS, presets
 ``balanced`` (default), ``ultrafast``/``fast``/``medium``), ``"farneback"``, ``"deepflow"``,
 ``"pcaflow"``, ``"rlof"`` (dense RLOF).

@@ -2,6 +2,7 @@
 preset its brightness robustness and accuracy on the real-texture proxy.
 
     python benches/bench_motion_methods.py [--repeat 20] [--rounds 5] [--every 1] [--update]
+    python benches/bench_motion_methods.py --no-contact [--every 2] [--sim-dir DIR] [--update]
 
 Speed: ``tacswitch.predict_motion`` end to end (validation, flow or network, read-out at the
 sensor's marker grid) on taxim's real GelSight Mini (320x240) and GelSight (640x480) press
@@ -25,7 +26,7 @@ import argparse
 import os
 
 import numpy as np
-from harness import interleaved, machine, table, update_markdown
+from harness import interleaved, machine, publish, table, update_markdown
 
 from tacswitch import predict_motion
 from tacswitch.motion import flow, proxy
@@ -115,6 +116,71 @@ def accuracy(presses: dict[str, proxy.RealPresses], every: int
     return res
 
 
+NC_SECTION = "## Markerless motion from the no-contact frame: flow with suppress_imprint"
+
+
+def no_contact(presses: dict[str, proxy.RealPresses], every: int, sim_dir: str | None,
+               n_sim: int) -> list[list[str]]:
+    """Metrics with the no-contact frame as reference (and, for contrast, the unwarped press) on
+    three data: the real-texture proxy (warp), real presses with the simulator's field at the
+    recorded contact (:func:`tacswitch.motion.proxy.make_contact_proxy`; truth MODELLED) and
+    simulated held-out no-contact pairs (``gel_test_indenter`` + ``gel_test_depth``, seed 0,
+    mixed presets); methods: zero, the outward and mechanics rules, flow (default) and flow with
+    ``suppress_imprint``."""
+    fns = {
+        "zero": lambda i, r, c: np.zeros((len(c), 2), np.float32),
+        "outward rule": lambda i, r, c: predict_motion(i, r, c, method="outward"),
+        "mechanics rule": lambda i, r, c: predict_motion(i, r, c, method="mechanics"),
+        "flow (default)": lambda i, r, c: predict_motion(i, r, c, method="flow"),
+        "flow, suppress_imprint": lambda i, r, c: predict_motion(i, r, c, method="flow",
+                                                                 suppress_imprint=True),
+    }
+    data: dict[str, tuple[list, float]] = {}
+    for sensor in SENSORS:
+        pr = presses[sensor]
+        keep = np.arange(0, len(pr.imgs), every)
+        sub = proxy.RealPresses(pr.sensor, pr.f0, pr.imgs[keep], pr.centres[keep],
+                                pr.radii[keep])
+        warp = list(proxy.make_proxy(sensor, presses=sub, seed=0))
+        min_px = 0.1 * proxy.MAX_AMPLITUDE_MM / proxy.MM_PER_PX[sensor]
+        for setting in ("no_contact", "press"):
+            data[f"real warp proxy, {sensor}, ref {setting}"] = (
+                [(x.img, x.ref(setting), x.rest, x.motion) for x in warp], min_px)
+        con = list(proxy.make_contact_proxy(sensor, presses=sub, seed=0))
+        for subset, kinds in (("press only", ("press",)), ("all cases", proxy.CONTACT_KINDS)):
+            data[f"real + modelled field, {sensor}, ref no_contact, {subset}"] = (
+                [(x.img, x.ref("no_contact"), x.rest, x.motion) for x in con if x.kind in kinds],
+                0.1)
+    if n_sim > 0:
+        import tempfile
+        from pathlib import Path
+
+        from tacswitch.motion import data as mdata
+
+        root = Path(sim_dir or tempfile.mkdtemp())
+        pairs = []
+        for split in ("gel_test_indenter", "gel_test_depth"):
+            if not list(root.glob(f"{split}_*.npz")):
+                mdata.generate_split(root, split, n_sim, preset="mixed", seed=0, shard=100)
+            d = mdata.load_split(root, split)
+            for i in range(min(n_sim, len(d["image"]))):
+                sel = d["present"][i]
+                if np.abs(d["disp_reference"][i][sel]).max() == 0:
+                    pairs.append((d["image"][i], d["reference"][i], d["rest"][i][sel],
+                                  d["displacement"][i][sel]))
+        data["simulated held-out, ref no_contact"] = (pairs, 0.5)
+    rows = []
+    for name, (samples, min_px) in data.items():
+        true = np.concatenate([t for *_, t in samples])
+        for meth, fn in fns.items():
+            pred = np.concatenate([fn(i, r, c) for i, r, c, _ in samples])
+            m = motion_metrics(pred, true, min_px=min_px)
+            rows.append([name, meth, f"{m['e_rmse_mean']:.2f}", f"{m['cos_mean']:.2f}",
+                         f"{m['within30_pct']:.0f} %", f"{len(samples)} / {m['n_orient']}"])
+            print(" | ".join(rows[-1]), flush=True)
+    return rows
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=20, help="calls per round and method")
@@ -122,8 +188,35 @@ def main() -> int:
     ap.add_argument("--every", type=int, default=1, help="proxy: every N-th real press")
     ap.add_argument("--no-accuracy", action="store_true", help="speed only")
     ap.add_argument("--update", action="store_true", help="write the section of BENCHMARKS.md")
+    ap.add_argument("--no-contact", action="store_true",
+                    help="only the no-contact-reference comparison (its own section)")
+    ap.add_argument("--sim-dir", default=None, help="--no-contact: folder of gel_test_* shards "
+                    "(made if absent)")
+    ap.add_argument("--n-sim", type=int, default=200, help="--no-contact: samples per split")
     args = ap.parse_args()
     presses = {s: proxy.load_real_presses(s) for s in SENSORS}
+    if args.no_contact:
+        rows = no_contact(presses, max(1, args.every), args.sim_dir, args.n_sim)
+        notes = [f"Machine: {machine()}.", "",
+                 "Reference = the real (or simulated) no-contact frame: the imprint that "
+                 "appears is shading, not motion. **Real warp proxy**: taxim's real presses "
+                 "warped by known press / shear / twist / mixed fields + exposure drift + "
+                 "compression (seed 0; `ref press` = the unwarped press, for contrast: what "
+                 "suppress_imprint costs with a same-contact reference). **Real + modelled "
+                 "field**: the real press frames with the simulator's ball-press field at the "
+                 "recorded contact (truth MODELLED, small: GelSight < 1 px, Mini < 0.1 px, plus "
+                 "stuck shear / twist for `all cases`). **Simulated**: held-out no-contact "
+                 "pairs (measured only in simulation; the simulator renders no grain). cos / "
+                 "within 30 over markers moving >= min px (warp 0.168 mm, modelled 0.1 px, "
+                 "simulated 0.5 px). Far from the contact, flow on the modelled set still reads "
+                 "~1 px on Mini: the proxy's exposure drift and compression on faint grain (the "
+                 "same real press against the uncompressed no-contact frame reads 0.1-0.2 px "
+                 "there)."]
+        cmd = ("python benches/bench_motion_methods.py --no-contact --every "
+               f"{args.every} --n-sim {args.n_sim} --update")
+        publish(NC_SECTION, notes, ["data, reference", "method", "e_rmse mean (px)", "cos",
+                                    "within 30 deg", "frames / moved"], rows, cmd, args.update)
+        return 0
     load0 = os.getloadavg()[0]
     rows = speed(presses, args.rounds, args.repeat)
     load1 = os.getloadavg()[0]

@@ -19,6 +19,10 @@
 //!    gradient, or curvature over a few pixels) is not mistaken for darkening. The mask takes
 //!    every ring up to the last one that differs, stopping after two consistent rings in a row
 //!    (codec ringing alternates dark and bright, so one consistent ring does not end the rim);
+//!    where the background is curved (one of the two outermost allowed rings already fails that
+//!    test: contact shading, the imprint's edge), a ring must also differ from the next ring's
+//!    darkness: a rim fades ring by ring, smooth shading curvature gives about the same
+//!    darkness on successive rings (without this, contact markers grew to the cap);
 //! 4. growth is capped at [`MAX_GROW_RADII`] marker radii and at half the gap to the nearest
 //!    other marker, so neighbouring markers and contact shading cannot make it run away.
 
@@ -35,13 +39,16 @@ pub const GROW_MIN_LEVELS: f32 = 0.5;
 pub const MAX_GROW_RADII: f32 = 1.5;
 /// Growth never exceeds this many rings, whatever the marker size.
 pub const MAX_GROW_RINGS: usize = 48;
+/// Smallest cap (rings) for which a curved background is looked for (two outer rings tested
+/// and at least one ring left to grow).
+const CURVED_MIN_CAP: usize = 3;
 /// Consistent rings in a row that end the growth.
 const STOP_AFTER_CONSISTENT: usize = 2;
 /// Chamfer 3-4 weights: an orthogonal step is 3 units (one pixel), a diagonal 4.
 const STEP_ORTHO: u8 = 3;
 const STEP_DIAG: u8 = 4;
 // Every distance that matters (the annulus' outer edge) fits in the u8 distance map.
-const _: () = assert!((MAX_GROW_RINGS + ANNULUS_RINGS) * (STEP_ORTHO as usize) < 255);
+const _: () = assert!((MAX_GROW_RINGS + ANNULUS_RINGS + 1) * (STEP_ORTHO as usize) < 255);
 /// Fewest annulus pixels for a plane fit; fewer use their median as a flat background.
 const MIN_PLANE_PIXELS: usize = 12;
 /// Outliers beyond this many sigmas (neighbours' soft edges, bright features) leave the fit.
@@ -231,7 +238,9 @@ fn grow_one(
     mask: &mut [bool],
     ws: &mut GrowWorkspace,
 ) -> usize {
-    let margin = cap + ANNULUS_RINGS;
+    // One ring more than the last background: the curved-background test compares ring `cap`
+    // with ring `cap + 1`.
+    let margin = cap + ANNULUS_RINGS + 1;
     let x0 = (s.bbox[0] as usize).saturating_sub(margin);
     let y0 = (s.bbox[1] as usize).saturating_sub(margin);
     let x1 = (s.bbox[2] as usize + margin).min(w - 1);
@@ -248,7 +257,8 @@ fn grow_one(
         *r = d.div_ceil(usize::from(STEP_ORTHO)) as u8;
     }
 
-    // One pass: per-ring moments, and the pixels of the outermost annulus for the noise.
+    // One pass: per-ring moments, and the pixels of the annulus just beyond the cap for the
+    // noise.
     ws.annulus.clear();
     ws.sums_int.clear();
     ws.sums_int.resize(margin + 1, RingSumsInt::default());
@@ -274,7 +284,7 @@ fn grow_one(
             e.yy += iy * iy;
             e.xz += ix * iz;
             e.yz += iy * iz;
-            if r > cap {
+            if r > cap && r <= cap + ANNULUS_RINGS {
                 ws.annulus.push([wx as f32, wy as f32, z as f32]);
             }
         }
@@ -286,19 +296,30 @@ fn grow_one(
         return 0;
     };
     let tau = f64::from((GROW_SIGMAS * sigma).max(GROW_MIN_LEVELS * LUMA_PER_LEVEL));
-    let mut rings = 0;
-    let mut consistent = 0;
-    for k in 1..=cap {
+    // Mean darkness of ring k below the local background just outside it: the plane through
+    // the next ANNULUS_RINGS rings, so contact shading (a gradient) is no darkening. `None`
+    // when the ring or its background has no free pixel (other markers, or outside the frame).
+    let dark = |k: usize| -> Option<f64> {
         let ring = ws.sums[k];
-        // Background just outside ring k: the plane through the next ANNULUS_RINGS rings, so
-        // contact shading (a gradient, or curvature over a few pixels) is no darkening.
         let mut beyond = RingSums::default();
         for e in &ws.sums[k + 1..=k + ANNULUS_RINGS] {
             beyond.add(e);
         }
-        // A ring with no free pixel (other markers, or outside the frame) tells nothing.
-        let deviates =
-            ring.n > 0.0 && beyond.n > 0.0 && ring.darkness_below(beyond.plane()).abs() > tau;
+        (ring.n > 0.0 && beyond.n > 0.0).then(|| ring.darkness_below(beyond.plane()))
+    };
+    // Curved background: one of the two outermost rings the marker may take already fails the
+    // plane test, far out where no rim reaches. Contact shading does that (curvature, the
+    // imprint's edge over a few pixels): every ring then differs from its plane by about the
+    // same amount and growth would run to the cap. There a ring is rim only if it also differs
+    // from the next ring's darkness: a rim fades ring by ring, smooth curvature does not.
+    let curved =
+        cap >= CURVED_MIN_CAP && (cap - 1..=cap).any(|k| dark(k).is_some_and(|d| d.abs() > tau));
+    let mut rings = 0;
+    let mut consistent = 0;
+    for k in 1..=cap {
+        let deviates = dark(k).is_some_and(|d| {
+            d.abs() > tau && (!curved || (d - dark(k + 1).unwrap_or(0.0)).abs() > tau)
+        });
         if deviates {
             rings = k;
             consistent = 0;
@@ -519,6 +540,68 @@ mod tests {
         let mut scratch = Vec::new();
         let (p, _) = fit_background(&samples, &mut scratch).unwrap();
         assert!((p[0] - 500.0).abs() < 1e-3 && p[2] == 0.0);
+    }
+
+    /// One marker (radius 4 px, grey 40) with a rim fading by 0.35 per pixel, at the centre of
+    /// a 61x61 frame whose background is a cone `150 - q r` (grey levels, `r` px from the
+    /// centre, as on the flank of an imprint): each ring is about `1.5 q` grey levels off the
+    /// plane of the next two rings (as contact shading is), the same on every ring. Returns the
+    /// rings grown and the cap.
+    fn grow_on_cone(q: f32) -> (usize, usize) {
+        let (n, c, r0) = (61usize, 30.0f32, 4.0f32);
+        let mut luma = vec![0u16; n * n];
+        let mut labels = vec![0u32; n * n];
+        let mut area = 0u32;
+        for y in 0..n {
+            for x in 0..n {
+                let r = ((x as f32 - c).powi(2) + (y as f32 - c).powi(2)).sqrt();
+                let bg = 150.0 - q * r;
+                let g = if r <= r0 {
+                    labels[y * n + x] = 1;
+                    area += 1;
+                    40.0
+                } else {
+                    bg - 20.0 * 0.35f32.powf(r - r0)
+                };
+                luma[y * n + x] = (g * LUMA_PER_LEVEL).round() as u16;
+            }
+        }
+        let seed = GrowSeed {
+            label: 1,
+            bbox: [26, 26, 34, 34],
+            centre: [c, c],
+            radius: (area as f32 / std::f32::consts::PI).sqrt(),
+        };
+        let mut mask = vec![false; n * n];
+        let rings = grow_masks(
+            &luma,
+            &labels,
+            n,
+            n,
+            &[seed],
+            &mut mask,
+            &mut GrowWorkspace::default(),
+        );
+        let cap = (MAX_GROW_RADII * seed.radius).ceil() as usize;
+        (usize::from(rings[0]), cap)
+    }
+
+    #[test]
+    fn rim_on_a_flat_background_is_grown() {
+        let (rings, cap) = grow_on_cone(0.0);
+        // The rim is above half a grey level for 3 px.
+        assert!((2..cap).contains(&rings), "{rings} of {cap}");
+    }
+
+    #[test]
+    fn curved_background_does_not_run_to_the_cap() {
+        // q = 2: the background alone is ~3 grey levels off its plane on every ring.
+        let (flat, _) = grow_on_cone(0.0);
+        let (rings, cap) = grow_on_cone(2.0);
+        assert!(
+            rings < cap && rings >= 1 && rings <= flat + 1,
+            "{rings} of {cap}, flat {flat}"
+        );
     }
 
     #[test]

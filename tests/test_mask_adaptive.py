@@ -145,6 +145,27 @@ def test_growth_does_not_run_away_on_shading() -> None:
     assert m.grow_rings.max() <= 9
 
 
+
+@pytest.mark.parametrize("press", [1, 2])
+def test_contact_markers_stop_at_their_rim_on_real_presses(press: int) -> None:
+    """Real GelSight Mini presses (Taxim) with painted markers: contact shading is not planar
+    around a marker (curvature, the imprint's edge), which made contact markers grow to their
+    cap (2.7x and 3.2x the one-dilation mask inside the contact disc of these two presses).
+    The grown mask stays within 2x there."""
+    pytest.importorskip("taxim")
+    from tacswitch import realproxy
+
+    frame = realproxy.proxy_frames("gelsight_mini", 4, styles=("painted",),
+                                   captures=("lossless",))[press]
+    auto = ts.extract_markers(frame.img, dilate="auto", exclude_border=False).mask
+    one = ts.extract_markers(frame.img, dilate=1, exclude_border=False).mask
+    inside = (one & frame.contact).sum()
+    assert inside > 50
+    assert (auto & frame.contact).sum() <= 2.0 * inside
+    # Every painted pixel darker than the gel by a third is still inside the mask.
+    dark = luma(frame.clean) - luma(frame.img) > 60
+    assert (dark & ~auto).sum() == 0
+
 def border_frame() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Interior grid plus markers cut deeply by each of the four borders (centres outside)."""
     shape = (240, 320)

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from harness import machine, publish
+from harness import held_out_motion_pairs, machine, publish
 
 from tacswitch.motion.evaluate import motion_metrics
 from tacswitch.motion.infer import MotionModel, default_model_path
@@ -75,15 +75,7 @@ def _score(samples: list[tuple[Any, Any, Any, Any]], methods: dict[str, Any]
 
 
 def sim_settings(root: Path, n: int) -> dict[str, list]:
-    from tacswitch.motion import data as mdata
-
-    parts = []
-    for split in ("gel_test_indenter", "gel_test_depth"):
-        if not list(root.glob(f"{split}_*.npz")):
-            mdata.generate_split(root, split, n, preset="mixed", seed=0, shard=100)
-        d = mdata.load_split(root, split)
-        parts.append({k: v[:n] for k, v in d.items()})
-    d = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    d = held_out_motion_pairs(root, n)
     pair, nocontact, single = [], [], []
     for i in range(len(d["image"])):
         sel = d["present"][i]
@@ -103,9 +95,7 @@ def proxy_settings(press_step: int) -> dict[str, list]:
     out: dict[str, list] = {}
     for sensor in ("gelsight", "gelsight_mini"):
         data = proxy.load_real_presses(sensor)
-        keep = np.arange(0, len(data.imgs), press_step)
-        sub = proxy.RealPresses(data.sensor, data.f0, data.imgs[keep], data.centres[keep],
-                                data.radii[keep])
+        sub = data.subset(slice(None, None, press_step))
         samples = list(proxy.make_proxy(sensor, presses=sub, seed=0))
         for setting, label in (("no_contact", "no-contact reference"),
                                ("press", "unwarped press as reference"),

@@ -138,9 +138,7 @@ def no_contact(presses: dict[str, proxy.RealPresses], every: int, sim_dir: str |
     data: dict[str, tuple[list, float]] = {}
     for sensor in SENSORS:
         pr = presses[sensor]
-        keep = np.arange(0, len(pr.imgs), every)
-        sub = proxy.RealPresses(pr.sensor, pr.f0, pr.imgs[keep], pr.centres[keep],
-                                pr.radii[keep])
+        sub = pr.subset(slice(None, None, every))
         warp = list(proxy.make_proxy(sensor, presses=sub, seed=0))
         min_px = 0.1 * proxy.MAX_AMPLITUDE_MM / proxy.MM_PER_PX[sensor]
         for setting in ("no_contact", "press"):

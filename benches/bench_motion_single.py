@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from harness import machine, publish
+from harness import held_out_motion_pairs, machine, publish
 
 from tacswitch.motion import proxy
 from tacswitch.motion.evaluate import motion_metrics
@@ -93,9 +93,7 @@ def contact_settings(every: int) -> dict[str, tuple[list, float]]:
     out: dict[str, tuple[list, float]] = {}
     for sensor in ("gelsight", "gelsight_mini"):
         data = proxy.load_real_presses(sensor)
-        keep = np.arange(0, len(data.imgs), every)
-        sub = proxy.RealPresses(data.sensor, data.f0, data.imgs[keep], data.centres[keep],
-                                data.radii[keep])
+        sub = data.subset(slice(None, None, every))
         samples = list(proxy.make_contact_proxy(sensor, presses=sub, seed=0))
         for setting in ("single", "no_contact"):
             for subset, kinds in (("press only", ("press",)), ("all cases", proxy.CONTACT_KINDS)):
@@ -109,9 +107,7 @@ def warp_settings(every: int) -> dict[str, tuple[list, float]]:
     out: dict[str, tuple[list, float]] = {}
     for sensor in ("gelsight", "gelsight_mini"):
         data = proxy.load_real_presses(sensor)
-        keep = np.arange(0, len(data.imgs), every)
-        sub = proxy.RealPresses(data.sensor, data.f0, data.imgs[keep], data.centres[keep],
-                                data.radii[keep])
+        sub = data.subset(slice(None, None, every))
         samples = list(proxy.make_proxy(sensor, presses=sub, seed=0))
         min_px = 0.1 * proxy.MAX_AMPLITUDE_MM / proxy.MM_PER_PX[sensor]
         for setting in ("single", "no_contact"):
@@ -121,15 +117,7 @@ def warp_settings(every: int) -> dict[str, tuple[list, float]]:
 
 
 def sim_settings(root: Path, n: int) -> dict[str, tuple[list, float]]:
-    from tacswitch.motion import data as mdata
-
-    parts = []
-    for split in ("gel_test_indenter", "gel_test_depth"):
-        if not list(root.glob(f"{split}_*.npz")):
-            mdata.generate_split(root, split, n, preset="mixed", seed=0, shard=100)
-        d = mdata.load_split(root, split)
-        parts.append({k: v[:n] for k, v in d.items()})
-    d = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    d = held_out_motion_pairs(root, n)
     single, nocontact = [], []
     for i in range(len(d["image"])):
         sel = d["present"][i]

@@ -16,6 +16,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 
 @dataclass
@@ -147,3 +148,20 @@ def named_models(ap: argparse.ArgumentParser, specs: list[str]) -> dict[str, str
             ap.error(f"--model: expected NAME=PATH, got {spec!r}")
         models[name] = path
     return models
+
+
+def held_out_motion_pairs(root: Path, n: int) -> dict[str, Any]:
+    """The simulated held-out motion pairs the motion benches score on: the first ``n``
+    samples of each of ``gel_test_indenter`` and ``gel_test_depth`` (preset ``mixed``, seed 0;
+    written under ``root`` if absent), concatenated field by field."""
+    import numpy as np
+
+    from tacswitch.motion import data as mdata
+
+    parts = []
+    for split in ("gel_test_indenter", "gel_test_depth"):
+        if not list(root.glob(f"{split}_*.npz")):
+            mdata.generate_split(root, split, n, preset="mixed", seed=0, shard=100)
+        d = mdata.load_split(root, split)
+        parts.append({k: v[:n] for k, v in d.items()})
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}

@@ -111,8 +111,7 @@ def test_beats_zero_and_the_outward_rule_on_simulated_presses() -> None:
 
 def test_contact_proxy_press_is_outward_and_shear_moves_the_imprint() -> None:
     data = proxy.load_real_presses("gelsight_mini")
-    one = proxy.RealPresses(data.sensor, data.f0, data.imgs[:1], data.centres[:1],
-                            data.radii[:1])
+    one = data.subset(slice(1))
     samples = {s.kind: s for s in proxy.make_contact_proxy("gelsight_mini", presses=one,
                                                            kinds=("press", "shear"),
                                                            capture=False)}

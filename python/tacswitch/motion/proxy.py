@@ -250,6 +250,11 @@ class RealPresses:
     centres: NDArray[np.float64]
     radii: NDArray[np.float64]
 
+    def subset(self, keep: slice | NDArray[np.intp]) -> RealPresses:
+        """The presses selected by ``keep`` (a slice or indices), same no-contact frame."""
+        return RealPresses(self.sensor, self.f0, self.imgs[keep], self.centres[keep],
+                           self.radii[keep])
+
 
 def load_real_presses(sensor: str = "gelsight") -> RealPresses:
     """taxim's real markerless presses of ``sensor`` (``"gelsight"`` 640 x 480 or

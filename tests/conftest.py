@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -41,3 +43,23 @@ def gelsight_grid() -> np.ndarray:
     pts = sim.marker_grid(p.height, p.width, p.rows, p.cols, p.pitch)
     offsets = np.random.default_rng(3).uniform(-0.5, 0.5, pts.shape).astype(np.float32)
     return pts + offsets
+
+
+@pytest.fixture(scope="session")
+def marker_frames() -> list[np.ndarray]:
+    """Two simulated GelSight Mini frames with markers (a sensor's raw frames for fine-tunes)."""
+    from tacswitch.sim.scene import render_sample
+
+    return [render_sample("gelsight_mini", 40 + i).image_markers for i in range(2)]
+
+
+@pytest.fixture
+def marker_frame_dir(tmp_path: Path, marker_frames: list[np.ndarray]) -> Path:
+    """:func:`marker_frames` as PNG files in a folder (what ``tacswitch finetune`` reads)."""
+    import cv2
+
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, f in enumerate(marker_frames):
+        cv2.imwrite(str(src / f"{i}.png"), f)
+    return src

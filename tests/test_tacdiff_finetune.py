@@ -10,14 +10,8 @@ import numpy as np
 import pytest
 
 from tacswitch.cli import main
-from tacswitch.sim.scene import render_sample
 from tacswitch.tacdiff import finetune as ft
 from tacswitch.tacdiff.transplant import shift
-
-
-@pytest.fixture(scope="module")
-def marker_frames() -> list[np.ndarray]:
-    return [render_sample("gelsight_mini", 40 + i).image_markers for i in range(2)]
 
 
 def square_grid(pitch: int = 40, radius: int = 6, size: int = 320) -> np.ndarray:
@@ -75,17 +69,14 @@ def test_beats_needs_an_improvement_beyond_noise():
         ft.beats(start, start[:3])
 
 
-def test_finetune_keeps_the_start_model_when_nothing_beats_it(tmp_path: Path, marker_frames):
+def test_finetune_keeps_the_start_model_when_nothing_beats_it(tmp_path: Path,
+                                                             marker_frame_dir: Path):
     pytest.importorskip("torch")
     pytest.importorskip("onnx")
-    import cv2
 
     from tacswitch.tacdiff.infer import model_path
 
-    src = tmp_path / "frames"
-    src.mkdir()
-    for i, f in enumerate(marker_frames):
-        cv2.imwrite(str(src / f"{i}.png"), f)
+    src = marker_frame_dir
     run = tmp_path / "ft"
     # Two steps at a learning rate of zero: the checkpoints equal the start, none beats it.
     args = ["finetune", "--images", str(src), "--out", str(run), "--steps", "2", "--batch", "1",

@@ -16,11 +16,6 @@ from tacswitch.sim.scene import render_sample
 from tacswitch.tacdiff import data as tdata
 
 
-@pytest.fixture(scope="module")
-def marker_frames() -> list[np.ndarray]:
-    return [render_sample("gelsight_mini", 40 + i).image_markers for i in range(2)]
-
-
 def test_marker_offset_pairs_follow_the_paper(marker_frames):
     pairs = tdata.marker_offset_pairs(marker_frames, transplant=False)
     # The mask remove_markers fills (adaptive growth, border-cut markers included).
@@ -166,13 +161,10 @@ def test_fp16_export_is_refused(tmp_path: Path):
         export_onnx(DenoiserUNet(UNetConfig(base=8)), tmp_path / "m.onnx", fp16=True)
 
 
-def test_finetune_on_marker_frames(tmp_path: Path, marker_frames):
+def test_finetune_on_marker_frames(tmp_path: Path, marker_frames, marker_frame_dir: Path):
     pytest.importorskip("torch")
     pytest.importorskip("onnx")
-    src = tmp_path / "frames"
-    src.mkdir()
-    for i, f in enumerate(marker_frames):
-        cv2.imwrite(str(src / f"{i}.png"), f)
+    src = marker_frame_dir
     run = tmp_path / "ft"
     assert main(["finetune", "--images", str(src), "--out", str(run), "--steps", "2",
                  "--batch", "2", "--crop", "64", "-q"]) == 0

@@ -10,14 +10,8 @@ import pytest
 
 import tacswitch as ts
 from tacswitch.cli import main
-from tacswitch.sim.scene import render_sample
 from tacswitch.tacdiff import data as tdata
 from tacswitch.tacdiff import transplant as tp
-
-
-@pytest.fixture(scope="module")
-def marker_frames() -> list[np.ndarray]:
-    return [render_sample("gelsight_mini", 40 + i).image_markers for i in range(2)]
 
 
 def test_default_offset_is_half_pitch_on_codec_blocks():
@@ -160,15 +154,11 @@ def test_train_cli_init_continues_a_shipped_model(tmp_path: Path):
                  str(tmp_path / "z")]) == 1
 
 
-def test_finetune_cli_options(tmp_path: Path, marker_frames):
+def test_finetune_cli_options(tmp_path: Path, marker_frame_dir: Path):
     pytest.importorskip("torch")
     pytest.importorskip("onnx")
-    import cv2
 
-    src = tmp_path / "frames"
-    src.mkdir()
-    for i, f in enumerate(marker_frames):
-        cv2.imwrite(str(src / f"{i}.png"), f)
+    src = marker_frame_dir
     common = ["finetune", "--images", str(src), "--steps", "1", "--batch", "1", "--crop", "64",
               "-q"]
     assert main([*common, "--out", str(tmp_path / "a"), "--no-transplant", "--init",

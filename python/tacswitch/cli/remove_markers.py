@@ -144,8 +144,8 @@ def _check_options(args: argparse.Namespace) -> None:
 def run(args: argparse.Namespace) -> int:
     from tacswitch.cli.batch import default_workers
     from tacswitch.cli.options import input_file, output_dir
-    from tacswitch.cli.progress import say, warn
-    from tacswitch.cli.sources import read_quiet
+    from tacswitch.cli.progress import say
+    from tacswitch.cli.sources import read_quiet, report_unreadable
 
     _check_options(args)
     images, videos = collect_inputs(args.inputs)
@@ -167,13 +167,7 @@ def run(args: argparse.Namespace) -> int:
             failed.append((path, str(exc)))
             continue
         done, skipped, bad = done + d, skipped + s, bad + b
-    if failed and done + skipped == 0:
-        raise ValueError(failed[0][1] if len(failed) == 1 else
-                         f"inputs: none of the {len(failed)} inputs could be read "
-                         f"({_names(failed)})")
-    if failed:
-        warn("remove-markers", f"skipped {len(failed)} unreadable input"
-             f"{'s' if len(failed) > 1 else ''}: {_names(failed)}")
+    report_unreadable("remove-markers", failed, done + skipped)
     say(f"{done} written, {skipped} already done"
         + (f", {len(failed)} unreadable skipped" if failed else "")
         + (f", {bad} unreadable video frames skipped" if bad else "") + f", in {out}",
@@ -183,12 +177,6 @@ def run(args: argparse.Namespace) -> int:
 
 class _Unreadable(ValueError):
     """An input (image or video) that cannot be decoded at all: skipped and counted."""
-
-
-def _names(failed: list[tuple[Path, str]], limit: int = 8) -> str:
-    """The first ``limit`` skipped inputs, quoted, and how many more."""
-    names = ", ".join(repr(str(p)) for p, _ in failed[:limit])
-    return names + (f" and {len(failed) - limit} more" if len(failed) > limit else "")
 
 
 def _images(images: list[Path], out: Path, remove: Remover, workers: int,

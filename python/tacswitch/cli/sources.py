@@ -51,20 +51,25 @@ def read_quiet(path: str | Path) -> np.ndarray | None:
     return try_read_image(path, quiet=True)
 
 
+def quoted_names(failed: list[tuple[Path, str]], limit: int = 8) -> str:
+    """The first ``limit`` of ``(path, reason)`` inputs, quoted, and how many more."""
+    names = ", ".join(repr(str(p)) for p, _ in failed[:limit])
+    return names + (f" and {len(failed) - limit} more" if len(failed) > limit else "")
+
+
 def report_unreadable(command: str, failed: list[tuple[Path, str]], done: int) -> None:
-    """After a batch: ``ValueError`` when nothing could be read (the one reason, or a count),
-    else a warning naming the skipped inputs (the first eight, then how many more)."""
+    """After a batch of which ``done`` inputs were read: ``ValueError`` when none was (the one
+    reason, or a count with the names), else a warning naming the skipped inputs."""
     from tacswitch.cli.progress import warn
 
     if not failed:
         return
     if done == 0:
         raise ValueError(failed[0][1] if len(failed) == 1 else
-                         f"inputs: none of the {len(failed)} inputs could be read")
-    names = ", ".join(repr(str(p)) for p, _ in failed[:8])
-    more = f" and {len(failed) - 8} more" if len(failed) > 8 else ""
+                         f"inputs: none of the {len(failed)} inputs could be read "
+                         f"({quoted_names(failed)})")
     warn(command, f"skipped {len(failed)} unreadable input"
-         f"{'s' if len(failed) > 1 else ''}: {names}{more}")
+         f"{'s' if len(failed) > 1 else ''}: {quoted_names(failed)}")
 
 
 def collect_images(inputs: list[str]) -> list[Path]:

@@ -26,6 +26,7 @@ from __future__ import annotations
 import itertools
 import json
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
 
@@ -296,48 +297,45 @@ def hole_crops(mask: NDArray[np.bool_], multiple: int, context: int
     return crops, labels
 
 
-def _sample_crops(model: TacDiffModel, planes: NDArray[np.float32],
-                  crops: list[tuple[int, int, int, int]], labels: NDArray[np.int32],
-                  steps: int, sampler: Sampler) -> NDArray[np.float32]:
-    """Samples every crop of the padded ``C x H x W`` planes (one batch per crop size) and
-    returns the ``3 x H x W`` image estimate: each crop's output on its own hole, the prior
-    elsewhere."""
+Box = tuple[int, int, int, int]
+
+
+def _sample_boxes(model: TacDiffModel, planes: NDArray[np.float32], boxes: list[Box],
+                  owned: Callable[[int, Box], NDArray[np.bool_]], steps: int,
+                  sampler: Sampler) -> NDArray[np.float32]:
+    """Samples every box ``(y0, x0, y1, x1)`` of the padded ``C x H x W`` planes (one batch per
+    box size) and returns the ``3 x H x W`` image estimate: box ``i``'s output on the pixels
+    ``owned(i, box)`` marks (a ``y1 - y0 x x1 - x0`` bool array), the prior elsewhere."""
     out = planes[7:10].copy()
     by_shape: dict[tuple[int, int], list[int]] = {}
-    for i, (y0, x0, y1, x1) in enumerate(crops):
+    for i, (y0, x0, y1, x1) in enumerate(boxes):
         by_shape.setdefault((y1 - y0, x1 - x0), []).append(i)
     for idx in by_shape.values():
-        batch = np.stack([planes[:, crops[i][0]:crops[i][2], crops[i][1]:crops[i][3]]
+        batch = np.stack([planes[:, boxes[i][0]:boxes[i][2], boxes[i][1]:boxes[i][3]]
                           for i in idx])
         res = _sample(model, batch, steps, sampler)
         for i, r in zip(idx, res, strict=True):
-            y0, x0, y1, x1 = crops[i]
-            own = labels[y0:y1, x0:x1] == i + 1
+            y0, x0, y1, x1 = boxes[i]
+            own = owned(i, boxes[i])
             out[:, y0:y1, x0:x1][:, own] = r[:, own]
     return out
 
 
-def _sample_windows(model: TacDiffModel, planes: NDArray[np.float32],
-                    windows: list[tuple[int, int, int, int]], owner: NDArray[np.int32],
-                    steps: int, sampler: Sampler) -> NDArray[np.float32]:
-    """Samples every window of the padded ``C x H x W`` planes (batched by size) and returns
-    the ``3 x H x W`` image estimate: each window's output on the cells it owns, the prior
-    elsewhere."""
-    m = model.multiple
-    out = planes[7:10].copy()
-    by_shape: dict[tuple[int, int], list[int]] = {}
-    for i, (y0, x0, y1, x1) in enumerate(windows):
-        by_shape.setdefault((y1 - y0, x1 - x0), []).append(i)
-    for idx in by_shape.values():
-        batch = np.stack([planes[:, windows[i][0]:windows[i][2], windows[i][1]:windows[i][3]]
-                          for i in idx])
-        res = _sample(model, batch, steps, sampler)
-        for i, r in zip(idx, res, strict=True):
-            y0, x0, y1, x1 = windows[i]
-            own = owner[y0 // m:y1 // m, x0 // m:x1 // m] == i
-            own_px = np.repeat(np.repeat(own, m, axis=0), m, axis=1)
-            out[:, y0:y1, x0:x1][:, own_px] = r[:, own_px]
-    return out
+def _crop_owner(labels: NDArray[np.int32]) -> Callable[[int, Box], NDArray[np.bool_]]:
+    """Crop ``i`` fills its own hole (label ``i + 1`` of :func:`hole_crops`)."""
+    def owned(i: int, box: Box) -> NDArray[np.bool_]:
+        y0, x0, y1, x1 = box
+        return labels[y0:y1, x0:x1] == i + 1
+    return owned
+
+
+def _window_owner(owner: NDArray[np.int32], m: int) -> Callable[[int, Box], NDArray[np.bool_]]:
+    """Window ``i`` fills the ``m`` px cells it owns (:func:`hole_windows`)."""
+    def owned(i: int, box: Box) -> NDArray[np.bool_]:
+        y0, x0, y1, x1 = box
+        own = owner[y0 // m:y1 // m, x0 // m:x1 // m] == i
+        return np.repeat(np.repeat(own, m, axis=0), m, axis=1)
+    return owned
 
 
 def _sample(model: TacDiffModel, x: NDArray[np.float32], steps: int, sampler: Sampler
@@ -458,10 +456,11 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
         x0 = _sample(net, planes[None], steps, sampler)[0]
     elif kind == "holes":
         windows, owner = data
-        x0 = _sample_windows(net, planes, windows, owner, steps, sampler)
+        x0 = _sample_boxes(net, planes, windows, _window_owner(owner, net.multiple),
+                           steps, sampler)
     elif kind == "crops":
         crops, labels = data
-        x0 = _sample_crops(net, planes, crops, labels, steps, sampler)
+        x0 = _sample_boxes(net, planes, crops, _crop_owner(labels), steps, sampler)
     else:
         origins, run, side = data
         hwc = np.ascontiguousarray(planes[:, :h, :w].transpose(1, 2, 0))

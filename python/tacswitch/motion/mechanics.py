@@ -77,6 +77,8 @@ def mechanics_field(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None, *,
     ``((j + 0.5) st - 0.5, (i + 0.5) st - 0.5)``)."""
     import cv2
 
+    from tacswitch.sim.motion import thickness_blur
+
     h, w = img.shape[:2]
     st = _step(w)
     gh, gw = -(-h // st), -(-w // st)
@@ -92,10 +94,7 @@ def mechanics_field(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None, *,
     top = float(np.percentile(pos, 98)) if pos.size else 0.0
     if top <= 0:
         return np.zeros((gh, gw, 2), np.float32), st
-    s = max(t_px / st, 0.5)
-    k = int(2 * np.ceil(3 * s) + 1)
-    smooth = cv2.GaussianBlur(coarse / np.float32(top), (k, k), s,
-                              borderType=cv2.BORDER_REFLECT_101)
+    smooth = thickness_blur(coarse / np.float32(top), t_px / st)
     gy, gx = np.gradient(smooth.astype(np.float64), float(st))
     return (-gain * t_px * t_px * np.stack([gx, gy], -1)).astype(np.float32), st
 

@@ -123,6 +123,19 @@ def stick_cap(pressure: NDArray, load_ratio: float) -> float:
     return 0.5 * (lo + hi)
 
 
+def thickness_blur(a: NDArray, sigma_cells: float) -> NDArray[np.float32]:
+    """``a`` (a coarse ``gh x gw`` map) blurred by a Gaussian of one gel thickness,
+    ``sigma_cells`` grid cells (at least 0.5), edges reflected: the smoothing of the press
+    dilation law (the gel flows outward along ``-grad`` of it), shared with the markerless
+    mechanics rule."""
+    import cv2
+
+    s = max(float(sigma_cells), 0.5)
+    k = int(2 * np.ceil(3 * s) + 1)
+    return np.asarray(cv2.GaussianBlur(np.asarray(a, np.float32), (k, k), s,
+                                       borderType=cv2.BORDER_REFLECT_101), np.float32)
+
+
 def contact_displacement(
     pressure: NDArray,
     step_px: float,
@@ -179,12 +192,7 @@ def contact_displacement(
         if den > 0:
             out += u * ((u[zone] * rigid[zone]).sum() / den)
     if dilation != 0 and gel is not None:
-        import cv2
-
-        s = max(thickness_mm / step_mm, 0.5)
-        k = int(2 * np.ceil(3 * s) + 1)
-        smooth = cv2.GaussianBlur(np.asarray(gel, np.float32), (k, k), s,
-                                  borderType=cv2.BORDER_REFLECT_101)
+        smooth = thickness_blur(gel, thickness_mm / step_mm)
         dy, dx = np.gradient(smooth, step_mm)
         out -= dilation * thickness_mm / mm_per_px * np.stack([dx, dy], axis=-1)
     return out.astype(np.float32), stick

@@ -27,7 +27,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from harness import interleaved, machine, named_models, publish, table
+from harness import interleaved, machine, named_models, publish, pure_press_gains, table
 
 from tacswitch.motion import proxy
 from tacswitch.motion.evaluate import motion_metrics
@@ -168,25 +168,13 @@ def calibrate_outward(n: int = 40) -> int:
     marker motion of simulated presses (no shear), against the no-contact frame and single-frame:
     the source of ``tacswitch.motion.heuristic.OUTWARD_GAIN`` (never the proxy)."""
     from tacswitch.motion.heuristic import outward_motion
-    from tacswitch.sim.indenters import CLASSES
-    from tacswitch.sim.scene import Scene
 
+    # gain 1: the largest motion is one pitch, so the fitted scale is in pitches.
+    gains = pure_press_gains(outward_motion, n)
     for preset in ("gelsight_mini", "gelsight"):
-        num = {"ref": 0.0, "single": 0.0}
-        den = {"ref": 0.0, "single": 0.0}
-        for k in range(n):
-            rng = np.random.default_rng([7, k])
-            scene = Scene(preset, rng, label=CLASSES[1 + k % (len(CLASSES) - 1)])
-            f = scene.render(rng, depth=scene.depth)
-            ref = scene.render(rng, depth=0.0).image
-            for mode, r in (("ref", ref), ("single", None)):
-                # gain 1: the largest motion is one pitch, so the fitted scale is in pitches.
-                p = outward_motion(f.image, r, scene.rest, gain=1.0)
-                num[mode] += float((p * f.displacement).sum())
-                den[mode] += float((p * p).sum())
         print(f"{preset}: least-squares OUTWARD_GAIN (pitches) with ref "
-              f"{num['ref'] / max(den['ref'], 1e-12):.4f}, single-frame "
-              f"{num['single'] / max(den['single'], 1e-12):.4f} ({n} simulated presses)")
+              f"{gains[preset, 'ref']:.4f}, single-frame "
+              f"{gains[preset, 'single']:.4f} ({n} simulated presses)")
     return 0
 
 

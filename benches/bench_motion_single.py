@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from harness import held_out_motion_pairs, machine, publish
+from harness import held_out_motion_pairs, machine, publish, pure_press_gains
 
 from tacswitch.motion import proxy
 from tacswitch.motion.evaluate import motion_metrics
@@ -134,24 +134,8 @@ def calibrate(n: int = 40) -> int:
     simulator's pure presses (no shear; 40 per preset, seeds [7, k] as the outward rule's
     calibration), with the no-contact reference and single-frame; per preset and pooled (the
     shipped ``MECHANICS_GAIN`` is the pooled value of both presets and both settings)."""
-    from tacswitch.sim.indenters import CLASSES
-    from tacswitch.sim.scene import Scene
-
-    num: dict[tuple[str, str], float] = {}
-    den: dict[tuple[str, str], float] = {}
-    for preset in ("gelsight_mini", "gelsight"):
-        for k in range(n):
-            rng = np.random.default_rng([7, k])
-            scene = Scene(preset, rng, label=CLASSES[1 + k % (len(CLASSES) - 1)])
-            f = scene.render(rng, depth=scene.depth)
-            ref = scene.render(rng, depth=0.0).image
-            for mode, r in (("ref", ref), ("single", None)):
-                p = mechanics_motion(f.image, r, scene.rest, gain=1.0)
-                for key in ((preset, mode), ("pooled", mode), ("pooled", "both")):
-                    num[key] = num.get(key, 0.0) + float((p * f.displacement).sum())
-                    den[key] = den.get(key, 0.0) + float((p * p).sum())
-    for key in num:
-        print(f"{key[0]:14s} {key[1]:6s} least-squares gain {num[key] / max(den[key], 1e-12):.4f}")
+    for key, gain in pure_press_gains(mechanics_motion, n).items():
+        print(f"{key[0]:14s} {key[1]:6s} least-squares gain {gain:.4f}")
     return 0
 
 

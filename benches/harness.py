@@ -165,3 +165,30 @@ def held_out_motion_pairs(root: Path, n: int) -> dict[str, Any]:
         d = mdata.load_split(root, split)
         parts.append({k: v[:n] for k, v in d.items()})
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
+def pure_press_gains(rule: Callable[..., Any], n: int = 40) -> dict[tuple[str, str], float]:
+    """Least-squares scale of a motion rule against the true marker motion of the simulator's
+    pure presses (no shear; ``n`` per preset, seeds ``[7, k]``): ``rule(img, ref, rest,
+    gain=1.0)`` with the no-contact reference (``"ref"``) and single-frame (``"single"``).
+    Keys ``(preset, mode)`` for GelSight Mini and GelSight, plus ``("pooled", mode)`` and
+    ``("pooled", "both")``. The calibration of the no-learning rules (never the proxies)."""
+    import numpy as np
+
+    from tacswitch.sim.indenters import CLASSES
+    from tacswitch.sim.scene import Scene
+
+    num: dict[tuple[str, str], float] = {}
+    den: dict[tuple[str, str], float] = {}
+    for preset in ("gelsight_mini", "gelsight"):
+        for k in range(n):
+            rng = np.random.default_rng([7, k])
+            scene = Scene(preset, rng, label=CLASSES[1 + k % (len(CLASSES) - 1)])
+            f = scene.render(rng, depth=scene.depth)
+            ref = scene.render(rng, depth=0.0).image
+            for mode, r in (("ref", ref), ("single", None)):
+                p = rule(f.image, r, scene.rest, gain=1.0)
+                for key in ((preset, mode), ("pooled", mode), ("pooled", "both")):
+                    num[key] = num.get(key, 0.0) + float((p * f.displacement).sum())
+                    den[key] = den.get(key, 0.0) + float((p * p).sum())
+    return {key: num[key] / max(den[key], 1e-12) for key in num}

@@ -104,3 +104,20 @@ def test_train_callback_sees_the_ema_at_its_steps(tmp_path: Path, marker_frames)
     train([pairs], tmp_path / "r", cfg, progress=False,
           callback=lambda step, ema: seen.append((step, ema.training)), callback_every=2)
     assert seen == [(2, False), (4, False), (5, False)]
+
+
+def test_finetune_trains_at_the_start_models_prior_radius(tmp_path: Path, marker_frames):
+    torch = pytest.importorskip("torch")
+    pytest.importorskip("onnx")
+    from tacswitch.tacdiff.infer import TacDiffModel
+    from tacswitch.tacdiff.model import DenoiserUNet, UNetConfig
+    from tacswitch.tacdiff.train import save_weights
+
+    arch = UNetConfig(base=8, mults=(1, 2), prior_radius=7)
+    start = save_weights(DenoiserUNet(arch), tmp_path / "start.safetensors", arch.to_dict())
+    res = ft.finetune(marker_frames, tmp_path / "ft", init=start, steps=1, batch=1, crop=64,
+                      lr=0.0, val_every=1, threads=1, progress=False)
+    ck = torch.load(tmp_path / "ft" / "checkpoint.pt", map_location="cpu", weights_only=False)
+    assert ck["config"]["prior_radius"] == 7.0  # the sampler's fills and the EMA's record
+    assert TacDiffModel(tmp_path / "ft" / "start.onnx").prior_radius == 7.0
+    assert TacDiffModel(res.model).prior_radius == 7.0

@@ -138,6 +138,7 @@ def test_train_tacdiff_tiny_run_resumes_and_exports(tmp_path: Path):
     model = TacDiffModel(run / "model.onnx", threads=1)
     rng = np.random.default_rng(0)
     assert model.prior == net.cfg.prior == "telea+biharmonic-grown"  # DEFAULT_PRIOR
+    assert model.prior_radius == net.cfg.prior_radius == 12  # DEFAULT_PRIOR_RADIUS
     arrs = [rng.standard_normal((1, c, 32, 48)).astype(np.float32) for c in (3, 1, 3, 3, 3, 3)]
     arrs[1] = (arrs[1] > 0.5).astype(np.float32)
     with torch.no_grad():
@@ -173,3 +174,52 @@ def test_finetune_on_marker_frames(tmp_path: Path, marker_frames, marker_frame_d
     assert out.shape == marker_frames[0].shape
     assert main(["finetune", "--images", str(src), "--out", str(tmp_path / "x"), "--offset",
                  "nope", "-q"]) == 1
+
+
+def test_fills_follow_the_prior_radius(marker_frames):
+    from tacswitch.tacdiff.prior import PRIOR_RADIUS
+
+    prior = "telea+biharmonic-grown"
+    shard = tdata.marker_offset_pairs(marker_frames, offset=(14, 14))
+    # A cache as written before radii were recorded: r = 3, no fills_radius.
+    shard["telea"], shard["smooth"] = tdata.classical_fills(shard["cond"], shard["mask"], prior,
+                                                            PRIOR_RADIUS)
+    shard["fills_prior"] = np.array(prior)
+    assert tdata.has_fills(shard, prior, 3) and not tdata.has_fills(shard, prior, 12)
+    smooth = shard["smooth"]
+    sampler = tdata.CropSampler([shard], 64, prior=prior, prior_radius=12)
+    assert sampler.prior_radius == 12.0 and tdata.has_fills(shard, prior, 12)
+    assert shard["smooth"] is smooth  # the biharmonic fill has no radius: kept
+    want = tdata.classical_fills(shard["cond"], shard["mask"], prior, 12)[0]
+    np.testing.assert_array_equal(shard["telea"], want)
+    assert not np.array_equal(want, tdata.classical_fills(shard["cond"], shard["mask"], "telea",
+                                                          3)[0])
+    for bad in (0, 0.5, 65, float("nan"), "wide"):
+        with pytest.raises(ValueError, match="prior_radius"):
+            tdata.CropSampler([shard], 64, prior=prior, prior_radius=bad)  # type: ignore[arg-type]
+
+
+def test_train_records_the_prior_radius(tmp_path: Path, marker_frames):
+    pytest.importorskip("torch")
+    pytest.importorskip("onnx")
+    import onnx
+
+    from tacswitch.tacdiff.export import export_onnx
+    from tacswitch.tacdiff.infer import TacDiffModel
+    from tacswitch.tacdiff.train import TrainConfig, load_network, train
+
+    pairs = tdata.marker_offset_pairs(marker_frames, offset=(14, 14))
+    cfg = TrainConfig(base=8, steps=1, batch=1, crop=64, warmup=1, threads=1, prior_radius=7,
+                      save_every=100, log_every=100)
+    net = train([pairs], tmp_path / "r", cfg, progress=False)
+    assert float(pairs["fills_radius"]) == 7.0  # the sampler's fills used it
+    path = export_onnx(net, tmp_path / "m.onnx")
+    meta = {p.key: p.value for p in onnx.load(str(path)).metadata_props}
+    assert meta["tacswitch.prior_radius"] == "7"
+    assert TacDiffModel(path).prior_radius == 7.0
+    assert load_network(tmp_path / "r" / "model.safetensors").cfg.prior_radius == 7.0
+    with pytest.raises(ValueError, match="prior_radius"):
+        train([pairs], tmp_path / "bad", TrainConfig(base=8, steps=1, prior_radius=0),
+              progress=False)
+    assert main(["train", "tacdiff", "--data", str(tmp_path / "none"), "--prior-radius", "200",
+                 "--out", str(tmp_path / "x"), "-q"]) == 1

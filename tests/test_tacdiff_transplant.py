@@ -122,12 +122,13 @@ def test_network_from_onnx_round_trip(tmp_path: Path):
     from tacswitch.tacdiff.model import DenoiserUNet, UNetConfig
 
     torch.manual_seed(0)
-    net = DenoiserUNet(UNetConfig(base=8))
+    net = DenoiserUNet(UNetConfig(base=8, prior_radius=5))
     with torch.no_grad():  # non-trivial GroupNorm scales and shifts, zero-initialised layers
         for p in net.parameters():
             p.add_(0.1 * torch.randn_like(p))
     path = export_onnx(net, tmp_path / "m.onnx")
     back = network_from_onnx(path)
+    assert back.cfg.prior_radius == 5.0  # recorded as tacswitch.prior_radius
     for k, v in net.state_dict().items():
         torch.testing.assert_close(back.state_dict()[k], v)
     with pytest.raises(ValueError, match="path"):

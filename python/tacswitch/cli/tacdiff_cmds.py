@@ -48,6 +48,10 @@ def add_train_parser(what: argparse._SubParsersAction) -> None:
                    help="classical fill the network refines (tacswitch.tacdiff.prior.PRIORS; "
                         "default: that of --init, else the library default); with --init it "
                         "must take the same inputs as the init's")
+    m.add_argument("--prior-radius", type=float, default=None, metavar="R",
+                   help="TELEA radius (px) of that fill in training, recorded in the model "
+                        "(tacswitch.prior_radius) and used at inference (default: that of "
+                        "--init, else 12, remove_markers' radius)")
     m.add_argument("--no-realism", dest="realism", action="store_false",
                    help="render the 0.2 data with --simulate (no camera/recorder capture, "
                         "masks = true markers dilated once)")
@@ -64,7 +68,13 @@ def run_train(args: argparse.Namespace) -> int:
     from tacswitch.tacdiff.data import load_pairs, render_pairs
     from tacswitch.tacdiff.export import export_onnx
     from tacswitch.tacdiff.model import MULTIPLE
-    from tacswitch.tacdiff.prior import DEFAULT_PRIOR, check_prior, input_channels
+    from tacswitch.tacdiff.prior import (
+        DEFAULT_PRIOR,
+        DEFAULT_PRIOR_RADIUS,
+        check_prior,
+        check_radius,
+        input_channels,
+    )
     from tacswitch.tacdiff.train import TrainConfig, train
 
     if args.crop % MULTIPLE or args.crop < MULTIPLE:
@@ -96,12 +106,16 @@ def run_train(args: argparse.Namespace) -> int:
     check_prior(prior)
     if arch is not None and input_channels(prior) != input_channels(arch.prior):
         raise ValueError(f"--prior: {prior!r} takes other inputs than --init's {arch.prior!r}")
+    radius = check_radius(args.prior_radius if args.prior_radius is not None
+                          else arch.prior_radius if arch else DEFAULT_PRIOR_RADIUS,
+                          "--prior-radius")
     if args.simulate:
         render_pairs(args.data, args.simulate, seed=args.seed, progress=not args.quiet,
                      realism=args.realism)
     shards = load_pairs(args.data)
     shape = {} if arch is None else {"mults": arch.mults, "attention": arch.attention}
     cfg = TrainConfig(base=args.base or (arch.base if arch else 24), **shape, prior=prior,
+                      prior_radius=radius,
                       steps=args.steps, batch=args.batch, crop=args.crop,
                       lr=args.lr, warmup=args.warmup, save_every=args.save_every,
                       threads=args.threads,

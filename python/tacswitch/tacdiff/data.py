@@ -31,7 +31,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch.markers import Markers
-from tacswitch.tacdiff.prior import DEFAULT_PRIOR, check_prior, combine, fills, has_spread
+from tacswitch.tacdiff.prior import (
+    DEFAULT_PRIOR,
+    DEFAULT_PRIOR_RADIUS,
+    PRIOR_RADIUS,
+    check_prior,
+    check_radius,
+    combine,
+    fills,
+    has_spread,
+)
 from tacswitch.tacdiff.prior import to_net as prior_to_net
 from tacswitch.tacdiff.transplant import DEFAULT_RING
 
@@ -132,7 +141,7 @@ def remask(root: str | Path, progress: bool = True) -> int:
         if np.array_equal(mask, arrays["mask"]):
             continue
         arrays["mask"], arrays["loss_mask"] = mask, mask.copy()
-        for key in ("telea", "smooth", "fills_prior"):  # fills of the old mask
+        for key in ("telea", "smooth", "fills_prior", "fills_radius"):  # fills of the old mask
             arrays.pop(key, None)
         with atomic_open(path, "wb") as fh:
             np.savez(fh, **arrays)  # type: ignore[arg-type]
@@ -276,14 +285,17 @@ class CropSampler:
     Augmentation: flips, 90-degree turns (square crops), and a per-crop colour gain/offset applied
     identically to ``cond``, ``target`` and the classical fills (both are linear in the image) so
     the model does not learn one sensor's lighting. ``prior`` names the classical fill the
-    residual is taken over (:mod:`~tacswitch.tacdiff.prior`); the fills are computed once per
-    shard (``telea``, ``smooth`` arrays added to it).
+    residual is taken over (:mod:`~tacswitch.tacdiff.prior`) and ``prior_radius`` its TELEA
+    radius (px); the fills are computed once per shard (``telea``, ``smooth`` arrays added to
+    it, see :func:`ensure_fills`).
     """
 
     def __init__(self, shards: Sequence[dict[str, NDArray[Any]]], size: int = 64,
                  augment: bool = True, *, prior: str = DEFAULT_PRIOR,
+                 prior_radius: float = DEFAULT_PRIOR_RADIUS,
                  contact_share: float = 0.0, hole_share: float = 0.5) -> None:
         self.prior = check_prior(prior)
+        self.prior_radius = check_radius(prior_radius)
         if not (0 <= contact_share and 0 <= hole_share and contact_share + hole_share <= 1):
             raise ValueError("contact_share, hole_share: need shares >= 0 summing to <= 1; got "
                              f"{contact_share}, {hole_share}")
@@ -298,11 +310,7 @@ class CropSampler:
         self.size = size
         self.augment = augment
         for sh in self.shards:
-            if not has_fills(sh, self.prior):
-                sh["telea"], smooth = classical_fills(sh["cond"], sh["mask"], prior)
-                sh["fills_prior"] = np.array(self.prior)
-                if smooth is not None:
-                    sh["smooth"] = smooth
+            ensure_fills(sh, self.prior, self.prior_radius)
         weights = np.array([len(s["cond"]) for s in self.shards], np.float64)
         self.shard_p = weights / weights.sum()
         # Loss pixels per sample (all, and those in contact), for centred crops (computed once).
@@ -368,44 +376,75 @@ class CropSampler:
         return out
 
 
-def has_fills(shard: dict[str, NDArray[Any]], prior: str) -> bool:
-    """Whether ``shard`` carries the classical fills of ``prior`` (``telea``, ``smooth``),
-    recorded as computed for it (``fills_prior``), e.g. by :func:`cache_fills`."""
+def fills_radius(shard: dict[str, NDArray[Any]]) -> float:
+    """The TELEA radius (px) ``shard``'s cached ``telea`` fill was computed with (``fills_radius``;
+    absent: :data:`~tacswitch.tacdiff.prior.PRIOR_RADIUS`, the caches of models before 0.4)."""
+    return float(shard.get("fills_radius", PRIOR_RADIUS))
+
+
+def has_fills(shard: dict[str, NDArray[Any]], prior: str,
+              radius: float = DEFAULT_PRIOR_RADIUS) -> bool:
+    """Whether ``shard`` carries the classical fills of ``prior`` at TELEA ``radius`` px
+    (``telea``, ``smooth``), recorded as computed for them (``fills_prior``, ``fills_radius``),
+    e.g. by :func:`cache_fills`."""
     kind = shard.get("fills_prior")
     return (kind is not None and str(kind) == prior and "telea" in shard
+            and fills_radius(shard) == float(radius)
             and (not has_spread(prior) or "smooth" in shard))
 
 
-def cache_fills(root: str | Path, prior: str = DEFAULT_PRIOR, progress: bool = True) -> int:
-    """Stores the classical fills of ``prior`` in every shard under ``root`` that lacks them,
-    so training runs (and resumed runs) on those shards skip computing them. Returns the number
-    of shards written. :func:`remask` drops them again when a mask changes."""
+def ensure_fills(shard: dict[str, NDArray[Any]], prior: str,
+                 radius: float = DEFAULT_PRIOR_RADIUS) -> bool:
+    """Adds (or replaces) ``shard``'s classical fills of ``prior`` at TELEA ``radius`` px unless
+    it has them; returns whether it computed any. Where only the radius differs the biharmonic
+    ``smooth`` fill (which has no radius) is kept and only TELEA is solved again."""
+    check_prior(prior)
+    radius = check_radius(radius)
+    if has_fills(shard, prior, radius):
+        return False
+    kind = shard.get("fills_prior")
+    if (kind is not None and str(kind) == prior and has_spread(prior) and "smooth" in shard):
+        shard["telea"] = classical_fills(shard["cond"], shard["mask"], "telea", radius)[0]
+    else:
+        shard.pop("smooth", None)
+        shard["telea"], smooth = classical_fills(shard["cond"], shard["mask"], prior, radius)
+        if smooth is not None:
+            shard["smooth"] = smooth
+    shard["fills_prior"] = np.array(prior)
+    shard["fills_radius"] = np.array(radius)
+    return True
+
+
+def cache_fills(root: str | Path, prior: str = DEFAULT_PRIOR, progress: bool = True,
+                radius: float = DEFAULT_PRIOR_RADIUS) -> int:
+    """Stores the classical fills of ``prior`` at TELEA ``radius`` px in every shard under
+    ``root`` that lacks them, so training runs (and resumed runs) on those shards skip computing
+    them. Returns the number of shards written. :func:`remask` drops them again when a mask
+    changes."""
     from tacswitch._io import atomic_open
 
     check_prior(prior)
+    radius = check_radius(radius)
     done = 0
     for path in sorted(Path(root).glob("pairs_*.npz")):
         arrays = dict(np.load(path))
-        if has_fills(arrays, prior):
+        if not ensure_fills(arrays, prior, radius):
             continue
-        arrays.pop("smooth", None)
-        arrays["telea"], smooth = classical_fills(arrays["cond"], arrays["mask"], prior)
-        if smooth is not None:
-            arrays["smooth"] = smooth
-        arrays["fills_prior"] = np.array(prior)
         with atomic_open(path, "wb") as fh:
             np.savez(fh, **arrays)  # type: ignore[arg-type]
         done += 1
         if progress:
-            print(f"{path.name}: fills of {prior}", flush=True)
+            print(f"{path.name}: fills of {prior}, TELEA r = {radius:g}", flush=True)
     return done
 
 
-def classical_fills(frames: NDArray[np.uint8], masks: NDArray[np.bool_], prior: str
+def classical_fills(frames: NDArray[np.uint8], masks: NDArray[np.bool_], prior: str,
+                    radius: float = DEFAULT_PRIOR_RADIUS
                     ) -> tuple[NDArray[np.uint8], NDArray[np.uint8] | None]:
-    """``B x H x W x 3`` frames with their holes filled by TELEA, and by the biharmonic fill when
-    ``prior`` uses it (:func:`tacswitch.tacdiff.prior.fills`, as at inference)."""
-    pairs = [fills(f, m, prior) for f, m in zip(frames, masks, strict=True)]
+    """``B x H x W x 3`` frames with their holes filled by TELEA of ``radius`` px, and by the
+    biharmonic fill when ``prior`` uses it (:func:`tacswitch.tacdiff.prior.fills`, as at
+    inference)."""
+    pairs = [fills(f, m, prior, radius) for f, m in zip(frames, masks, strict=True)]
     telea = np.stack([p[0] for p in pairs])
     smooth = np.stack([p[1] for p in pairs]) if has_spread(prior) else None  # type: ignore[misc]
     return telea, smooth

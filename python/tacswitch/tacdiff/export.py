@@ -28,7 +28,7 @@ import torch
 from torch import nn
 
 from tacswitch.tacdiff.model import MULTIPLE, RESIDUAL_SCALE, DenoiserUNet, network_input
-from tacswitch.tacdiff.prior import PRIOR_RADIUS, has_spread
+from tacswitch.tacdiff.prior import PRIOR_RADIUS, check_radius, has_spread
 
 OPSET = 17
 #: Image inputs of every model, then ``spread`` for two-fill priors, then ``sigma``.
@@ -86,7 +86,7 @@ def export_onnx(net: DenoiserUNet, path: str | Path, *, metadata: dict[str, Any]
             "tacswitch.target": f"residual-over-{net.cfg.prior}",
             "tacswitch.prior": net.cfg.prior,
             # The TELEA radius the training priors used (infer.prior_radius reads it).
-            "tacswitch.prior_radius": str(PRIOR_RADIUS),
+            "tacswitch.prior_radius": f"{check_radius(net.cfg.prior_radius):g}",
             "tacswitch.residual_scale": str(RESIDUAL_SCALE),
             "tacswitch.schedule": "cosine-ztsnr", "tacswitch.colour_order": "BGR",
             "tacswitch.multiple": str(MULTIPLE), "tacswitch.unet": json.dumps(net.cfg.to_dict())}
@@ -112,9 +112,12 @@ def network_from_onnx(path: str | Path) -> DenoiserUNet:
     if meta.get("tacswitch.kind") != "tacdiff" or "tacswitch.unet" not in meta:
         raise ValueError(f"path: {str(path)!r} is not a TacDiff ONNX model")
     cfg = json.loads(meta["tacswitch.unet"])
+    # The radius metadata wins over the architecture's record: set_metadata may change it.
+    radius = meta.get("tacswitch.prior_radius", cfg.get("prior_radius", PRIOR_RADIUS))
     net = DenoiserUNet(UNetConfig(base=cfg["base"], mults=tuple(cfg["mults"]),
                                   attention=cfg["attention"], emb=cfg["emb"],
-                                  prior=cfg["prior"]))
+                                  prior=cfg["prior"],
+                                  prior_radius=check_radius(radius, "path")))
     named, anonymous = {}, []
     for init in model.graph.initializer:
         arr = numpy_helper.to_array(init)

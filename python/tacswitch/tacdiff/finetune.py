@@ -332,8 +332,10 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
                               "start": round(float(start_scores.mean()), 4),
                               "beats_start": ok}), flush=True)
 
+    # The start model's prior radius: its weights were trained (and it is scored) with it.
     cfg = TrainConfig(base=arch.base, mults=arch.mults, attention=arch.attention,
-                      prior=arch.prior, steps=steps, batch=batch, crop=crop, lr=lr,
+                      prior=arch.prior, prior_radius=arch.prior_radius, steps=steps, batch=batch,
+                      crop=crop, lr=lr,
                       warmup=min(100, steps // 10), seed=seed, threads=threads,
                       extra={**(extra or {}), "offset": list(offset), "transplant": transplant,
                              "ring": ring, "train_frames": tr, "val_frames": va})

@@ -32,7 +32,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from tacswitch.tacdiff.prior import DEFAULT_PRIOR, input_channels
+from tacswitch.tacdiff.prior import DEFAULT_PRIOR, DEFAULT_PRIOR_RADIUS, input_channels
 
 #: H and W of the input must be multiples of this (stem 2 x three 2x downsamplings).
 MULTIPLE = 16
@@ -54,6 +54,9 @@ class UNetConfig:
         emb: width of the noise-level embedding.
         prior: the classical fill the residual is taken over
             (:data:`tacswitch.tacdiff.prior.PRIORS`).
+        prior_radius: TELEA radius (px) of that prior, in training and at inference (not
+            part of the architecture; exported as ``tacswitch.prior_radius``). Files that do
+            not record one were trained at :data:`~tacswitch.tacdiff.prior.PRIOR_RADIUS`.
     """
 
     base: int = 32
@@ -61,6 +64,7 @@ class UNetConfig:
     attention: bool = False
     emb: int = 128
     prior: str = DEFAULT_PRIOR
+    prior_radius: float = DEFAULT_PRIOR_RADIUS
 
     @property
     def in_channels(self) -> int:

@@ -37,10 +37,18 @@ PriorKind = Literal["telea", "telea+biharmonic", "telea+biharmonic-grown"]
 PRIORS: tuple[str, ...] = ("telea", "telea+biharmonic", "telea+biharmonic-grown")
 #: Prior of newly trained models (older models record theirs and keep it).
 DEFAULT_PRIOR: PriorKind = "telea+biharmonic-grown"
-#: TELEA radius of the prior in training (every model so far was trained with 3), and at
-#: inference for models that do not record their own (ONNX metadata ``tacswitch.prior_radius``,
-#: :class:`~tacswitch.tacdiff.infer.TacDiffModel`).
+#: TELEA radius (px) of the prior of models that do not record their own (ONNX metadata
+#: ``tacswitch.prior_radius``, safetensors config ``prior_radius``): every model before 0.4 was
+#: trained with 3.
 PRIOR_RADIUS = 3
+#: TELEA radius (px) of the prior of newly trained models (``TrainConfig.prior_radius``,
+#: ``tacswitch train tacdiff --prior-radius``): ``remove_markers``' own radius. On real frames
+#: with painted or compressed markers the wide TELEA averages past the dark ring a marker leaves,
+#: and the 0.3 weights run zero-shot on an r = 12 prior already beat r = 3 there
+#: (``benches/bench_prior_radius.py``). Fine-tuning keeps the start model's radius.
+DEFAULT_PRIOR_RADIUS = 12
+#: Radii a prior may use (px; TELEA takes 1-100, a model file may record up to 64).
+RADIUS_RANGE = (1.0, 64.0)
 #: Growth of each hole (px) before the biharmonic solve of ``"telea+biharmonic-grown"``.
 PRIOR_GROW = 4
 
@@ -50,6 +58,19 @@ def check_prior(kind: str) -> PriorKind:
     if kind not in PRIORS:
         raise ValueError(f"prior: expected one of {PRIORS}; got {kind!r}")
     return kind  # type: ignore[return-value]
+
+
+def check_radius(radius: object, name: str = "prior_radius") -> float:
+    """``radius`` as a float if it is a TELEA radius in :data:`RADIUS_RANGE` px, else
+    ``ValueError`` naming ``name``."""
+    try:
+        r = float(radius)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected a TELEA radius in px; got {radius!r}") from None
+    if not RADIUS_RANGE[0] <= r <= RADIUS_RANGE[1]:  # also refuses NaN
+        raise ValueError(f"{name}: expected a TELEA radius in [{RADIUS_RANGE[0]:g}, "
+                         f"{RADIUS_RANGE[1]:g}] px; got {radius!r}")
+    return r
 
 
 def has_spread(kind: str) -> bool:

@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch._io import save_torch
-from tacswitch.tacdiff.prior import DEFAULT_PRIOR
+from tacswitch.tacdiff.prior import DEFAULT_PRIOR, DEFAULT_PRIOR_RADIUS, PRIOR_RADIUS, check_radius
 from tacswitch.tacdiff.schedule import alpha_sigma
 
 
@@ -40,6 +40,7 @@ class TrainConfig:
     mults: tuple[int, ...] = (1, 2, 3, 4)
     attention: bool = False
     prior: str = DEFAULT_PRIOR  # classical fill the residual is taken over (tacdiff.prior)
+    prior_radius: float = DEFAULT_PRIOR_RADIUS  # that fill's TELEA radius, px
     steps: int = 3000
     batch: int = 12
     crop: int = 96
@@ -108,16 +109,17 @@ def train(shards: list[dict[str, NDArray[Any]]], out: str | Path, cfg: TrainConf
     from tacswitch.tacdiff.data import CropSampler
     from tacswitch.tacdiff.model import DenoiserUNet, UNetConfig, count_params
 
+    radius = check_radius(cfg.prior_radius)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(cfg.seed)
     torch.set_num_threads(cfg.threads or os.cpu_count() or 1)
     ucfg = UNetConfig(base=cfg.base, mults=tuple(cfg.mults), attention=cfg.attention,
-                      prior=cfg.prior)
+                      prior=cfg.prior, prior_radius=radius)
     net = DenoiserUNet(ucfg)
     ema = DenoiserUNet(ucfg)
-    sampler = CropSampler(shards, cfg.crop, prior=cfg.prior, contact_share=cfg.contact_share,
-                          hole_share=cfg.hole_share)
+    sampler = CropSampler(shards, cfg.crop, prior=cfg.prior, prior_radius=radius,
+                          contact_share=cfg.contact_share, hole_share=cfg.hole_share)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
 
     def lr_at(step: int) -> float:
@@ -267,7 +269,10 @@ def load_network(path: str | Path) -> Any:
     net = DenoiserUNet(UNetConfig(base=cfg.get("base", defaults.base),
                                   mults=tuple(cfg.get("mults", defaults.mults)),
                                   attention=cfg.get("attention", defaults.attention),
-                                  # Files written before the prior was recorded used TELEA.
-                                  prior=cfg.get("prior", "telea")))
+                                  # Files written before the prior was recorded used TELEA,
+                                  # those before its radius was recorded r = 3.
+                                  prior=cfg.get("prior", "telea"),
+                                  prior_radius=check_radius(
+                                      cfg.get("prior_radius", PRIOR_RADIUS), "path")))
     net.load_state_dict(load_weights(p))
     return net.eval()

@@ -7,7 +7,7 @@ import pytest
 
 from tacswitch.motion import proxy
 from tacswitch.motion.infer import predict_motion
-from tacswitch.motion.mechanics import THICKNESS_FRAC, mechanics_motion
+from tacswitch.motion.mechanics import REACH_FRAC, mechanics_motion
 
 
 def _pressed(h: int = 240, w: int = 320, centre: tuple[float, float] = (159.5, 119.5),
@@ -42,7 +42,9 @@ def test_symmetric_imprint_gives_a_radial_outward_field(ref: bool) -> None:
     rest = np.full_like(img, 140) if ref else None
     for radius in (15.0, 40.0, 70.0):
         pts = _ring(c, radius)
-        m = mechanics_motion(img, rest, pts)
+        # A reach of 34 px: the default (85 px here) meets the frame's borders, whose reflection
+        # is not symmetric about the contact.
+        m = mechanics_motion(img, rest, pts, thickness_px=34.0)
         out = (pts - np.array(c, np.float32)) / radius
         radial = (m * out).sum(1)
         tangential = m[:, 0] * out[:, 1] - m[:, 1] * out[:, 0]
@@ -54,10 +56,11 @@ def test_symmetric_imprint_gives_a_radial_outward_field(ref: bool) -> None:
 def test_field_reaches_beyond_the_changed_region_and_fades() -> None:
     c = (159.5, 119.5)
     img = _pressed(centre=c)
-    # The imprint ends ~35 px from the centre; the gel thickness is ~34 px at 320 px wide.
+    # The imprint ends ~35 px from the centre; the reach is ~85 px at 320 px wide (the real
+    # GelSight's outward motion peaks at 2.5-3 contact radii and fades over ~6).
     near, far, very_far = (np.linalg.norm(mechanics_motion(img, None, _ring(c, r)), axis=1).mean()
                            for r in (45.0, 80.0, 150.0))
-    assert near > far > very_far >= 0 and far > 0.2 * near
+    assert far > 0.5 * near > 0 and far > very_far >= 0
     # The outward rule, by contrast, has (almost) nothing where the image did not change.
     out = np.linalg.norm(predict_motion(img, None, _ring(c, 80.0), method="outward"), axis=1)
     assert out.mean() < 0.1 * far
@@ -69,7 +72,7 @@ def test_thicker_gel_reaches_farther() -> None:
     pts = _ring(c, 90.0)
     thin = np.linalg.norm(mechanics_motion(img, None, pts, thickness_px=20.0), axis=1).mean()
     default = np.linalg.norm(mechanics_motion(img, None, pts), axis=1).mean()
-    assert THICKNESS_FRAC * 320 > 20.0 and default > thin
+    assert REACH_FRAC * 320 > 20.0 and default > thin
 
 
 def test_bad_inputs_name_the_argument() -> None:
@@ -147,3 +150,26 @@ def test_warp_dense_moves_a_dot_by_the_field() -> None:
     w = g[ys, xs]
     moved = np.array([(xs * w).sum() / w.sum(), (ys * w).sum() / w.sum()])
     assert np.linalg.norm(moved - np.array([82.5, 58.5])) < 0.1
+
+
+def test_gain_matches_the_calibrated_simulator() -> None:
+    """``MECHANICS_GAIN`` is the least-squares scale of the rule on the simulator's pure presses
+    (its calibration, ``benches/bench_motion_single.py --calibrate``, 40 per preset): on the
+    first few of them, pooled over GelSight and Mini, single-frame and with the reference, the
+    scale of the shipped rule stays near 1 (the old gain, 0.15, before the press law was
+    calibrated on real presses, gives ~7)."""
+    from tacswitch.sim.indenters import CLASSES
+    from tacswitch.sim.scene import Scene
+
+    num = den = 0.0
+    for preset in ("gelsight_mini", "gelsight"):
+        for k in range(3):
+            rng = np.random.default_rng([7, k])
+            scene = Scene(preset, rng, label=CLASSES[1 + k % (len(CLASSES) - 1)])
+            f = scene.render(rng, depth=scene.depth)
+            ref = scene.render(rng, depth=0.0).image
+            for r in (ref, None):
+                p = mechanics_motion(f.image, r, scene.rest)
+                num += float((p * f.displacement).sum())
+                den += float((p * p).sum())
+    assert 0.6 < num / den < 1.6, num / den

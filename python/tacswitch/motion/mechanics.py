@@ -2,11 +2,11 @@
 
 A normal press squeezes the (nearly incompressible) gel layer out from under the indenter: the
 surface flows outward, most at the contact's edge, and the flow reaches beyond the visibly
-changed region, fading over about one gel thickness. The simulator models it so
+changed region, fading over the press's reach. The simulator models it so
 (:func:`tacswitch.sim.motion.contact_displacement`, ``dilation``): the lateral displacement is
-``-dilation * thickness * grad(G_thickness * indentation)``, a Gaussian of the gel thickness
-smoothing the indentation map. This module applies the same law to the imprint that a markerless
-frame shows:
+``-dilation * thickness * grad(G_reach * indentation)``, a Gaussian of the reach smoothing the
+indentation map; gain and reach measured on real presses (:mod:`tacswitch.sim.presets`).
+This module applies the same law to the imprint that a markerless frame shows:
 
 1. change map ``D`` (grey levels) of the frame against a reference or, single-frame, against a
    robust smooth background of itself (:func:`tacswitch.motion.heuristic.change_map`);
@@ -15,24 +15,29 @@ frame shows:
    smooth on the scale of a marker) and divided by its robust maximum ``w_top`` (the 98th
    percentile of the changed cells): its *shape* (where and how wide the gel is pressed), not
    its contrast, which depends on the sensor's lighting;
-3. the displacement ``u = -gain * T^2 * grad(G_T * w / w_top)`` (``T``: gel thickness, px),
+3. the displacement ``u = -gain * T^2 * grad(G_T * w / w_top)`` (``T``: the reach, px),
    read bilinearly at the markers.
 
-Unlike the outward rule (motion only where the image changed), this field decays smoothly over a
-gel thickness outside the contact, as the simulated gel does; a wider imprint gives a larger
-motion. Tried and rejected on the simulator's pure presses (not on any evaluation data): the
-raw contrast instead of the normalised shape (gains 4x apart between the two presets) and a
-depth-like dome integrated from the imprint's slope (worse single-frame direction).
+Unlike the outward rule (motion only where the image changed), this field decays smoothly over
+the reach outside the contact, as the simulated and the real GelSight gel do; a wider imprint
+gives a larger motion. Tried and rejected on the simulator's pure presses (not on any
+evaluation data): the raw contrast instead of the normalised shape (gains 4x apart between the
+two presets) and a depth-like dome integrated from the imprint's slope (worse single-frame
+direction).
 
 Units and conventions: frames ``H x W x 3`` uint8 BGR, points and motion ``(x, y)`` px with pixel
-centres at integers. The gel thickness defaults to :data:`THICKNESS_FRAC` of the frame width (the
-simulator's 2 mm on the ~18.9 mm wide field of its GelSight and GelSight Mini presets: 68 px at
-640 x 480, 34 px at 320 x 240). The gain is not fitted to any evaluation data: it is the
-least-squares scale against the simulator's pure presses (40 per preset; GelSight / Mini 0.17 /
-0.14 with the no-contact reference, 0.17 / 0.13 single-frame; pooled
-``python benches/bench_motion_single.py --calibrate``), so the magnitude is the simulator's,
-which no real measurement has checked; the direction, which the cosine scores, does not depend
-on it.
+centres at integers. The reach ``T`` defaults to :data:`REACH_FRAC` of the frame width: the real
+GelSight's measured press reach, 5 mm on its ~18.9 mm wide field (170 px at 640 x 480, 85 px at
+320 x 240; ``benches/bench_press_calibration.py``; the GelSight Mini barely moves at all). The
+gain is not fitted to any evaluation data: it is the least-squares scale against the
+simulator's pure presses with the calibrated press law (40 per preset; pooled over GelSight and
+GelSight Mini, with and without the no-contact reference: 1.02; ``python
+benches/bench_motion_single.py --calibrate``). The sensors' own gains differ ~200x (GelSight
+1.69 / 1.87 with the reference / single-frame, Mini 0.008 / 0.009: the Mini's real press field
+is ~zero), so the pooled gain under-predicts the GelSight's motion by ~40 % and over-predicts
+the Mini's (tiny) one; the rule cannot tell the sensors apart from an image. The direction,
+which the cosine scores, does not depend on the gain. Before the calibration (press reach one gel
+thickness, 2 mm, and the simulator's 5-100x too small GelSight field) the gain was 0.15.
 """
 
 from __future__ import annotations
@@ -42,13 +47,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["MECHANICS_GAIN", "THICKNESS_FRAC", "imprint",
+__all__ = ["MECHANICS_GAIN", "REACH_FRAC", "imprint",
            "mechanics_field", "mechanics_motion"]
 
-#: Gel thickness as a fraction of the frame width (2 mm / 18.9 mm; see the module doc).
-THICKNESS_FRAC = 0.106
+#: The press's reach as a fraction of the frame width (5 mm / 18.9 mm, measured on the real
+#: GelSight; see the module doc).
+REACH_FRAC = 0.265
 #: Scale of the rule, with or without a reference (see the module doc).
-MECHANICS_GAIN = 0.15
+MECHANICS_GAIN = 1.02
 #: Coarse grid cells across the frame width.
 _GRID_WIDTH = 80
 
@@ -82,7 +88,7 @@ def mechanics_field(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None, *,
     h, w = img.shape[:2]
     st = _step(w)
     gh, gw = -(-h // st), -(-w // st)
-    t_px = THICKNESS_FRAC * w if thickness_px is None else float(thickness_px)
+    t_px = REACH_FRAC * w if thickness_px is None else float(thickness_px)
     wmap = imprint(img, ref)
     # cv2.resize with INTER_AREA needs an exact multiple for a true box average; pad by edge
     # replication to gh * st x gw * st first.

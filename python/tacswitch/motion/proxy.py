@@ -426,8 +426,9 @@ def warp_dense(src: NDArray[np.uint8], v: NDArray[np.float32], max_iterations: i
 
 
 def contact_fields(sensor: str, centre: tuple[float, float], radius_px: float, kind: str,
-                   rng: np.random.Generator) -> tuple[NDArray[np.float32], NDArray[np.float32],
-                                                      int, dict[str, float]]:
+                   rng: np.random.Generator, *, dilation: float | None = None,
+                   decay_mm: float | None = None
+                   ) -> tuple[NDArray[np.float32], NDArray[np.float32], int, dict[str, float]]:
     """The simulator's coarse fields of a ball press at ``centre`` whose contact radius is
     ``radius_px`` (px at the sensor's working size): the press's own outward field and the
     shear / twist field of ``kind`` (zero for ``"press"``), the grid step, and the draws.
@@ -435,33 +436,24 @@ def contact_fields(sensor: str, centre: tuple[float, float], radius_px: float, k
     Draws, as the simulator's scenes do (:class:`tacswitch.sim.scene.Scene`,
     :func:`tacswitch.sim.scene.render_sample`): ball radius ``R`` ~ U(max(2, 1.2 a), 6) mm (the
     simulator's spheres; the depth then follows from the recorded contact radius ``a``:
-    ``R - sqrt(R^2 - a^2)``), dilation gain U(0.15, 0.4), stuck shear ``pitch * U(0, 0.9)^1.5``
-    in a random direction, load ratio U(0, 0.95), twist U(-0.08, 0.08) rad.
+    ``R - sqrt(R^2 - a^2)``), dilation gain uniform in the preset's ``press_dilation`` range
+    with its ``press_decay_mm`` reach (measured on real presses, :mod:`tacswitch.sim.presets`),
+    stuck shear ``pitch * U(0, 0.9)^1.5`` in a random direction, load ratio U(0, 0.95), twist
+    U(-0.08, 0.08) rad. ``dilation`` / ``decay_mm`` override the press law's gain (the draw is
+    still made, so the other draws do not change) and reach (calibration).
     """
-    import cv2
-
-    from tacswitch.sim.deform import deform_gel
-    from tacswitch.sim.indenters import ObjectSpec
-    from tacswitch.sim.motion import contact_displacement
+    from tacswitch.sim.motion import ball_press, contact_displacement
     from tacswitch.sim.presets import get_preset
 
     if kind not in CONTACT_KINDS:
         raise ValueError(f"kind: unknown {kind!r}; choose from {list(CONTACT_KINDS)}")
     p = get_preset(sensor)
-    h, w = p.height, p.width
     a_mm = radius_px * p.mm_per_px
     big_r = float(rng.uniform(max(2.0, 1.2 * a_mm), 6.0))
     depth = big_r - float(np.sqrt(big_r ** 2 - a_mm ** 2))
-    z = ObjectSpec("sphere", {"radius": big_r}).surface(h, w, p.mm_per_px, centre, 0.0, depth)
-    gel, contact = deform_gel(z, p.mm_per_px)
-    st = max(2, round(w / 80))
-    gh, gw = -(-h // st), -(-w // st)
-    pen = np.where(contact, np.maximum(gel, 0), 0).astype(np.float32)
-    pres = np.asarray(cv2.resize(pen, (gw, gh), interpolation=cv2.INTER_AREA), np.float32)
-    gel_c = np.asarray(cv2.resize(gel, (gw, gh), interpolation=cv2.INTER_AREA), np.float32)
-    dilation = float(rng.uniform(0.15, 0.4))
-    press, _ = contact_displacement(pres, st, p.mm_per_px, p.gel_thickness_mm, centre=centre,
-                                    dilation=dilation, gel=gel_c)
+    drawn = float(rng.uniform(*p.press_dilation))
+    dilation = drawn if dilation is None else float(dilation)
+    press, pres, _, st = ball_press(p, centre, radius_px, big_r, dilation, decay_mm)
     params = {"ball_radius_mm": big_r, "depth_mm": depth, "dilation": dilation}
     shear = (0.0, 0.0)
     twist = 0.0

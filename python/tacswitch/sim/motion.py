@@ -7,8 +7,13 @@ full simulator replace these; their shapes and magnitudes are what tracking and 
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from tacswitch.sim.presets import SensorPreset
 
 
 def _decay(r: NDArray, radius: float) -> NDArray:
@@ -148,6 +153,7 @@ def contact_displacement(
     twist_rad: float = 0.0,
     dilation: float = 0.0,
     gel: NDArray | None = None,
+    decay_mm: float | None = None,
 ) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
     """Gel surface displacement of one contact on a coarse grid, pixels ``(dx, dy)`` per cell.
 
@@ -163,6 +169,9 @@ def contact_displacement(
             ``dilation * thickness * -grad(blurred indentation)`` (incompressible layer squeezed
             out from under the indenter); needs ``gel`` (coarse indentation, mm).
         gel: ``gh x gw`` gel indentation, mm.
+        decay_mm: width (Gaussian sigma, mm) of that smoothing, i.e. how far the press's outward
+            flow reaches; None: ``thickness_mm``. The presets' measured values:
+            :attr:`tacswitch.sim.presets.SensorPreset.press_decay_mm`.
 
     Returns:
         ``(field, stick)``: ``gh x gw x 2`` float32 displacement (px) and the stuck-zone mask.
@@ -192,7 +201,7 @@ def contact_displacement(
         if den > 0:
             out += u * ((u[zone] * rigid[zone]).sum() / den)
     if dilation != 0 and gel is not None:
-        smooth = thickness_blur(gel, thickness_mm / step_mm)
+        smooth = thickness_blur(gel, (thickness_mm if decay_mm is None else decay_mm) / step_mm)
         dy, dx = np.gradient(smooth, step_mm)
         out -= dilation * thickness_mm / mm_per_px * np.stack([dx, dy], axis=-1)
     return out.astype(np.float32), stick
@@ -217,3 +226,41 @@ def sample_field(field: NDArray, step_px: float, pts: NDArray
     ddy = ((f10 - f00) * (1 - fx) + (f11 - f01) * fx) / step_px
     jac = np.stack([ddx, ddy], axis=-1)  # jac[n, i, j] = d value_i / d coord_j
     return val.astype(np.float32), jac.astype(np.float32)
+
+
+def ball_press(preset: SensorPreset, centre: tuple[float, float], radius_px: float,
+               ball_radius_mm: float, dilation: float, decay_mm: float | None = None
+               ) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32], int]:
+    """The press field of a ball of radius ``ball_radius_mm`` pressed into ``preset``'s gel at
+    ``centre`` ``(x, y)`` px until its contact radius is ``radius_px`` (depth
+    ``R - sqrt(R^2 - a^2)``), with the press law's ``dilation`` gain and reach ``decay_mm``
+    (None: the preset's measured ``press_decay_mm``).
+
+    Returns ``(field, pressure, gel, step)``: the coarse ``gh x gw x 2`` outward field (px; cell
+    ``(i, j)`` centred on pixel ``((j + 0.5) step - 0.5, (i + 0.5) step - 0.5)``), the coarse
+    contact pressure and indentation (mm) it came from (for shear / twist fields of the same
+    contact), and the grid step ``step`` px."""
+    import cv2
+
+    from tacswitch.sim.deform import deform_gel
+    from tacswitch.sim.indenters import ObjectSpec
+
+    p = preset
+    h, w = p.height, p.width
+    a_mm = radius_px * p.mm_per_px
+    if not ball_radius_mm > a_mm:
+        raise ValueError(f"ball_radius_mm: must exceed the contact radius {a_mm:.3g} mm; got "
+                         f"{ball_radius_mm!r}")
+    depth = ball_radius_mm - float(np.sqrt(ball_radius_mm ** 2 - a_mm ** 2))
+    z = ObjectSpec("sphere", {"radius": ball_radius_mm}).surface(h, w, p.mm_per_px, centre, 0.0,
+                                                                 depth)
+    gel, contact = deform_gel(z, p.mm_per_px)
+    st = max(2, round(w / 80))
+    gh, gw = -(-h // st), -(-w // st)
+    pen = np.where(contact, np.maximum(gel, 0), 0).astype(np.float32)
+    pres = np.asarray(cv2.resize(pen, (gw, gh), interpolation=cv2.INTER_AREA), np.float32)
+    gel_c = np.asarray(cv2.resize(gel, (gw, gh), interpolation=cv2.INTER_AREA), np.float32)
+    decay = p.press_decay_mm if decay_mm is None else decay_mm
+    fld, _ = contact_displacement(pres, st, p.mm_per_px, p.gel_thickness_mm, centre=centre,
+                                  dilation=dilation, gel=gel_c, decay_mm=decay)
+    return fld, pres, gel_c, st

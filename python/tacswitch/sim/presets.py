@@ -26,6 +26,10 @@ class SensorPreset:
             Phong shading on a synthetic background.
         gel_thickness_mm: elastomer thickness; the elastic kernels are cut off beyond it.
         fps: camera frame rate of sequences, frames per second.
+        press_dilation: range ``(lo, hi)`` of the normal press's dilation gain, drawn uniformly
+            per scene (:func:`tacswitch.sim.motion.contact_displacement`, ``dilation``).
+        press_decay_mm: how far the press's outward flow reaches (the smoothing sigma of the
+            dilation law, mm); None: ``gel_thickness_mm``.
     """
 
     name: str
@@ -42,15 +46,39 @@ class SensorPreset:
     calib: str | None = None
     gel_thickness_mm: float = 2.0
     fps: float = 30.0
+    press_dilation: tuple[float, float] = (0.15, 0.4)
+    press_decay_mm: float | None = None
 
+
+# The normal press law (``sim.motion.contact_displacement``: dilation gain and reach) measured
+# on taxim's real presses: block matching of the gel's grain between the real no-contact frame
+# and each press, a joint fit of a radial profile about the contact plus a per-press zoom /
+# shift (``motion.grainmatch.press_profile``), the law fitted to the even-index presses over
+# 1.5-6 contact radii and checked on the odd ones (``benches/bench_press_calibration.py``,
+# BENCHMARKS.md). The gain range is centred on the pooled least-squares gain, half-width the
+# distance to the 10th percentile of the per-press gains (a pooled gain of 0: up to their 90th
+# percentile). GelSight: the gel moves outward ~2.5-3 px (640 x 480) at 2-3 contact radii and
+# still ~0.7 px at 6 radii: reach 5 mm, gain 14.6 (the old law: 0.15-0.4 over 2 mm, 5-100x too
+# small). GelSight Mini: within +-0.15 px (320 x 240) at every radius, slightly inward next to
+# the contact: no measurable outward press field (pooled gain 0, per-press 90th percentile
+# 0.05; reach kept at the gel thickness). DIGIT / dense: not measured, the old draw U(0.15,
+# 0.4) over one gel thickness.
+GELSIGHT_PRESS_DILATION = (10.0, 19.1)
+GELSIGHT_PRESS_DECAY_MM = 5.0
+MINI_PRESS_DILATION = (0.0, 0.05)
+MINI_PRESS_DECAY_MM: float | None = None
 
 PRESETS: dict[str, SensorPreset] = {
     # The paper's GelSight: 640x480, 48 black markers (8x6), pitch ~80 px, ~23 px dots.
     "gelsight": SensorPreset("gelsight", 480, 640, 6, 8, 80.0, 23.0, 0.85, 1.5, 1.7,
-                             mm_per_px=0.0295, calib="gelsight", fps=30.0),
+                             mm_per_px=0.0295, calib="gelsight", fps=30.0,
+                             press_dilation=GELSIGHT_PRESS_DILATION,
+                             press_decay_mm=GELSIGHT_PRESS_DECAY_MM),
     # GelSight Mini after crop/resize: 320x240, 9x11 grid, pitch ~29 px, ~11 px soft grey dots.
     "gelsight_mini": SensorPreset("gelsight_mini", 240, 320, 9, 11, 28.5, 11.0, 0.72, 2.5, 1.5,
-                                  mm_per_px=0.059, calib="gelsight_mini", fps=25.0),
+                                  mm_per_px=0.059, calib="gelsight_mini", fps=25.0,
+                                  press_dilation=MINI_PRESS_DILATION,
+                                  press_decay_mm=MINI_PRESS_DECAY_MM),
     # DIGIT at 320x240 with a painted grid (DIGITs usually ship without markers).
     "digit": SensorPreset("digit", 240, 320, 7, 9, 32.0, 9.0, 0.7, 2.0, 2.0,
                           mm_per_px=0.06, gel_thickness_mm=1.5, fps=30.0),

@@ -192,7 +192,8 @@ class Scene:
         self.centre = (float(rng.uniform(0.3, 0.7) * w), float(rng.uniform(0.3, 0.7) * h))
         self.angle = float(rng.uniform(0, np.pi))
         self.depth = float(rng.uniform(*depth_range(self.label)))
-        self.dilation = float(rng.uniform(0.15, 0.4))
+        # Press law per preset, measured on real presses (sim.presets: press_dilation / _decay_mm).
+        self.dilation = float(rng.uniform(*p.press_dilation))
         self.noise_sigma = rng.uniform(*NOISE_SIGMA_RANGE, 3)
         self.jpeg_quality = jpeg_quality
         self.step = max(2, round(w / 80))
@@ -315,7 +316,8 @@ class Scene:
         ms = shear_px if marker_shear_px is None else marker_shear_px
         fld, stick = contact_displacement(
             pres, st, p.mm_per_px, p.gel_thickness_mm, centre=centre, shear_px=ms,
-            load_ratio=load_ratio, twist_rad=twist_rad, dilation=self.dilation, gel=gel_c)
+            load_ratio=load_ratio, twist_rad=twist_rad, dilation=self.dilation, gel=gel_c,
+            decay_mm=p.press_decay_mm)
         # Coarse cell (i, j) covers pixels [j*st, (j+1)*st): its centre is at (j + 0.5) st - 0.5.
         disp, jac = sample_field(fld, st, self.rest + (0.5 - 0.5 * st))
         # The grain, dust and fibres are on the gel: the same field carries them.

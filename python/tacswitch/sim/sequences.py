@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch.sim.markers import _rng, gel_background, marker_grid, render_markers
-from tacswitch.sim.motion import press_field, shear_field
+from tacswitch.sim.motion import ball_press, sample_field, shear_field
 from tacswitch.sim.presets import SensorPreset, get_preset
 
 Kind = Literal["hold", "slip", "vibration"]
@@ -60,7 +60,8 @@ def grasp_sequence(
 ) -> GraspSequence:
     """Renders a grasp at camera rate (about 30 fps).
 
-    Phases: a press over the first quarter (markers dilate), a shear ramp over the second quarter
+    Phases: a press over the first quarter (markers move outward by the preset's press law, its
+    field scaled by the press's progress), a shear ramp over the second quarter
     (contact markers move ~0.15 pitch) — together the loading of the grasp — then, from
     ``grasp_start`` (the established grasp, the slip rule's baseline):
 
@@ -84,7 +85,13 @@ def grasp_sequence(
     radius = 1.6 * p.pitch
     direction = rng.normal(size=2)
     direction /= np.linalg.norm(direction)
-    dilation = 0.08 * p.pitch
+    # The press: the preset's press law (measured on real presses, sim.presets) at its mean
+    # gain, for a gently curved object pressed 0.5 mm deep (about the depth of taxim's real
+    # calibration presses) to this contact radius: ball radius (a^2 + d^2) / (2 d).
+    a_mm, d_mm = radius * p.mm_per_px, 0.5
+    fld, _, _, st = ball_press(p, contact, radius, (a_mm ** 2 + d_mm ** 2) / (2 * d_mm),
+                               float(np.mean(p.press_dilation)))
+    pressed = sample_field(fld, st, rest + (0.5 - 0.5 * st))[0]
     q1, q2 = n_frames // 4, n_frames // 2
     render = dict(darkness=p.darkness, edge_px=p.edge_px, noise_sigma=p.noise_sigma)
     onset = q2 + SLIP_ONSET_FRAMES
@@ -100,7 +107,7 @@ def grasp_sequence(
             slipping = True
         elif kind == "vibration" and t >= q2:
             shear += 0.025 * p.pitch * np.sin(2 * np.pi * (t - q2) / 4)
-        motion = press_field(rest, contact, radius, press * dilation) + shear_field(
+        motion = press * pressed + shear_field(
             rest, contact, radius, tuple(shear * direction)
         )
         seq.motions.append(motion)

@@ -262,8 +262,11 @@ def main() -> int:
                  "itself expands about the image centre (a zoom between captures or a long-range "
                  "outward flow: the contacts lie near the image centre, the two cannot be told "
                  "apart). Beside it: the simulator's press field at the same contact "
-                 "(`proxy.contact_fields`, ball press, dilation U(0.15, 0.4)). Measured on real "
-                 "frames; not a ground truth."]
+                 "(`proxy.contact_fields`, ball press, the preset's press law). Measured on "
+                 "real frames; not a ground truth. The grain block matching of "
+                 "`benches/bench_press_calibration.py` (local, no coarse-to-fine propagation) "
+                 "confirms the GelSight rings but finds the Mini's gel still (within +-0.15 px): "
+                 "the Mini's flow rings here are the imprint's shading leaking outward."]
         from harness import table
 
         notes2 = ["", "The same flow as a (weak, real) truth for single-frame methods: each real "
@@ -295,12 +298,15 @@ def main() -> int:
              "**Real frames + modelled field**: taxim's real presses (GelSight 640 x 480, Mini "
              "320 x 240) with their real imprint; truth = the simulator's field "
              "(`sim.motion.contact_displacement`) of a ball press at the recorded touch centre / "
-             "radius (ball radius U(max(2, 1.2 a), 6) mm, dilation U(0.15, 0.4), as the "
-             "simulator draws them), plus for `shear` / `twist` / `shear_twist` cases a stuck "
+             "radius (ball radius U(max(2, 1.2 a), 6) mm, the preset's press law measured on "
+             "real presses: GelSight dilation U(10, 19.1) with a 5 mm reach, Mini U(0, 0.05), "
+             "as the simulator draws them; `bench_press_calibration.py`), plus for `shear` / "
+             "`twist` / `shear_twist` cases a stuck "
              "shear (pitch x U(0, 0.9)^1.5) / twist (U(-0.08, 0.08) rad) of the same contact, "
              "the frame warped by that field; exposure drift + MJPEG / H.264. The truth is "
-             "modelled, and the simulator's press field is small (GelSight under 1 px, Mini "
-             "under 0.1 px): cosines there are over markers moving >= 0.1 px. `press only`: the "
+             "modelled (GelSight: up to ~3 px, as the real GelSight's grain moves; Mini: under "
+             "0.05 px, as the real Mini's): cosines there are over markers moving >= 0.1 px. "
+             "`press only`: the "
              "case a single frame can predict; `all cases`: with the shear / twist cases, whose "
              "shear part a symmetric imprint does not show. **Real warp proxy**: the fields of "
              "`bench_motion_real.py` (unrelated to the imprint). **Simulated held-out**: "

@@ -13,6 +13,11 @@ scored on:
    contact).
 
     python benches/bench_prior_radius.py [--frames 3] [--radii 3,8,12] [--parts proxy,fots,sim]
+        [--models LABEL=PATH,...] [--seed 0]
+
+``--models`` scores these TacDiff ONNX files instead of the radius copies, each at the radius
+it records (e.g. models trained at r = 12 against the zero-shot copies); our TELEA default
+(``remove_markers``, r = 12) is scored alongside. ``--seed`` picks other real presses.
 
 Needs ``onnx`` (the ``train`` extra) for the model copies; FOTS frames from /work/shared.
 """
@@ -35,10 +40,11 @@ CASES = {"crisp": [("crisp", "lossless")],
          "soft lossless": [("pasted", "lossless"), ("painted", "lossless")],
          "MJPEG": [("pasted", "mjpeg"), ("painted", "mjpeg")],
          "H.264": [("pasted", "h264"), ("painted", "h264")]}
-COMBOS = (("tacdiff", "default"), ("tacdiff", "fast"), ("hybrid", "default"), ("hybrid", "fast"))
+METHODS = ("tacdiff", "hybrid")
 
 
-def model_copies(radii: list[int], tmp: Path) -> dict[tuple[str, int], str]:
+def model_copies(radii: list[int], tmp: Path) -> dict[str, str]:
+    """``{"default r=R": path}``: copies of the shipped models recording each radius."""
     from tacswitch.tacdiff.infer import model_path
     from tacswitch.tacdiff.metadata import set_metadata
 
@@ -48,41 +54,59 @@ def model_copies(radii: list[int], tmp: Path) -> dict[tuple[str, int], str]:
             path = tmp / f"{name}_r{r}.onnx"
             shutil.copy(model_path(name), path)
             set_metadata(path, {"tacswitch.prior_radius": str(r)})
-            out[name, r] = str(path)
+            out[f"{name} r={r}"] = str(path)
     return out
+
+
+def _combos(models: dict[str, str]) -> list[tuple[str, str, str | None]]:
+    """``(row label, method, model path)``: TELEA default first, then each model x method."""
+    from tacswitch.tacdiff.infer import load_model
+
+    rows: list[tuple[str, str, str | None]] = [("TELEA default (r=12)", "telea", None)]
+    for method in METHODS:
+        for label, path in models.items():
+            r = load_model(path).prior_radius
+            rows.append((f"{method} {label} (prior r={r:g})", method, path))
+    return rows
+
+
+def _fill(method: str, path: str | None):  # type: ignore[no-untyped-def]
+    import tacswitch as ts
+    from tacswitch import realproxy as R
+
+    def fill(img, extra):  # type: ignore[no-untyped-def]
+        m = R._with(R.default_mask(img), extra)
+        if path is None:
+            return ts.remove_markers(img, m)
+        return ts.remove_markers(img, m, method=method, model=path)
+
+    return fill
 
 
 def _case(name: str) -> str:
     return "/".join(name.split("/")[2:])
 
 
-def proxy_rows(n: int, radii: list[int], models: dict) -> list[list[str]]:
-    import tacswitch as ts
+def proxy_rows(n: int, models: dict[str, str], seed: int = 0) -> list[list[str]]:
     from tacswitch import realproxy as R
 
     want = {f"{s}/{c}" for v in CASES.values() for s, c in v}
     rows = []
     for sensor in R.SENSORS:
-        frames = [f for f in R.proxy_frames(sensor, n, seed=0) if _case(f.name) in want]
-        for method, name in COMBOS:
-            for r in radii:
-                def fill(img, extra, method=method, path=models[name, r]):  # type: ignore[no-untyped-def]
-                    m = R._with(R.default_mask(img), extra)
-                    return ts.remove_markers(img, m, method=method, model=path)
-
-                res = R.run(frames, fill)
-                per = {c: R.pool([x for x in res if _case(x.name) in {f"{s}/{k}" for s, k in v}])
-                       for c, v in CASES.items()}
-                rows.append([sensor, f"{method} {name}", str(r),
-                             *(f"{per[c].mae:.3f}" for c in CASES), f"{R.pool(res).mae:.3f}"])
-                print(rows[-1], flush=True)
+        frames = [f for f in R.proxy_frames(sensor, n, seed=seed) if _case(f.name) in want]
+        for label, method, path in _combos(models):
+            res = R.run(frames, _fill(method, path))
+            per = {c: R.pool([x for x in res if _case(x.name) in {f"{s}/{k}" for s, k in v}])
+                   for c, v in CASES.items()}
+            rows.append([sensor, label, *(f"{per[c].mae:.3f}" for c in CASES),
+                         f"{R.pool(res).mae:.3f}"])
+            print(rows[-1], flush=True)
     return rows
 
 
-def fots_rows(radii: list[int], models: dict) -> list[list[str]]:
+def fots_rows(models: dict[str, str]) -> list[list[str]]:
     import cv2
 
-    import tacswitch as ts
     from tacswitch import realproxy as R
     from tacswitch.markers import dilate_mask
 
@@ -93,19 +117,17 @@ def fots_rows(radii: list[int], models: dict) -> list[list[str]]:
         holdout, hidden = R.shifted_holdout(img)
         prep.append((img, holdout, hidden, dilate_mask(R.threshold_mask(img), 3)))
     rows = []
-    for method, name in COMBOS:
-        for r in radii:
-            def fill(img, extra, method=method, path=models[name, r]):  # type: ignore[no-untyped-def]
-                return ts.remove_markers(img, R._with(R.default_mask(img), extra), method=method,
-                                         model=path)
-
-            maes = [R.heldout_scores(img, fill, ho, hid, holes)[0] for img, ho, hid, holes in prep]
-            rows.append([f"{method} {name}", str(r), f"{np.mean(maes):.3f}"])
-            print(rows[-1], flush=True)
+    for label, method, path in _combos(models):
+        sc = [R.heldout_scores(img, _fill(method, path), ho, hid, holes)
+              for img, ho, hid, holes in prep]
+        rows.append([label, f"{np.mean([s[0] for s in sc]):.3f}",
+                     f"{np.mean([s[1] for s in sc]):+.3f}",
+                     f"{np.mean([np.mean(s[2]) for s in sc]):+.3f}"])
+        print(rows[-1], flush=True)
     return rows
 
 
-def sim_rows(radii: list[int], models: dict) -> list[list[str]]:
+def sim_rows(models: dict[str, str], n: int = 4) -> list[list[str]]:
     import tacswitch as ts
     from tacswitch import tradeoff
     from tacswitch.metrics import masked_mae
@@ -113,50 +135,58 @@ def sim_rows(radii: list[int], models: dict) -> list[list[str]]:
 
     rows = []
     for preset in ("gelsight", "gelsight_mini"):
-        frames = tradeoff.simulated_frames(4, preset, seed=HELD_OUT_SEED, mask="true")
-        for method, name in COMBOS:
-            for r in radii:
-                mae, contact = [], []
-                for f in frames:
+        frames = tradeoff.simulated_frames(n, preset, seed=HELD_OUT_SEED, mask="true")
+        for label, method, path in _combos(models):
+            mae, contact = [], []
+            for f in frames:
+                m = f.mask.astype(bool)
+                if path is None:
+                    out = ts.remove_markers(f.with_markers, m)
+                else:
                     kw = {"ref": f.reference} if method == "hybrid" else {}
-                    out = ts.remove_markers(f.with_markers, f.mask.astype(bool), method=method,
-                                            model=models[name, r], **kw)
-                    mae.append(masked_mae(out, f.truth, f.scored))
-                    sc = f.scored & f.contact
-                    if sc.any():
-                        contact.append(masked_mae(out, f.truth, sc))
-                rows.append([preset, f"{method} {name}", str(r), f"{np.mean(mae):.3f}",
-                             f"{np.mean(contact):.3f}"])
-                print(rows[-1], flush=True)
+                    out = ts.remove_markers(f.with_markers, m, method=method, model=path, **kw)
+                mae.append(masked_mae(out, f.truth, f.scored))
+                sc = f.scored & f.contact
+                if sc.any():
+                    contact.append(masked_mae(out, f.truth, sc))
+            rows.append([preset, label, f"{np.mean(mae):.3f}", f"{np.mean(contact):.3f}"])
+            print(rows[-1], flush=True)
     return rows
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--frames", type=int, default=3, help="real presses per sensor")
+    ap.add_argument("--seed", type=int, default=0, help="which real presses (realproxy seed)")
     ap.add_argument("--radii", default="3,8,12")
+    ap.add_argument("--models", default="",
+                    help="LABEL=PATH,... TacDiff ONNX files to score instead of the copies")
     ap.add_argument("--parts", default="proxy,fots,sim")
     args = ap.parse_args()
-    radii = [int(r) for r in args.radii.split(",")]
     parts = args.parts.split(",")
     out = []
     with tempfile.TemporaryDirectory() as tmp:
-        models = model_copies(radii, Path(tmp))
+        if args.models:
+            models = dict(item.split("=", 1) for item in args.models.split(","))
+        else:
+            models = model_copies([int(r) for r in args.radii.split(",")], Path(tmp))
         if "proxy" in parts:
-            out.append(f"Real-frame proxy ({args.frames} presses per sensor x 7 cases), masked "
-                       "MAE:\n\n" + table(["sensor", "method", "prior TELEA r", *CASES, "all"],
-                                          proxy_rows(args.frames, radii, models)))
+            out.append(f"Real-frame proxy ({args.frames} presses per sensor, seed {args.seed}, "
+                       "x 7 cases), masked MAE:\n\n"
+                       + table(["sensor", "method", *CASES, "all"],
+                               proxy_rows(args.frames, models, args.seed)))
         if "fots" in parts and any(REAL.glob("*.png")):
-            out.append("Real FOTS GelSight Mini frames, held-out MAE:\n\n"
-                       + table(["method", "prior TELEA r", "held-out MAE"],
-                               fots_rows(radii, models)))
+            out.append("Real FOTS GelSight Mini frames, held-out MAE, signed error, ghost:\n\n"
+                       + table(["method", "held-out MAE", "signed", "ghost"],
+                               fots_rows(models)))
         if "sim" in parts:
             out.append("Held-out simulated frames (4 per preset, true mask dilated once):\n\n"
-                       + table(["preset", "method", "prior TELEA r", "masked MAE",
-                                "MAE in contact"], sim_rows(radii, models)))
+                       + table(["preset", "method", "masked MAE", "MAE in contact"],
+                               sim_rows(models)))
+    what = f"--models {args.models}" if args.models else f"--radii {args.radii}"
     print("\n\n".join([*out, f"Machine: {machine()}.",
                        f"Command: `python benches/bench_prior_radius.py --frames {args.frames} "
-                       f"--radii {args.radii} --parts {args.parts}`"]))
+                       f"--seed {args.seed} {what} --parts {args.parts}`"]))
 
 
 if __name__ == "__main__":

@@ -19,7 +19,10 @@ budget figures; the CPU column is. On a shared machine, run it under real-time s
 says when it was (on this machine it reproduced the idle-machine figures of the 0.3 models).
 
     [chrt -f 10] python benches/bench_tacdiff.py [--frames 2] [--rounds 3] [--threads 2]
-                                                 [--profile] [--update]
+                                                 [--profile] [--update] [--compare NAME=PATH]
+
+``--compare NAME=PATH`` (repeatable) adds rows for other TacDiff ONNX files (K=1, as the shipped
+model's rows), e.g. the previous release's, so a ratio to it is measured in the same run.
 
 ``--profile`` adds the stages of the fast setting at 640x480 (one thread, CPU time).
 Quality: ``benches/bench_real_removal.py`` (real-frame proxy) and ``tacswitch evaluate tacdiff``
@@ -69,6 +72,10 @@ def _frames(sensor: str, n: int) -> list:
     return R.proxy_frames(sensor, n, styles=("painted",), captures=("h264",), seed=0)
 
 
+#: ``(name, path)`` of the ``--compare`` models.
+COMPARE: list[tuple[str, str]] = []
+
+
 def _methods(frame) -> dict[str, Callable[[], object]]:  # type: ignore[no-untyped-def]
     import cv2
 
@@ -81,7 +88,9 @@ def _methods(frame) -> dict[str, Callable[[], object]]:  # type: ignore[no-untyp
     m = R.default_mask(img)
     m8 = m.view(np.uint8)
     r = int(DEFAULT_RADIUS)
-    return {
+    extra = {f"TacDiff K=1, {name}": (lambda path=path: inpaint_tacdiff(img, m, 1, model=path))
+             for name, path in COMPARE}
+    return extra | {
         "mask extraction (remove_markers' own)": lambda: R.default_mask(img),
         "TELEA r=3": lambda: ts.inpaint_telea(img, m, 3),
         f"TELEA r={r} (default)": lambda: ts.inpaint_telea(img, m, r),
@@ -141,7 +150,8 @@ def profile(rounds: int) -> list[list[str]]:
 
     def net_only() -> None:
         if kind == "crops":
-            infer._sample_crops(net, planes, *data, 1, "dpmpp2m")
+            crops, labels = data
+            infer._sample_boxes(net, planes, crops, infer._crop_owner(labels), 1, "dpmpp2m")
         else:
             infer._sample(net, planes[None], 1, "dpmpp2m")
 
@@ -156,7 +166,7 @@ def profile(rounds: int) -> list[list[str]]:
 
     stages = {
         "mask extraction (adaptive)": lambda: R.default_mask(img),
-        f"prior: TELEA r={P.PRIOR_RADIUS}": lambda: inpaint_telea(img, m, P.PRIOR_RADIUS),
+        f"prior: TELEA r={net.prior_radius:g}": lambda: inpaint_telea(img, m, net.prior_radius),
         f"prior: grow_holes {P.PRIOR_GROW} px": lambda: P.grow_holes(m, P.PRIOR_GROW),
         "prior: biharmonic on the grown holes": lambda: inpaint_biharmonic(img, grown),
         "network input (prior and planes, all of the above but extraction)":
@@ -180,8 +190,15 @@ def main() -> None:
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--profile", action="store_true", help="stages of the fast setting")
     ap.add_argument("--update", action="store_true", help="write the BENCHMARKS.md section")
+    ap.add_argument("--compare", action="append", default=[], metavar="NAME=PATH",
+                    help="also time this TacDiff ONNX file (K=1); repeatable")
     ap.add_argument("--child", choices=("cpu", "profile"), help=argparse.SUPPRESS)
     args = ap.parse_args()
+    for item in args.compare:
+        name, sep, path = item.partition("=")
+        if not sep or not Path(path).is_file():
+            raise SystemExit(f"--compare: expected NAME=PATH of an ONNX file; got {item!r}")
+        COMPARE.append((name, path))
     if args.child == "cpu":
         print(json.dumps(run(args.frames, args.rounds, 1, cpu=True)))
         return
@@ -191,7 +208,8 @@ def main() -> None:
 
     def child(kind: str) -> object:
         res = subprocess.run([sys.executable, __file__, "--child", kind, "--frames",
-                              str(args.frames), "--rounds", str(args.rounds)],
+                              str(args.frames), "--rounds", str(args.rounds),
+                              *(f"--compare={c}" for c in args.compare)],
                              capture_output=True, text=True, check=True)
         return json.loads(res.stdout.strip().splitlines()[-1])
 
@@ -210,7 +228,8 @@ def main() -> None:
     fifo = os.sched_getscheduler(0) == os.SCHED_FIFO
     cmd = (("chrt -f 10 " if fifo else "") + f"python benches/bench_tacdiff.py --frames "
            f"{args.frames} --rounds {args.rounds} --threads {args.threads}"
-           + (" --profile" if args.profile else ""))
+           + (" --profile" if args.profile else "")
+           + "".join(f" --compare {c}" for c in args.compare))
     parts = [
         "Real frames with painted markers: taxim's markerless presses (GelSight 640x480, Mini "
         f"320x240; {args.frames} per sensor) with painted grey dots, H.264-captured "

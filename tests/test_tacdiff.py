@@ -322,7 +322,7 @@ def test_network_input_prior_is_prior_planes_exactly(sample):
     net = infer.load_model("fast")
     planes = infer._planes(s.image_markers, mask, net, np.random.default_rng(0))
     h, w = mask.shape
-    prior, spread = prior_planes(s.image_markers, mask, net.prior)
+    prior, spread = prior_planes(s.image_markers, mask, net.prior, net.prior_radius)
     np.testing.assert_array_equal(planes[7:10, :h, :w], prior.transpose(2, 0, 1))
     np.testing.assert_array_equal(planes[10:13, :h, :w], spread.transpose(2, 0, 1))
 
@@ -335,7 +335,9 @@ def test_prior_radius_is_read_from_the_model(sample, tmp_path):
     from tacswitch.tacdiff.prior import PRIOR_RADIUS, prior_on_mask
 
     s, mask = sample
-    assert infer.load_model("fast").prior_radius == PRIOR_RADIUS == 3  # shipped: none recorded
+    assert PRIOR_RADIUS == 3  # models that record no radius
+    for name in ("default", "fast"):  # the shipped 0.4 models were trained at r = 12
+        assert infer.load_model(name).prior_radius == 12.0
     path = tmp_path / "m.onnx"
     shutil.copy(infer.model_path("fast"), path)
     set_metadata(path, {"tacswitch.prior_radius": "8"})

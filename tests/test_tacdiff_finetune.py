@@ -121,3 +121,15 @@ def test_finetune_trains_at_the_start_models_prior_radius(tmp_path: Path, marker
     assert ck["config"]["prior_radius"] == 7.0  # the sampler's fills and the EMA's record
     assert TacDiffModel(tmp_path / "ft" / "start.onnx").prior_radius == 7.0
     assert TacDiffModel(res.model).prior_radius == 7.0
+
+
+def test_shipped_weights_record_their_models_prior_radius():
+    pytest.importorskip("torch")
+    pytest.importorskip("onnx")
+    from tacswitch.tacdiff.infer import load_model
+    from tacswitch.tacdiff.train import load_network
+
+    # What `tacswitch finetune` starts from must train at the radius the shipped model runs at.
+    for name in ("default", "fast"):
+        arch = load_network(ft.init_weights(name)).cfg
+        assert arch.prior_radius == load_model(name).prior_radius

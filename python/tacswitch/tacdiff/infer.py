@@ -153,11 +153,10 @@ class TacDiffModel:
 def prior_radius(meta: dict[str, str], path: Path) -> float:
     """The TELEA radius (px) of a model's prior at inference: its ``tacswitch.prior_radius``
     metadata (:func:`tacswitch.tacdiff.metadata.set_metadata` records one on an existing
-    model), or :data:`~tacswitch.tacdiff.prior.PRIOR_RADIUS` (3, the training radius of every
-    model so far) when absent. The shipped 0.3 models record none: zero-shot at 12 they are
-    4-5 % better on real frames with painted markers and 1-2 % on real FOTS frames, but 1 %
-    worse on simulated frames and 4-5 % worse in contact there (MODEL_CARD_tacdiff.md,
-    ``benches/bench_prior_radius.py``)."""
+    model; :func:`tacswitch.tacdiff.export.export_onnx` records the radius the model was
+    trained with), or :data:`~tacswitch.tacdiff.prior.PRIOR_RADIUS` (3, the training radius of
+    every model before 0.4) when absent (MODEL_CARD_tacdiff.md, ``benches/bench_prior_radius.py``
+    for what the radius changes)."""
     raw = meta.get("tacswitch.prior_radius")
     if raw is None:
         return float(PRIOR_RADIUS)

@@ -304,7 +304,9 @@ def test_evaluate_motion_tiny_run(tmp_path: Path) -> None:
         r = res[split]
         assert r["regressor"]["nan_pct"] == 0.0
         assert r["zero"]["e_rmse_mean"] == pytest.approx(r["zero"]["e_mag_mean"])
-        assert r["zero"]["e_rmse_mean"] > 0.1  # the held-out contacts moved the markers
+        # The held-out contacts moved the markers; a pure press barely moves a GelSight Mini's
+        # gel (the press law measured on real presses, sim.presets), only the others do.
+        assert r["zero"]["e_rmse_mean"] > (0.005 if split == "test_press" else 0.1)
         if "tracking" in r:  # tracking on the true marker images: near exact
             assert r["tracking"]["e_rmse_median"] < 0.2
     assert res["slip"]["predicted"]["n"] == 3 and res["slip"]["tracked"]["n"] == 3

@@ -13,7 +13,7 @@ scored on:
    contact).
 
     python benches/bench_prior_radius.py [--frames 3] [--radii 3,8,12] [--parts proxy,fots,sim]
-        [--models LABEL=PATH,...] [--seed 0]
+        [--models LABEL=PATH,...] [--seed 0] [--update]
 
 ``--models`` scores these TacDiff ONNX files instead of the radius copies, each at the radius
 it records (e.g. models trained at r = 12 against the zero-shot copies); our TELEA default
@@ -33,7 +33,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from harness import machine, table
+from harness import machine, table, update_markdown
+
+SECTION = "## TacDiff prior radius: models trained at r = 12 vs r = 3 (real frames first)"
 
 REAL = Path("/work/shared/data/real/fots_gelsight_mini_markers")
 CASES = {"crisp": [("crisp", "lossless")],
@@ -162,6 +164,7 @@ def main() -> None:
     ap.add_argument("--models", default="",
                     help="LABEL=PATH,... TacDiff ONNX files to score instead of the copies")
     ap.add_argument("--parts", default="proxy,fots,sim")
+    ap.add_argument("--update", action="store_true", help="write the BENCHMARKS.md section")
     args = ap.parse_args()
     parts = args.parts.split(",")
     out = []
@@ -183,10 +186,13 @@ def main() -> None:
             out.append("Held-out simulated frames (4 per preset, true mask dilated once):\n\n"
                        + table(["preset", "method", "masked MAE", "MAE in contact"],
                                sim_rows(models)))
-    what = f"--models {args.models}" if args.models else f"--radii {args.radii}"
-    print("\n\n".join([*out, f"Machine: {machine()}.",
-                       f"Command: `python benches/bench_prior_radius.py --frames {args.frames} "
-                       f"--seed {args.seed} {what} --parts {args.parts}`"]))
+    what = f"--models '{args.models}'" if args.models else f"--radii {args.radii}"
+    body = "\n\n".join([*out, f"Machine: {machine()}.",
+                         f"Command: `python benches/bench_prior_radius.py --frames {args.frames} "
+                         f"--seed {args.seed} {what} --parts {args.parts}`"])
+    print(body)
+    if args.update:
+        update_markdown(SECTION, body)
 
 
 if __name__ == "__main__":

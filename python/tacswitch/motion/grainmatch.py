@@ -16,6 +16,8 @@ in ``img``.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -27,10 +29,10 @@ def highpass(img: NDArray[np.uint8], sigma: float = 3.0) -> NDArray[np.float32]:
     """Grey level minus its Gaussian blur (``sigma`` px): the grain, without the shading."""
     import cv2
 
-    a = np.asarray(img)
+    a: Any = np.asarray(img)
     if a.ndim == 3:
         a = cv2.cvtColor(a, cv2.COLOR_BGR2GRAY)
-    g = a.astype(np.float32)
+    g = np.asarray(a, np.float32)
     return (g - cv2.GaussianBlur(g, (0, 0), sigma)).astype(np.float32)
 
 
@@ -87,7 +89,7 @@ def fit_similarity(pts: NDArray, disp: NDArray, about: tuple[float, float]
     a[:n, 2], a[n:, 2] = rel[:, 0], rel[:, 1]
     a[:n, 3], a[n:, 3] = -rel[:, 1], rel[:, 0]
     b = np.concatenate([disp[ok, 0], disp[ok, 1]]).astype(np.float64)
-    return np.linalg.lstsq(a, b, rcond=None)[0]
+    return np.asarray(np.linalg.lstsq(a, b, rcond=None)[0], np.float64)
 
 
 def similarity_at(params: NDArray, pts: NDArray, about: tuple[float, float]
@@ -116,7 +118,8 @@ def radial_rings(ref_hp: NDArray[np.float32], img_hp: NDArray[np.float32],
         ang = np.arange(m) * 2 * np.pi / m
         unit = np.stack([np.cos(ang), np.sin(ang)], 1)
         pts = c + r * unit
-        d, pk = match_patches(ref_hp, img_hp, pts, patch=patch, search=search)
+        found, pk = match_patches(ref_hp, img_hp, pts, patch=patch, search=search)
+        d = found.astype(np.float64)
         if background is not None:
             d = d - similarity_at(background, pts, about)
         ok = np.isfinite(d).all(1) & (pk >= min_peak)

@@ -91,7 +91,9 @@ def test_bad_inputs_name_the_argument() -> None:
 
 
 def test_beats_zero_and_the_outward_rule_on_simulated_presses() -> None:
-    """Single frame, GelSight preset; seeds other than the gain's calibration seeds ([7, k])."""
+    """Single frame, GelSight preset; seeds other than the gain's calibration seeds ([7, k]); at
+    the simulator's own pooled gain 1.02 (``bench_motion_single.py --calibrate``): the shipped
+    default and per-sensor gains are fitted on real presses, where the gel moves less."""
     from tacswitch.motion.evaluate import motion_metrics
     from tacswitch.sim.scene import Scene
 
@@ -100,7 +102,7 @@ def test_beats_zero_and_the_outward_rule_on_simulated_presses() -> None:
         rng = np.random.default_rng([91, k])
         scene = Scene("gelsight", rng, label=label)
         f = scene.render(rng, depth=scene.depth)
-        preds.append(predict_motion(f.image, None, scene.rest, method="mechanics"))
+        preds.append(predict_motion(f.image, None, scene.rest, method="mechanics", gain=1.02))
         outs.append(predict_motion(f.image, None, scene.rest, method="outward"))
         trues.append(f.displacement)
     true = np.concatenate(trues)
@@ -152,12 +154,11 @@ def test_warp_dense_moves_a_dot_by_the_field() -> None:
     assert np.linalg.norm(moved - np.array([82.5, 58.5])) < 0.1
 
 
-def test_gain_matches_the_calibrated_simulator() -> None:
-    """``MECHANICS_GAIN`` is the least-squares scale of the rule on the simulator's pure presses
-    (its calibration, ``benches/bench_motion_single.py --calibrate``, 40 per preset): on the
-    first few of them, pooled over GelSight and Mini, single-frame and with the reference, the
-    scale of the shipped rule stays near 1 (the old gain, 0.15, before the press law was
-    calibrated on real presses, gives ~7)."""
+def test_simulator_gain_stays_near_its_calibration() -> None:
+    """The rule's least-squares gain on the simulator's pure presses (``benches/
+    bench_motion_single.py --calibrate``, 40 per preset: 1.02 pooled over GelSight and Mini,
+    single-frame and with the reference) on the first few of them stays near 1. (The shipped
+    default and per-sensor gains are fitted on real presses instead: test_motion_calibration.)"""
     from tacswitch.sim.indenters import CLASSES
     from tacswitch.sim.scene import Scene
 
@@ -169,7 +170,7 @@ def test_gain_matches_the_calibrated_simulator() -> None:
             f = scene.render(rng, depth=scene.depth)
             ref = scene.render(rng, depth=0.0).image
             for r in (ref, None):
-                p = mechanics_motion(f.image, r, scene.rest)
+                p = mechanics_motion(f.image, r, scene.rest, gain=1.0)
                 num += float((p * f.displacement).sum())
                 den += float((p * p).sum())
     assert 0.6 < num / den < 1.6, num / den

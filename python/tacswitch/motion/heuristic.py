@@ -107,6 +107,9 @@ def outward_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None,
     no pixel rises above the noise floor (no contact)."""
     import cv2
 
+    from tacswitch.motion.mechanics import check_gain
+
+    gain = check_gain(gain)
     n = len(centres)
     if n == 0 or (ref is not None and np.array_equal(img, ref)):
         return np.zeros((n, 2), np.float32)

@@ -156,8 +156,8 @@ METHODS = ("auto", "model", "flow", "outward", "mechanics")
 
 def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: str = "auto",
                    model: str | os.PathLike[str] | None = None, algorithm: str | None = None,
-                   preset: str | None = None, suppress_imprint: bool | None = None
-                   ) -> NDArray[np.float32]:
+                   preset: str | None = None, suppress_imprint: bool | None = None,
+                   gain: float | str | None = None) -> NDArray[np.float32]:
     """The 2D motion each marker would have had, from a markerless frame.
 
     Args:
@@ -192,6 +192,18 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             the flow is trusted less where an imprint appeared (its shading is not motion) and
             filled from the gel around it (:func:`tacswitch.motion.flow.flow_motion`); default
             ``False`` (a reference of the same contact).
+        gain: ``method="mechanics"`` or ``"outward"`` only: how far a press moves this sensor's
+            gel, which one image does not show. A sensor name, ``"gelsight"`` or
+            ``"gelsight_mini"`` (gains fitted on that sensor's real presses:
+            :data:`tacswitch.sim.presets.MECHANICS_GAINS` / ``OUTWARD_GAINS``; the real Mini's
+            gel barely moves, so its gains predict ~zero), a number >= 0 (mechanics: the
+            dimensionless gain, e.g. ``tacswitch.motion.calibration.calibrate_press_gain(
+            no_contact, presses).gain`` measured on your own sensor; outward: the largest
+            motion as a fraction of the marker pitch), or ``None``: the rule's default
+            (mechanics: :data:`tacswitch.motion.mechanics.MECHANICS_GAIN`, the least-squares
+            gain pooled over real GelSight and GelSight Mini presses, the best single gain on
+            real data across both; outward: ``OUTWARD_GAIN``, 0.03 of the pitch, fitted on
+            simulated presses). The direction does not depend on it.
 
     Returns:
         ``N x 2`` float32 ``(dx, dy)`` px in ``img``'s pixels, one row per centre, never NaN
@@ -210,6 +222,7 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
                             ("suppress_imprint", suppress_imprint)):
             if value is not None:
                 raise ValueError(f"{name}: applies to method='flow' only; got method={method!r}")
+    rule_gain = None if gain is None else _rule_gain(method, gain)
     if method == "model":
         return load_model(model)(img, ref=ref, centres=centres)
     frame = _bgr(img, "img")
@@ -234,7 +247,29 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
     if method == "mechanics":
         from tacswitch.motion.mechanics import mechanics_motion
 
-        return mechanics_motion(frame, ref_arr, pts)
+        if rule_gain is None:
+            return mechanics_motion(frame, ref_arr, pts)
+        return mechanics_motion(frame, ref_arr, pts, gain=rule_gain)
     from tacswitch.motion.heuristic import outward_motion
 
-    return outward_motion(frame, ref_arr, pts)
+    if rule_gain is None:
+        return outward_motion(frame, ref_arr, pts)
+    return outward_motion(frame, ref_arr, pts, gain=rule_gain)
+
+
+def _rule_gain(method: str, gain: Any) -> float:
+    """``gain`` of :func:`predict_motion` as a number for ``method`` (validated)."""
+    from tacswitch.sim.presets import MECHANICS_GAINS, OUTWARD_GAINS
+
+    if method not in ("mechanics", "outward"):
+        raise ValueError(f"gain: applies to method='mechanics' or 'outward' only; got "
+                         f"method={method!r}")
+    if isinstance(gain, str):
+        table = MECHANICS_GAINS if method == "mechanics" else OUTWARD_GAINS
+        if gain not in table:
+            raise ValueError(f"gain: unknown sensor {gain!r}; choose from {sorted(table)} or "
+                             "pass a number >= 0")
+        return table[gain]
+    from tacswitch.motion.mechanics import check_gain
+
+    return check_gain(gain)

@@ -28,16 +28,25 @@ direction).
 Units and conventions: frames ``H x W x 3`` uint8 BGR, points and motion ``(x, y)`` px with pixel
 centres at integers. The reach ``T`` defaults to :data:`REACH_FRAC` of the frame width: the real
 GelSight's measured press reach, 5 mm on its ~18.9 mm wide field (170 px at 640 x 480, 85 px at
-320 x 240; ``benches/bench_press_calibration.py``; the GelSight Mini barely moves at all). The
-gain is not fitted to any evaluation data: it is the least-squares scale against the
-simulator's pure presses with the calibrated press law (40 per preset; pooled over GelSight and
-GelSight Mini, with and without the no-contact reference: 1.02; ``python
-benches/bench_motion_single.py --calibrate``). The sensors' own gains differ ~200x (GelSight
-1.69 / 1.87 with the reference / single-frame, Mini 0.008 / 0.009: the Mini's real press field
-is ~zero), so the pooled gain under-predicts the GelSight's motion by ~40 % and over-predicts
-the Mini's (tiny) one; the rule cannot tell the sensors apart from an image. The direction,
-which the cosine scores, does not depend on the gain. Before the calibration (press reach one gel
-thickness, 2 mm, and the simulator's 5-100x too small GelSight field) the gain was 0.15.
+320 x 240; ``benches/bench_press_calibration.py``; the GelSight Mini barely moves at all).
+
+The gain: how far a press moves the gel is a property of the gel, not visible in one image, so
+it is per sensor, fitted on REAL frames (the rule's least-squares scale against the real gel's
+grain-matched motion around taxim's presses, ``benches/bench_press_calibration.py``):
+:data:`tacswitch.sim.presets.MECHANICS_GAINS`, GelSight 0.25, GelSight Mini 0.04 (its gel does
+not measurably move); ``predict_motion(..., gain="gelsight")`` selects one, and
+:func:`tacswitch.motion.calibration.calibrate_press_gain` measures it on any sensor from a
+no-contact frame and a few markerless presses. :data:`MECHANICS_GAIN`, the default when no
+sensor is named, is the least-squares gain pooled over both real sensors (0.25): the best single
+gain on real data across both (held-out real presses: e_rmse 1.61 px on the GelSight against
+2.22 for zero and 4.12 for the old gain; on the Mini ~0.3 px of false motion against ~1 px).
+The old default, 1.02, was the least-squares scale on the simulator's pure presses (pooled over
+both presets; ``python benches/bench_motion_single.py --calibrate``: GelSight 1.69 / 1.87 with
+the reference / single-frame, Mini 0.008 / 0.009). That the simulator's GelSight wants ~7x the
+real GelSight's gain is not explained yet (candidates: the rule's unit-gain output is smaller on
+simulated imprints than on real ones; the simulated scoring includes markers under the contact,
+the real one only markers >= 2 contact radii away). The direction, which the cosine scores, does
+not depend on the gain.
 """
 
 from __future__ import annotations
@@ -47,16 +56,29 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["MECHANICS_GAIN", "REACH_FRAC", "imprint",
+from tacswitch.sim.presets import MECHANICS_GAIN_POOLED
+
+__all__ = ["MECHANICS_GAIN", "REACH_FRAC", "check_gain", "imprint",
            "mechanics_field", "mechanics_motion"]
 
 #: The press's reach as a fraction of the frame width (5 mm / 18.9 mm, measured on the real
 #: GelSight; see the module doc).
 REACH_FRAC = 0.265
-#: Scale of the rule, with or without a reference (see the module doc).
-MECHANICS_GAIN = 1.02
+#: Default scale of the rule, with or without a reference (see the module doc).
+MECHANICS_GAIN = MECHANICS_GAIN_POOLED
 #: Coarse grid cells across the frame width.
 _GRID_WIDTH = 80
+
+
+def check_gain(gain: Any) -> float:
+    """``gain`` as a float; ``ValueError`` naming it unless a finite number >= 0."""
+    if isinstance(gain, (bool, np.bool_)) or not isinstance(gain, (int, float, np.integer,
+                                                                    np.floating)):
+        raise ValueError(f"gain: expected a number >= 0 or a sensor name; got "
+                         f"{type(gain).__name__}")
+    if not (np.isfinite(gain) and gain >= 0):
+        raise ValueError(f"gain: must be a finite number >= 0; got {gain!r}")
+    return float(gain)
 
 
 def _step(width: int) -> int:
@@ -113,6 +135,7 @@ def mechanics_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None,
     identical frames and where nothing rises above the noise floor."""
     import cv2
 
+    gain = check_gain(gain)
     n = len(centres)
     if n == 0 or (ref is not None and np.array_equal(img, ref)):
         return np.zeros((n, 2), np.float32)

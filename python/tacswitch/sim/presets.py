@@ -68,6 +68,26 @@ GELSIGHT_PRESS_DECAY_MM = 5.0
 MINI_PRESS_DILATION = (0.0, 0.05)
 MINI_PRESS_DECAY_MM: float | None = None
 
+# Gains of the no-learning single-frame motion rules (``predict_motion(..., method=
+# "mechanics" | "outward", gain=<sensor>)``), fitted on REAL frames: the least-squares scale of
+# the rule at unit gain (single frame) against the real gel's grain-matched motion at the
+# sensor's marker grid around taxim's even-index presses (each press's capture similarity
+# removed, markers >= 2 contact radii away), clamped >= 0, checked on the odd-index presses
+# (``benches/bench_press_calibration.py``, BENCHMARKS.md: mechanics 0.252 GelSight, 0.038 Mini;
+# outward 0.183 GelSight, 0 Mini). How far a press moves the gel is a property of the gel, not
+# visible in one image: on the real GelSight the mechanics rule's old simulator-fitted gain
+# 1.02 was ~4x too large; the real Mini's gel does not measurably move (its fitted scale is
+# noise: predictions under ~0.05 px). Mechanics: a dimensionless gain; outward: the largest
+# motion as a fraction of the marker pitch. Other sensors: measure your own
+# (``tacswitch.motion.calibration.calibrate_press_gain``, which gives 0.28-0.30 / 0.036 on the
+# same real presses).
+MECHANICS_GAINS: dict[str, float] = {"gelsight": 0.25, "gelsight_mini": 0.04}
+OUTWARD_GAINS: dict[str, float] = {"gelsight": 0.18, "gelsight_mini": 0.0}
+#: The mechanics rule's gain when no sensor is named: the least-squares scale pooled over both
+#: sensors' even-index real presses (0.246): the one gain best on real data across both; it
+#: keeps the Mini's false motion ~4x below the old 1.02's (bench_press_calibration.py).
+MECHANICS_GAIN_POOLED = 0.25
+
 PRESETS: dict[str, SensorPreset] = {
     # The paper's GelSight: 640x480, 48 black markers (8x6), pitch ~80 px, ~23 px dots.
     "gelsight": SensorPreset("gelsight", 480, 640, 6, 8, 80.0, 23.0, 0.85, 1.5, 1.7,

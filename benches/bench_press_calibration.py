@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -32,6 +33,7 @@ from harness import machine, publish, table
 
 from tacswitch.motion import grainmatch as gm
 from tacswitch.motion import proxy
+from tacswitch.motion.calibration import calibrate_press_gain
 from tacswitch.sim.presets import get_preset
 
 SECTION = ("## Real presses: the gel's outward motion (grain block matching) and the "
@@ -166,11 +168,11 @@ def calibrate(sensor: str) -> dict:
             "old_odd": old, "preset_odd": now}
 
 
-def real_truth(sensor: str, sims: dict[str, np.ndarray]) -> list[list[str]]:
-    """Single-frame methods against the grain-matched real motion at the sensor's marker grid
-    (each press's fitted similarity removed; markers >= 2 a from the contact with an NCC peak
-    >= 0.08; working px): the real measurement as a (noisy) truth."""
-    from tacswitch.motion.evaluate import motion_metrics
+def truth_and_rules(sensor: str, sims: dict[str, np.ndarray]) -> dict[str, list[np.ndarray]]:
+    """Per press (even-index presses first, then odd): the grain-matched real motion at the
+    sensor's marker grid (each press's fitted similarity removed; markers >= 2 a from the contact
+    with an NCC peak >= 0.08; working px) and the single-frame rules at unit gain there (both
+    rules are linear in their gain). The real measurement as a (noisy) truth."""
     from tacswitch.motion.heuristic import outward_motion
     from tacswitch.motion.mechanics import mechanics_motion
 
@@ -182,31 +184,73 @@ def real_truth(sensor: str, sims: dict[str, np.ndarray]) -> list[list[str]]:
     hp0 = gm.highpass(f0)
     order = list(range(0, len(imgs), 2)) + list(range(1, len(imgs), 2))
     sim_all = np.concatenate([sims["even"], sims["odd"]])
-    fns = {"zero": lambda i, c: np.zeros((len(c), 2), np.float32),
-           "outward rule": lambda i, c: outward_motion(i, None, c),
-           "mechanics rule": lambda i, c: mechanics_motion(i, None, c)}
-    preds: dict[str, list[np.ndarray]] = {n: [] for n in fns}
-    trues = []
+    out: dict[str, list[np.ndarray]] = {"true": [], "outward": [], "mechanics": [], "odd": []}
     for j, i in enumerate(order):
         pts = (rest.astype(np.float64) + 0.5) * k - 0.5
-        d, pk = gm.match_patches(hp0, gm.highpass(imgs[i]), pts)
-        d = (d - gm.similarity_at(sim_all[j], pts, about)) / k
+        found, pk = gm.match_patches(hp0, gm.highpass(imgs[i]), pts)
+        d = (found - gm.similarity_at(sim_all[j], pts, about)) / k
         far = np.linalg.norm(rest - data.centres[i], axis=1) >= 2 * data.radii[i]
         ok = far & np.isfinite(d).all(1) & (pk >= 0.08)
-        trues.append(d[ok].astype(np.float32))
-        for n, fn in fns.items():
-            preds[n].append(fn(data.imgs[i], rest)[ok])
-    true = np.concatenate(trues)
+        out["true"].append(d[ok].astype(np.float32))
+        out["outward"].append(outward_motion(data.imgs[i], None, rest, gain=1.0)[ok])
+        out["mechanics"].append(mechanics_motion(data.imgs[i], None, rest, gain=1.0)[ok])
+        out["odd"].append(np.array(i % 2 == 1))
+    return out
+
+
+def ls_scale(pred: list[np.ndarray], true: list[np.ndarray]) -> float:
+    """Least-squares scale of ``pred`` against ``true``, clamped at 0."""
+    p, t = np.concatenate(pred), np.concatenate(true)
+    return max(0.0, float((p * t).sum() / max(float((p * p).sum()), 1e-12)))
+
+
+def rule_gains(data: dict[str, dict[str, list[np.ndarray]]]) -> dict[str, float]:
+    """The rules' gains fitted on the even presses: per sensor and pooled over both sensors
+    (each in its working px)."""
+    out = {}
+    for rule in ("mechanics", "outward"):
+        pp, tt = [], []
+        for sensor, d in data.items():
+            ev = [j for j, o in enumerate(d["odd"]) if not o]
+            p, t = [d[rule][j] for j in ev], [d["true"][j] for j in ev]
+            out[f"{rule}/{sensor}"] = ls_scale(p, t)
+            pp += p
+            tt += t
+        out[f"{rule}/pooled"] = ls_scale(pp, tt)
+    return out
+
+
+def truth_rows(sensor: str, d: dict[str, list[np.ndarray]], fitted: dict[str, float],
+               selfcal: float) -> list[list[str]]:
+    """Single-frame methods on the held-out (odd) presses against the real measurement."""
+    from tacswitch.motion.evaluate import motion_metrics
+    from tacswitch.motion.heuristic import OUTWARD_GAIN
+    from tacswitch.motion.mechanics import MECHANICS_GAIN
+    from tacswitch.sim.presets import MECHANICS_GAINS, OUTWARD_GAINS
+
+    od = [j for j, o in enumerate(d["odd"]) if o]
+    true = np.concatenate([d["true"][j] for j in od])
+    mech = np.concatenate([d["mechanics"][j] for j in od])
+    outw = np.concatenate([d["outward"][j] for j in od])
+    preds = {
+        "zero": (np.zeros_like(true), "-"),
+        f"outward rule, default gain {OUTWARD_GAIN:g}": (OUTWARD_GAIN * outw, "-"),
+        f"outward rule, {sensor} gain {OUTWARD_GAINS[sensor]:g}":
+            (OUTWARD_GAINS[sensor] * outw, f"{fitted['outward/' + sensor]:.3f}"),
+        "mechanics rule, old gain 1.02": (1.02 * mech, "-"),
+        f"mechanics rule, default gain {MECHANICS_GAIN:g}":
+            (MECHANICS_GAIN * mech, f"{fitted['mechanics/pooled']:.3f} (pooled)"),
+        f"mechanics rule, {sensor} gain {MECHANICS_GAINS[sensor]:g}":
+            (MECHANICS_GAINS[sensor] * mech, f"{fitted['mechanics/' + sensor]:.3f}"),
+        f"mechanics rule, self-calibrated {selfcal:.3f}": (selfcal * mech, "-"),
+    }
     rows = []
-    for n in fns:
-        pred = np.concatenate(preds[n])
+    for n, (pred, fit) in preds.items():
         m = motion_metrics(pred, true, min_px=0.5)
-        scale = float((pred * true).sum() / max(float((pred * pred).sum()), 1e-12))
-        rows.append([sensor, n, f"{m['e_rmse_mean']:.3f}", f"{m['cos_mean']:.2f}",
-                     f"{m['within30_pct']:.0f}", "-" if n == "zero" else f"{scale:.2f}",
-                     f"{len(trues)} / {len(true)} / {m['n_orient']}"])
-    rows.append([sensor, "(truth: mean length)", f"{np.linalg.norm(true, axis=1).mean():.3f}",
-                 "-", "-", "-", "-"])
+        rows.append([sensor, n, fit, f"{m['e_rmse_mean']:.3f}", f"{m['cos_mean']:.2f}",
+                     f"{m['within30_pct']:.0f}", f"{len(od)} / {len(true)} / {m['n_orient']}"])
+    rows.append([sensor, "(truth: mean length)", "-", f"{np.linalg.norm(true, axis=1).mean():.3f}",
+                 "-", "-", "-"])
     return rows
 
 
@@ -216,7 +260,9 @@ def main() -> int:
     ap.add_argument("--no-check", action="store_true", help="skip the estimator check")
     args = ap.parse_args()
     qs = KNOTS[:-1]
-    rows, notes_fit, check, truth_rows = [], [], [], []
+    rows, notes_fit, check, rule_rows = [], [], [], []
+    tdata: dict[str, dict[str, list[np.ndarray]]] = {}
+    selfcal: dict[str, Any] = {}
     for sensor in ("gelsight", "gelsight_mini"):
         r = calibrate(sensor)
         p = get_preset(sensor)
@@ -240,7 +286,11 @@ def main() -> int:
             f"{r['zoom']['odd'] * 1e3:+.2f}e-3. Preset now: `press_dilation` = "
             f"{p.press_dilation}, `press_decay_mm` = {p.press_decay_mm}.")
         print(notes_fit[-1], flush=True)
-        truth_rows += real_truth(sensor, r["sims"])
+        tdata[sensor] = truth_and_rules(sensor, r["sims"])
+        f0, imgs, *_ = native(sensor)
+        selfcal[sensor] = (calibrate_press_gain(f0, imgs[0::2]),
+                           calibrate_press_gain(f0, imgs[1::2]))
+        print(sensor, "self-calibrated (even, odd):", *selfcal[sensor], flush=True)
         if not args.no_check:
             got, truth, dz = check_estimator(sensor)
             check.append(f"- {sensor} (every 3rd press, capture px): recovered "
@@ -249,6 +299,23 @@ def main() -> int:
                          f"{', '.join(f'{q:g}' for q in qs)} a; zoom change {dz * 1e3:.2f}e-3 "
                          "(truth 1.00e-3).")
             print(check[-1], flush=True)
+    fitted = rule_gains(tdata)
+    print("fitted on even presses:", fitted, flush=True)
+    for sensor, d in tdata.items():
+        rule_rows += truth_rows(sensor, d, fitted, selfcal[sensor][0].gain)
+        print(*(" | ".join(x) for x in rule_rows[-8:]), sep="\n", flush=True)
+    gain_notes = []
+    for sensor, (ev, od) in selfcal.items():
+        gain_notes.append(
+            f"- {sensor}: least-squares scale on the even presses: mechanics rule "
+            f"{fitted['mechanics/' + sensor]:.3f}, outward rule {fitted['outward/' + sensor]:.3f} "
+            f"(fraction of the pitch); `calibrate_press_gain` on the even / odd presses: "
+            f"{ev.gain:.3f} +- {ev.stderr:.3f} / {od.gain:.3f} +- {od.stderr:.3f} "
+            f"({ev.n_patches} / {od.n_patches} patches, explained {ev.explained:.2f} / "
+            f"{od.explained:.2f}, median NCC peak {ev.peak:.2f}).")
+    gain_notes.append(f"- pooled over both sensors (even presses, each in its working px): "
+                      f"mechanics {fitted['mechanics/pooled']:.3f}, outward "
+                      f"{fitted['outward/pooled']:.3f}.")
     notes = [
         f"{machine()}.", "",
         "Radial motion (px of the working size, + = outward) of the real gel around taxim's real "
@@ -270,13 +337,20 @@ def main() -> int:
         notes += ["", "Estimator check: the same real presses warped by a known outward bump "
                   "`2 exp(-((r/a - 3) / 1.2)^2)` px plus a 1e-3 zoom about the image centre; "
                   "change of the fitted profile:", *check]
-    notes += ["", "Single-frame methods scored against this real measurement (the grain-matched "
-              "motion at the sensor's marker grid, each press's fitted similarity removed; "
-              "markers >= 2 a from the contact; cosine over truths >= 0.5 px; `scale`: the "
-              "least-squares scale that would fit the method to it; the per-marker truth is "
-              "noisy, ~0.2-0.4 px; on the Mini it is noise only):", "",
-              table(["sensor", "method (single frame)", "e_rmse mean (px)", "cos",
-                     "within 30 deg %", "scale", "presses / markers / moved"], truth_rows),
+    notes += ["", "The rules' press gains on real frames (single frame; the grain-matched motion "
+              "at the sensor's marker grid, each press's fitted similarity removed, markers "
+              ">= 2 a from the contact; least-squares scale of the rule at unit gain, clamped "
+              ">= 0; shipped as `sim.presets.MECHANICS_GAINS` / `OUTWARD_GAINS`, the default "
+              "`MECHANICS_GAIN` the pooled value) and the self-calibration "
+              "(`motion.calibration.calibrate_press_gain`: no marker grid, no recorded contacts; "
+              "its own joint fit of the gain and a per-frame similarity on a 16 px patch grid "
+              "away from the imprint; stderr optimistic: patches overlap):", *gain_notes, "",
+              "Single-frame methods scored on the held-out (odd) presses against this real "
+              "measurement (cosine over truths >= 0.5 px; `fit (even)`: the least-squares "
+              "scale fitted on the even presses that the shipped gain rounds; the per-marker "
+              "truth is noisy, ~0.2-0.4 px; on the Mini it is noise only):", "",
+              table(["sensor", "method (single frame)", "fit (even)", "e_rmse mean (px)", "cos",
+                     "within 30 deg %", "presses / markers / moved"], rule_rows),
               "", "Ring table:"]
     cmd = "OMP_NUM_THREADS=1 python benches/bench_press_calibration.py " + " ".join(sys.argv[1:])
     publish(SECTION, notes, ["sensor", "ring", "raw (all presses)", "profile, even",

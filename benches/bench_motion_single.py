@@ -41,37 +41,46 @@ from tacswitch.motion import proxy
 from tacswitch.motion.evaluate import motion_metrics
 from tacswitch.motion.heuristic import outward_motion
 from tacswitch.motion.infer import MotionModel
-from tacswitch.motion.mechanics import mechanics_motion
+from tacswitch.motion.mechanics import MECHANICS_GAIN, mechanics_motion
+from tacswitch.sim.presets import MECHANICS_GAINS, OUTWARD_GAINS
 
 SECTION = "## Marker motion from a single frame: contact-mechanics rule vs outward rule and model"
-Predict = Callable[[np.ndarray, Any, np.ndarray], np.ndarray]
+#: ``fn(img, ref, centres, sensor)``: ``sensor`` names the frame's press gains
+#: (``sim.presets.MECHANICS_GAINS`` / ``OUTWARD_GAINS``).
+Predict = Callable[[np.ndarray, Any, np.ndarray, str], np.ndarray]
+MECH_DEFAULT = f"mechanics rule, default gain {MECHANICS_GAIN:g}"
 #: Rules whose scale-fitted diagnostic row is shown too.
-SCALED = ("outward rule", "mechanics rule")
+SCALED = ("outward rule", MECH_DEFAULT)
 
 
 def methods(with_ref: bool) -> dict[str, Predict]:
     model = MotionModel(threads=2)
     out: dict[str, Predict] = {
-        "zero": lambda i, r, c: np.zeros((len(c), 2), np.float32),
-        "outward rule": lambda i, r, c: outward_motion(i, r, c),
-        "model (shipped)": lambda i, r, c: model(i, ref=r, centres=c),
-        "mechanics rule": lambda i, r, c: mechanics_motion(i, r, c),
+        "zero": lambda i, r, c, s: np.zeros((len(c), 2), np.float32),
+        "outward rule": lambda i, r, c, s: outward_motion(i, r, c),
+        "outward rule, per-sensor gain": lambda i, r, c, s: outward_motion(
+            i, r, c, gain=OUTWARD_GAINS[s]),
+        "model (shipped)": lambda i, r, c, s: model(i, ref=r, centres=c),
+        "mechanics rule, old gain 1.02": lambda i, r, c, s: mechanics_motion(i, r, c, gain=1.02),
+        MECH_DEFAULT: lambda i, r, c, s: mechanics_motion(i, r, c),
+        "mechanics rule, per-sensor gain": lambda i, r, c, s: mechanics_motion(
+            i, r, c, gain=MECHANICS_GAINS[s]),
     }
     if with_ref:
         from tacswitch.motion.flow import DEFAULT_PRESET, flow_motion
 
-        out[f"flow DIS {DEFAULT_PRESET} (default)"] = lambda i, r, c: flow_motion(i, r, c)
+        out[f"flow DIS {DEFAULT_PRESET} (default)"] = lambda i, r, c, s: flow_motion(i, r, c)
     return out
 
 
-def score(samples: list[tuple[Any, Any, Any, Any]], min_px: float
+def score(samples: list[tuple[Any, Any, Any, Any, str]], min_px: float
           ) -> dict[str, dict[str, float]]:
-    """Metrics per method over ``(img, ref, centres, true)`` samples."""
+    """Metrics per method over ``(img, ref, centres, true, sensor)`` samples."""
     res = {}
-    true = np.concatenate([t for *_, t in samples])
+    true = np.concatenate([smp[3] for smp in samples])
     for name, fn in methods(samples[0][1] is not None).items():
         t0 = time.perf_counter()
-        pred = np.concatenate([fn(i, r, c) for i, r, c, _ in samples])
+        pred = np.concatenate([fn(i, r, c, s) for i, r, c, _, s in samples])
         m = motion_metrics(pred, true, min_px=min_px)
         m["ms"] = 1e3 * (time.perf_counter() - t0) / len(samples)
         res[name] = m
@@ -98,7 +107,7 @@ def contact_settings(every: int) -> dict[str, tuple[list, float]]:
         for setting in ("single", "no_contact"):
             for subset, kinds in (("press only", ("press",)), ("all cases", proxy.CONTACT_KINDS)):
                 out[f"real frames + modelled field, {sensor}, {setting}, {subset}"] = (
-                    [(s.img, s.ref(setting), s.rest, s.motion) for s in samples
+                    [(s.img, s.ref(setting), s.rest, s.motion, sensor) for s in samples
                      if s.kind in kinds], 0.1)
     return out
 
@@ -112,19 +121,44 @@ def warp_settings(every: int) -> dict[str, tuple[list, float]]:
         min_px = 0.1 * proxy.MAX_AMPLITUDE_MM / proxy.MM_PER_PX[sensor]
         for setting in ("single", "no_contact"):
             out[f"real warp proxy, {sensor}, {setting}"] = (
-                [(s.img, s.ref(setting), s.rest, s.motion) for s in samples], min_px)
+                [(s.img, s.ref(setting), s.rest, s.motion, sensor) for s in samples], min_px)
     return out
+
+
+def sim_sensors(n: int) -> tuple[list[str], list[str]]:
+    """Which press law each simulated held-out sample has (``"gelsight_mini"`` or
+    ``"gelsight"``: the ``mixed`` preset's GelSight at the Mini's size), in
+    :func:`harness.held_out_motion_pairs` order: replays the draws of
+    :func:`tacswitch.motion.data.render_gel_pair_sample` (label, then the preset) and checks the
+    label against the data's."""
+    from tacswitch.motion import data as mdata
+
+    out = []
+    for split in ("gel_test_indenter", "gel_test_depth"):
+        base = split.removeprefix("gel_")
+        classes, _ = mdata.split_spec(base)
+        sid = mdata.SPLITS.index(base) + 200
+        for i in range(n):
+            rng = np.random.default_rng(np.random.SeedSequence([0, sid, i]))
+            label = classes[int(rng.integers(len(classes)))]
+            out.append((label, "gelsight_mini" if rng.random() < 0.5 else "gelsight"))
+    return [s for _, s in out], [lab for lab, _ in out]
 
 
 def sim_settings(root: Path, n: int) -> dict[str, tuple[list, float]]:
     d = held_out_motion_pairs(root, n)
+    sensors, labels = sim_sensors(n)
+    if list(d["label"]) != labels:
+        raise SystemExit("sim_sensors: replayed labels differ from the data's (the generator "
+                         "changed); cannot tell each sample's preset")
     single, nocontact = [], []
     for i in range(len(d["image"])):
         sel = d["present"][i]
         cen = d["rest"][i][sel]
-        single.append((d["image"][i], None, cen, d["disp_image"][i][sel]))
+        single.append((d["image"][i], None, cen, d["disp_image"][i][sel], sensors[i]))
         if np.abs(d["disp_reference"][i][sel]).max() == 0:
-            nocontact.append((d["image"][i], d["reference"][i], cen, d["displacement"][i][sel]))
+            nocontact.append((d["image"][i], d["reference"][i], cen, d["displacement"][i][sel],
+                              sensors[i]))
     return {"simulated held-out, single": (single, 0.5),
             "simulated held-out, no_contact": (nocontact, 0.5)}
 
@@ -205,10 +239,12 @@ def flow_measured(every: int) -> list[list[str]]:
 
     model = MotionModel(threads=2)
     fns: dict[str, Predict] = {
-        "zero": lambda i, r, c: np.zeros((len(c), 2), np.float32),
-        "outward rule": lambda i, r, c: outward_motion(i, r, c),
-        "model (shipped)": lambda i, r, c: model(i, ref=r, centres=c),
-        "mechanics rule": lambda i, r, c: mechanics_motion(i, r, c),
+        "zero": lambda i, r, c, s: np.zeros((len(c), 2), np.float32),
+        "outward rule": lambda i, r, c, s: outward_motion(i, r, c),
+        "model (shipped)": lambda i, r, c, s: model(i, ref=r, centres=c),
+        MECH_DEFAULT: lambda i, r, c, s: mechanics_motion(i, r, c),
+        "mechanics rule, per-sensor gain": lambda i, r, c, s: mechanics_motion(
+            i, r, c, gain=MECHANICS_GAINS[s]),
     }
     rows = []
     for sensor in ("gelsight", "gelsight_mini"):
@@ -226,7 +262,7 @@ def flow_measured(every: int) -> list[list[str]]:
             shift = flow_motion(data.imgs[i], data.f0, border).mean(0)
             trues.append((flow_motion(data.imgs[i], data.f0, rest) - shift)[far])
             for k, fn in fns.items():
-                preds[k].append(fn(data.imgs[i], None, rest)[far])
+                preds[k].append(fn(data.imgs[i], None, rest, sensor)[far])
         true = np.concatenate(trues)
         for k in fns:
             m = motion_metrics(np.concatenate(preds[k]), true, min_px=0.5)
@@ -312,9 +348,17 @@ def main() -> int:
              "`bench_motion_real.py` (unrelated to the imprint). **Simulated held-out**: "
              "`gel_test_indenter` + `gel_test_depth` (measured only in simulation). `single`: no "
              "reference; `no_contact`: the real (or simulated) no-contact frame as reference.",
-             "The mechanics rule's gain comes from the simulator's pure presses "
-             "(`--calibrate`), never from these data. Rows `scale xK fitted here (upper "
-             "bound)` are diagnostics, not methods: the rule rescaled by least squares on the "
+             f"Press gains: `default gain {MECHANICS_GAIN:g}` is the mechanics rule's shipped "
+             "default (the least-squares gain pooled over real GelSight and Mini presses, "
+             "`bench_press_calibration.py`); `old gain 1.02` its former default (least squares "
+             "on the simulator's pure presses, `--calibrate`); `per-sensor gain`: each frame's "
+             "sensor's gain fitted on real presses (`sim.presets.MECHANICS_GAINS` "
+             f"{MECHANICS_GAINS}, `OUTWARD_GAINS` {OUTWARD_GAINS}; simulated samples: the "
+             "`mixed` preset's "
+             "GelSight-optics half gets the GelSight gain, the Mini half the Mini's, i.e. what a "
+             "user who selected the sensor would get). No gain is fitted on these data. Rows "
+             "`scale xK fitted here (upper bound)` are diagnostics, not methods: the rule "
+             "rescaled by least squares on the "
              "data it is scored on (scale clamped at >= 0; cosine and within-30 are the rule's "
              "own), i.e. what a perfect magnitude prior would give."]
     cmd = "OMP_NUM_THREADS=1 python benches/bench_motion_single.py " + " ".join(sys.argv[1:])

@@ -23,7 +23,11 @@ shading change, not the grain, drives the match.
 
 Units and conventions: frames ``H x W x 3`` uint8 BGR of one sensor at one size (any size: the
 gain is dimensionless, the rule's output and the motion both scale with the frame width),
-points ``(x, y)`` px with pixel centres at integers.
+points ``(x, y)`` px with pixel centres at integers. Measured on taxim's real presses (even /
+odd halves, 640 x 480): GelSight 0.284 / 0.300, Mini 0.036 / 0.036; area-downsampled to 320 x
+240 (even half): GelSight 0.246 (``patch=48``) / 0.265 (``patch=24``), Mini 0.033 / 0.033 —
+the shipped gains (:data:`tacswitch.sim.presets.MECHANICS_GAINS`, fitted at the marker grid
+>= 2 contact radii away by ``benches/bench_press_calibration.py``) are 0.25 and 0.04.
 """
 
 from __future__ import annotations

@@ -263,6 +263,13 @@ def test_motion_command_matches_predict_motion(tmp_path: Path, motion_pair: dict
     _, motion = _read_motion_csv(tmp_path / "k" / "img.csv")
     np.testing.assert_allclose(motion, ts.predict_motion(img, None, rest, method="mechanics"),
                                atol=1e-3)
+    # --gain: a sensor name or a number, as predict_motion takes it.
+    for gain, value in (("gelsight_mini", "gelsight_mini"), ("0.5", 0.5)):
+        assert main(["motion", str(tmp_path / "img.png"), "--centres", str(centres),
+                     "--gain", gain, "-o", str(tmp_path / "k"), "-q"]) == 0
+        _, motion = _read_motion_csv(tmp_path / "k" / "img.csv")
+        np.testing.assert_allclose(motion, ts.predict_motion(img, None, rest, gain=value),
+                                   atol=1e-3)
     centres.write_bytes(b"\x93NUMPY")
     assert main(["motion", str(tmp_path / "img.png"), "--ref", str(tmp_path / "ref.png"),
                  "--centres", str(centres), "-o", str(out), "-q"]) == 1

@@ -194,3 +194,18 @@ def test_exit_codes_are_documented() -> None:
     for name in ("remove-markers", "markers"):
         text = " ".join(cli(name, "--help").stdout.split())
         assert "Exit status: 0" in text and "1 when no input could be read" in text
+
+
+@pytest.mark.parametrize("args, says", [
+    (["--gain", "digit_x"], "--gain: unknown sensor 'digit_x'"),
+    (["--gain", "-1"], "--gain:"),
+    (["--gain", "0.3", "--method", "flow", "--ref", "IMG"],
+     "--gain: applies to method='mechanics'"),
+])
+def test_motion_gain_errors_name_the_option(tmp_path: Path, image: Path, args: list[str],
+                                            says: str) -> None:
+    argv = [str(image) if a == "IMG" else a for a in args]
+    run = cli("motion", str(image), *argv, "-o", str(tmp_path / "o"))
+    assert run.returncode == 2, run.stderr
+    one_line(run, says)
+    assert not (tmp_path / "o").exists()

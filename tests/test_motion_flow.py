@@ -222,12 +222,12 @@ def test_cli_slip_markerless_flags_a_growing_shear_after_the_grasp_start(mini, t
                                                "--markerless only")
 
 
-def test_default_method_is_flow_with_a_reference_and_outward_without(mini, grid) -> None:
+def test_default_method_is_flow_with_a_reference_and_mechanics_without(mini, grid) -> None:
     img, ref = mini.imgs[4], mini.f0
     np.testing.assert_array_equal(predict_motion(img, ref, grid),
                                   predict_motion(img, ref, grid, method="flow"))
     np.testing.assert_array_equal(predict_motion(img, None, grid),
-                                  predict_motion(img, None, grid, method="outward"))
+                                  predict_motion(img, None, grid, method="mechanics"))
     assert np.abs(predict_motion(ref, ref.copy(), grid)).max() < 0.05
 
 

@@ -23,11 +23,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--model", default=None, help="ONNX model (default: the shipped one)")
     p.add_argument("--method", choices=("auto", "model", "flow", "outward", "mechanics"),
                    default="auto",
-                   help="auto (default): flow with --ref, outward without; model: the ONNX "
+                   help="auto (default): flow with --ref, mechanics without; model: the ONNX "
                         "model; flow: dense optical flow from --ref (training-free, needs "
                         "--ref); outward: the no-learning baseline (markers move outward from "
                         "the contact); mechanics: the simulator's elastic press law applied to "
                         "the imprint (no learning; with or without --ref)")
+    p.add_argument("--gain", default=None, metavar="SENSOR|G",
+                   help="mechanics / outward only: how far a press moves your gel: a sensor "
+                        "name (gelsight, gelsight_mini: fitted on real presses) or a number "
+                        ">= 0, e.g. from tacswitch.motion.calibration.calibrate_press_gain "
+                        "(default: the rule's own)")
     p.add_argument("-o", "--out", default="motion-out", help="output folder (default: %(default)s)")
     p.add_argument("--scale", type=float, default=3.0, help="arrow length per px of motion")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")
@@ -51,6 +56,25 @@ def _read_centres(path: str):  # type: ignore[no-untyped-def]
         raise ValueError(f"--centres: {path!r} has a row whose x or y is not a number") from None
 
 
+def _gain_option(text: str | None, method: str) -> float | str | None:
+    """``--gain`` as :func:`tacswitch.predict_motion` takes it (a number or a sensor name),
+    checked against the method it will run with before any image is read."""
+    from tacswitch.cli.options import UsageError
+    from tacswitch.motion.infer import _rule_gain
+
+    if text is None:
+        return None
+    try:
+        gain: float | str = float(text)
+    except ValueError:
+        gain = text
+    try:
+        _rule_gain(method, gain)
+    except ValueError as e:
+        raise UsageError(f"--gain: {str(e).removeprefix('gain: ')}") from None
+    return gain
+
+
 def run(args: argparse.Namespace) -> int:
     import cv2
     import numpy as np
@@ -59,13 +83,14 @@ def run(args: argparse.Namespace) -> int:
     from tacswitch.cli.options import UsageError, input_file, load_model_option, output_dir
     from tacswitch.cli.progress import progress, say
     from tacswitch.cli.sources import collect_images, read_quiet, report_unreadable
-    from tacswitch.motion.infer import load_model, predict_motion
+    from tacswitch.motion.infer import load_model, predict_motion, resolve_method
 
     if args.method == "flow" and not args.ref:
         raise UsageError("--ref: --method flow measures motion from a reference frame; pass the "
                          "markerless no-contact frame")
     model = load_model_option(load_model, args.model)
     ref = read_image(input_file(args.ref, "--ref"), "--ref", quiet=True) if args.ref else None
+    gain = _gain_option(args.gain, resolve_method(args.method, ref is not None))
     centres = _read_centres(str(input_file(args.centres, "--centres"))) if args.centres else None
     files = collect_images(args.inputs)
     out = output_dir(args.out, "--out")
@@ -79,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
                 continue
             pts = model.centres_for(*img.shape[:2]) if centres is None else centres
             motion = (model(img, ref=ref, centres=pts) if args.method == "model" else
-                      predict_motion(img, ref, pts, method=args.method))
+                      predict_motion(img, ref, pts, method=args.method, gain=gain))
             buf = io.StringIO()
             w = csv.writer(buf)
             w.writerow(["x", "y", "dx", "dy"])

@@ -179,14 +179,7 @@ def calibrate_press_gain(no_contact: Any, frames: Any, centres: Any = None, *,
         raise ValueError("frames: the rule predicts no motion on these frames (no imprint above "
                          "the noise floor: no press visible)")
     a = a[:, used]
-    wt = np.ones(len(b))
-    x = np.zeros(a.shape[1])
-    for _ in range(4):
-        sw = np.sqrt(wt)
-        x = np.linalg.lstsq(a * sw[:, None], b * sw, rcond=None)[0]
-        res = np.abs(b - a @ x)
-        s = 1.4826 * float(np.median(res)) + 1e-9
-        wt = np.minimum(1.0, 1.5 * s / np.maximum(res, 1e-12))
+    x, wt = gm.robust_lstsq(a, b)
     g = float(x[-1])
     res = b - a @ x
     moved = res + a[:, -1] * g

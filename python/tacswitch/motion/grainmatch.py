@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ["fit_similarity", "highpass", "match_patches", "press_profile", "radial_rings",
-           "similarity_at"]
+           "robust_lstsq", "similarity_at"]
 
 
 def highpass(img: NDArray[np.uint8], sigma: float = 3.0) -> NDArray[np.float32]:
@@ -184,12 +184,21 @@ def press_profile(f0: NDArray[np.uint8], imgs: NDArray[np.uint8], centres: NDArr
             a[:, 4 * n_p:] = basis * unit[:, ax:ax + 1]
             blocks.append(a)
             rhs.append(d[ok, ax].astype(np.float64))
-    a, b = np.concatenate(blocks), np.concatenate(rhs)
-    wt = np.ones(len(b))
-    for _ in range(4):
+    x, _ = robust_lstsq(np.concatenate(blocks), np.concatenate(rhs))
+    return x[4 * n_p:], x[:4 * n_p].reshape(n_p, 4)
+
+
+def robust_lstsq(a: NDArray[np.float64], b: NDArray[np.float64], iterations: int = 4
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Least squares ``a x ~ b`` reweighted ``iterations`` times with Huber weights at 1.5
+    robust sigmas (MAD of the residuals), so the few grain patches that matched the wrong peak
+    do not pull the fit. Returns ``(x, weights)`` (the weights of the last solve)."""
+    wt: NDArray[np.float64] = np.ones(len(b))
+    x: NDArray[np.float64] = np.zeros(a.shape[1])
+    for _ in range(iterations):
         sw = np.sqrt(wt)
-        x = np.linalg.lstsq(a * sw[:, None], b * sw, rcond=None)[0]
+        x = np.asarray(np.linalg.lstsq(a * sw[:, None], b * sw, rcond=None)[0], np.float64)
         res = np.abs(b - a @ x)
         s = 1.4826 * float(np.median(res)) + 1e-9
         wt = np.minimum(1.0, 1.5 * s / np.maximum(res, 1e-12))
-    return x[4 * n_p:], x[:4 * n_p].reshape(n_p, 4)
+    return x, wt

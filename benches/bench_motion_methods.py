@@ -31,7 +31,6 @@ from harness import interleaved, machine, publish, table, update_markdown
 from tacswitch import predict_motion
 from tacswitch.motion import flow, proxy
 from tacswitch.motion.evaluate import motion_metrics
-from tacswitch.motion.infer import METHODS as PREDICT_METHODS
 
 SECTION = "## Markerless motion: flow presets (speed, brightness, real-texture accuracy)"
 SENSORS = ("gelsight_mini", "gelsight")
@@ -48,10 +47,17 @@ def speed_methods() -> dict[str, dict[str, str]]:
            {"method": "flow", "preset": p} for p in PRESETS}
     out[SUPPRESS] = {"method": "flow", "preset": "balanced", "suppress_imprint": True}
     out["outward rule"] = {"method": "outward"}
-    if "mechanics" in PREDICT_METHODS:
-        out["mechanics rule"] = {"method": "mechanics"}
+    out["mechanics rule"] = {"method": "mechanics"}
     out["model"] = {"method": "model"}
+    # Without a reference (predict_motion's default then is the mechanics rule).
+    for name, meth in (("mechanics", "mechanics"), ("outward", "outward"), ("model", "model")):
+        out[f"{name} rule, single frame" if name != "model" else "model, single frame"] = {
+            "method": meth, SINGLE: "1"}
     return out
+
+
+#: Marks a :func:`speed_methods` entry timed without a reference frame.
+SINGLE = "_single"
 
 
 def speed(presses: dict[str, proxy.RealPresses], rounds: int, repeat: int) -> list[list[str]]:
@@ -61,7 +67,9 @@ def speed(presses: dict[str, proxy.RealPresses], rounds: int, repeat: int) -> li
         img, ref = presses[sensor].imgs[3], presses[sensor].f0
         grid = proxy.marker_grid(sensor)[0]
         calls = {n: (lambda kw=kw, img=img, ref=ref, grid=grid:
-                     predict_motion(img, ref, grid, **kw)) for n, kw in meths.items()}
+                     predict_motion(img, None if SINGLE in kw else ref, grid,
+                                    **{k: v for k, v in kw.items() if k != SINGLE}))
+                 for n, kw in meths.items()}
         res[sensor] = interleaved(calls, rounds=rounds, repeat=repeat)
     base = {s: res[s]["flow, DIS medium"].median for s in SENSORS}
     default = f"flow, DIS {flow.DEFAULT_PRESET} (default)"
@@ -192,6 +200,10 @@ def main() -> int:
                     "(made if absent)")
     ap.add_argument("--n-sim", type=int, default=200, help="--no-contact: samples per split")
     args = ap.parse_args()
+    if args.update and args.no_accuracy and not args.no_contact:
+        # The section holds the brightness and accuracy tables too; a speed-only run would
+        # replace them with nothing.
+        ap.error("--update: rewrites the whole section; run without --no-accuracy")
     presses = {s: proxy.load_real_presses(s) for s in SENSORS}
     if args.no_contact:
         rows = no_contact(presses, max(1, args.every), args.sim_dir, args.n_sim)
@@ -223,6 +235,7 @@ def main() -> int:
              "above ~1 means other jobs were running: compare the ratios, not the Hz, with "
              "other runs).", "",
              "Speed: `predict_motion` end to end on a real press vs its no-contact frame "
+             "(rows `single frame`: the press alone) "
              f"(median of {args.rounds} x {args.repeat} calls, methods interleaved). Budgets: "
              ">= 100 Hz at 320x240, >= 30 Hz at 640x480 on 2 cores."]
     header = ["method", "320x240 ms", "640x480 ms", "320x240 Hz", "640x480 Hz",

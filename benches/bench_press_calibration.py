@@ -49,9 +49,9 @@ DECAYS = (1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 5.0, 6.0)
 def native(sensor: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
     """taxim's frames at capture size: ``f0, imgs, centres, radii`` and the factor capture px
     per working px."""
-    import taxim
+    from tacswitch.realproxy import _taxim_pack
 
-    pack = np.load(Path(taxim.__file__).parent / "calib" / sensor / "dataPack.npz")
+    pack = _taxim_pack(sensor)
     k = pack["f0"].shape[1] / proxy.SENSORS[sensor][0]
     return (pack["f0"], pack["imgs"], pack["touch_center"].astype(np.float64),
             pack["touch_radius"].astype(np.float64), k)

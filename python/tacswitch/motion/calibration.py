@@ -158,10 +158,7 @@ def calibrate_press_gain(no_contact: Any, frames: Any, centres: Any = None, *,
         p = mechanics_motion(im, None, pts[ok], gain=1.0).astype(np.float64)
         rel = pts[ok].astype(np.float64) - about
         for ax in (0, 1):
-            a = np.zeros((int(ok.sum()), 4 * n_f + 1))
-            a[:, 4 * j + ax] = 1.0
-            a[:, 4 * j + 2] = rel[:, ax]
-            a[:, 4 * j + 3] = -rel[:, 1] if ax == 0 else rel[:, 0]
+            a = gm.similarity_rows(rel, j, ax, 4 * n_f + 1)
             a[:, -1] = p[:, ax]
             blocks.append(a)
             rhs.append(d[ok, ax].astype(np.float64))

@@ -7,7 +7,7 @@ normalised cross-correlation over a ``+-search`` px window (``cv2.matchTemplate`
 peak refined by a parabola per axis): a purely local estimate, unlike coarse-to-fine variational
 flow (DIS), whose large motion at the imprint can leak outward. Used to measure the real gel's
 motion around real presses (``benches/bench_press_calibration.py``), which calibrates the
-simulator's press law (:data:`tacswitch.sim.motion.PRESS_DILATION`).
+simulator's press law (:mod:`tacswitch.sim.presets`, ``GELSIGHT_PRESS_DILATION``...).
 
 Conventions: frames ``H x W x 3`` uint8 BGR (or ``H x W`` grey), points ``(x, y)`` px with pixel
 centres at integers, displacement ``(dx, dy)`` px: the gel at ``X`` in ``ref`` is at ``X + d``
@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ["fit_similarity", "highpass", "match_patches", "press_profile", "radial_rings",
-           "robust_lstsq", "similarity_at"]
+           "robust_lstsq", "similarity_at", "similarity_rows"]
 
 
 def highpass(img: NDArray[np.uint8], sigma: float = 3.0) -> NDArray[np.float32]:
@@ -177,15 +177,25 @@ def press_profile(f0: NDArray[np.uint8], imgs: NDArray[np.uint8], centres: NDArr
         basis = _hats(r[ok] / radii[j], knots)
         relc = pts[ok] - cc
         for ax in (0, 1):
-            a = np.zeros((int(ok.sum()), 4 * n_p + n_k))
-            a[:, 4 * j + ax] = 1.0
-            a[:, 4 * j + 2] = relc[:, ax]
-            a[:, 4 * j + 3] = -relc[:, 1] if ax == 0 else relc[:, 0]
+            a = similarity_rows(relc, j, ax, 4 * n_p + n_k)
             a[:, 4 * n_p:] = basis * unit[:, ax:ax + 1]
             blocks.append(a)
             rhs.append(d[ok, ax].astype(np.float64))
     x, _ = robust_lstsq(np.concatenate(blocks), np.concatenate(rhs))
     return x[4 * n_p:], x[:4 * n_p].reshape(n_p, 4)
+
+
+def similarity_rows(rel: NDArray[np.float64], j: int, ax: int, n_cols: int
+                    ) -> NDArray[np.float64]:
+    """Design-matrix rows (``len(rel) x n_cols``) of displacement component ``ax`` (0: x,
+    1: y) for frame ``j``'s small similarity (columns ``4 j .. 4 j + 3``: shift x, shift y,
+    zoom, roll, as :func:`fit_similarity`) at points ``rel`` relative to its centre; the other
+    columns are zero, for the caller's own terms."""
+    a = np.zeros((len(rel), n_cols))
+    a[:, 4 * j + ax] = 1.0
+    a[:, 4 * j + 2] = rel[:, ax]
+    a[:, 4 * j + 3] = -rel[:, 1] if ax == 0 else rel[:, 0]
+    return a
 
 
 def robust_lstsq(a: NDArray[np.float64], b: NDArray[np.float64], iterations: int = 4

@@ -223,3 +223,79 @@ def test_train_records_the_prior_radius(tmp_path: Path, marker_frames):
               progress=False)
     assert main(["train", "tacdiff", "--data", str(tmp_path / "none"), "--prior-radius", "200",
                  "--out", str(tmp_path / "x"), "-q"]) == 1
+
+
+def test_x0_l1_loss_is_the_absolute_error_of_the_x0_estimate(marker_frames):
+    torch = pytest.importorskip("torch")
+    from tacswitch.tacdiff.model import RESIDUAL_SCALE
+    from tacswitch.tacdiff.schedule import alpha_sigma
+    from tacswitch.tacdiff.train import masked_v_loss
+
+    pairs = tdata.marker_offset_pairs(marker_frames, offset=(14, 14))
+    batch = tdata.CropSampler([pairs], 64, hole_share=1.0).batch(3, np.random.default_rng(0))
+    pred = np.random.default_rng(1).standard_normal(batch["target"].shape).astype(np.float32)
+
+    def net(x, s):  # a fixed prediction, whatever the input
+        return torch.from_numpy(pred)
+
+    t = np.array([1.0, 0.5, 0.1], np.float32)
+    r0 = RESIDUAL_SCALE * (batch["target"] - batch["prior"]) * batch["mask"]
+    eps = np.random.default_rng(7).standard_normal(r0.shape).astype(np.float32)
+    a, s = (u.astype(np.float32)[:, None, None, None] for u in alpha_sigma(t))
+    x0_hat = a * (a * r0 + s * eps) - s * pred  # the sampler's x0 estimate from v
+    v = a * eps - s * r0
+    lm = np.broadcast_to(batch["loss_mask"], r0.shape)
+    assert lm.sum() > 0
+    got = {k: float(masked_v_loss(net, batch, t, np.random.default_rng(7), k))
+           for k in ("v_mse", "x0_l1")}
+    assert got["x0_l1"] == pytest.approx(np.abs(x0_hat - r0)[lm > 0].mean(), rel=1e-4)
+    assert got["v_mse"] == pytest.approx(((pred - v) ** 2)[lm > 0].mean(), rel=1e-4)
+    with pytest.raises(ValueError, match="loss"):
+        masked_v_loss(net, batch, t, np.random.default_rng(7), "l2")
+
+
+def test_train_records_the_loss_and_checks_its_options(tmp_path: Path, marker_frames):
+    torch = pytest.importorskip("torch")
+    from tacswitch.tacdiff.train import TrainConfig, train
+
+    pairs = tdata.marker_offset_pairs(marker_frames, offset=(14, 14))
+    cfg = TrainConfig(base=8, mults=(1, 2), steps=1, batch=1, crop=64, warmup=1, threads=1,
+                      loss="x0_l1", terminal_fraction=1.0, save_every=100, log_every=100)
+    train([pairs], tmp_path / "r", cfg, progress=False)
+    ck = torch.load(tmp_path / "r" / "checkpoint.pt", map_location="cpu", weights_only=False)
+    assert ck["config"]["loss"] == "x0_l1" and ck["config"]["terminal_fraction"] == 1.0
+    for bad in ({"loss": "l2"}, {"terminal_fraction": 1.5}, {"terminal_fraction": float("nan")}):
+        name = next(iter(bad))
+        with pytest.raises(ValueError, match=name):
+            train([pairs], tmp_path / "bad",
+                  TrainConfig(base=8, steps=1, **bad),  # type: ignore[arg-type]
+                  progress=False)
+    # A checkpoint written before the loss was recorded resumes as v_mse.
+    cfg2 = TrainConfig(base=8, mults=(1, 2), steps=2, batch=1, crop=64, warmup=1, threads=1,
+                       save_every=1, log_every=100)
+    train([pairs], tmp_path / "old", TrainConfig(**{**cfg2.__dict__, "steps": 1}),
+          progress=False)
+    ck = torch.load(tmp_path / "old" / "checkpoint.pt", map_location="cpu", weights_only=False)
+    del ck["config"]["loss"]
+    ck["config"]["steps"] = 2
+    torch.save(ck, tmp_path / "old" / "checkpoint.pt")
+    train([pairs], tmp_path / "old", cfg2, progress=False)  # resumes: no configuration error
+
+
+@pytest.mark.parametrize(("flag", "value"), [("--terminal-fraction", "1.5"),
+                                             ("--terminal-fraction", "nan")])
+def test_train_cli_refuses_a_bad_terminal_fraction(tmp_path: Path, flag: str, value: str,
+                                                   capsys):
+    pytest.importorskip("torch")  # without it the command stops earlier, on the import
+    assert main(["train", "tacdiff", "--data", str(tmp_path / "none"), flag, value,
+                 "--out", str(tmp_path / "x"), "-q"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--terminal-fraction" in err[0]
+
+
+def test_train_cli_refuses_an_unknown_loss(tmp_path: Path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["train", "tacdiff", "--data", str(tmp_path / "none"), "--loss", "l2",
+              "--out", str(tmp_path / "x"), "-q"])
+    assert exc.value.code == 2
+    assert "--loss" in capsys.readouterr().err

@@ -422,15 +422,18 @@ def opencv_fill(radius: int, flag: str = "telea") -> Fill:
     return fill
 
 
-def prior_fill(kind: str) -> Fill:
+def prior_fill(kind: str, radius: float | None = None) -> Fill:
     """The classical prior TacDiff refines (:mod:`tacswitch.tacdiff.prior`), on
-    :func:`default_mask`."""
-    from tacswitch.tacdiff.prior import from_net, prior_planes
+    :func:`default_mask`, its TELEA at ``radius`` px (default
+    :data:`~tacswitch.tacdiff.prior.DEFAULT_PRIOR_RADIUS`, that of the shipped models)."""
+    from tacswitch.tacdiff.prior import DEFAULT_PRIOR_RADIUS, check_radius, from_net, prior_planes
+
+    r = check_radius(DEFAULT_PRIOR_RADIUS if radius is None else radius, "radius")
 
     def fill(img: NDArray[np.uint8], extra: NDArray[np.bool_] | None) -> NDArray[np.uint8]:
         m = _with(default_mask(img), extra)
         out = img.copy()
-        out[m] = from_net(prior_planes(img, m, kind)[0])[m]
+        out[m] = from_net(prior_planes(img, m, kind, r)[0])[m]
         return out
     return fill
 
@@ -440,7 +443,8 @@ def methods(radii: Sequence[int] = (3, 5, 8, 12), *, models: bool = True,
     """The proxy's methods: our TELEA default pipeline (:data:`tacswitch.inpaint.DEFAULT_RADIUS`)
     and TELEA at the other ``radii`` (own mask; r=3 was the default before),
     OpenCV TELEA at ``radii`` on a one-dilation threshold mask, NS, the biharmonic fill, the
-    ``priors`` named (:mod:`tacswitch.tacdiff.prior` kinds), and with ``models`` TacDiff
+    ``priors`` named (:mod:`tacswitch.tacdiff.prior` kinds, TELEA at the shipped models'
+    radius), and with ``models`` TacDiff
     (default and fast model, K=1) and hybrid."""
     from tacswitch.inpaint import DEFAULT_RADIUS
 
@@ -454,8 +458,10 @@ def methods(radii: Sequence[int] = (3, 5, 8, 12), *, models: bool = True,
         out[f"OpenCV TELEA r={r} (1-dilation threshold mask)"] = opencv_fill(r)
     out["NS r=3 (own mask)"] = own_mask_fill("ns")
     out["biharmonic (own mask)"] = own_mask_fill("biharmonic")
-    for kind in priors:
-        out[f"prior {kind} (own mask)"] = prior_fill(kind)
+    from tacswitch.tacdiff.prior import DEFAULT_PRIOR_RADIUS
+
+    for kind in priors:  # at the shipped models' TELEA radius (r=3 before 0.5's benches)
+        out[f"prior {kind} r={DEFAULT_PRIOR_RADIUS} (own mask)"] = prior_fill(kind)
     if models:
         out["TacDiff K=1 (own mask)"] = own_mask_fill("tacdiff")
         out["TacDiff fast K=1 (own mask)"] = own_mask_fill("tacdiff", model="fast")

@@ -40,6 +40,11 @@ def add_train_parser(what: argparse._SubParsersAction) -> None:
     m.add_argument("--terminal-fraction", type=float, default=0.3,
                    help="share of crops trained at pure noise, the first step of every sampler "
                         "and all of K=1 (default: %(default)s)")
+    from tacswitch.tacdiff.train import LOSSES  # numpy-only import, no torch
+
+    m.add_argument("--loss", default="v_mse", choices=LOSSES,
+                   help="v_mse: squared v error; x0_l1: absolute error of the x0 estimate "
+                        "(median-seeking, full weight at pure noise) (default: %(default)s)")
     m.add_argument("--init", default=None, metavar="WEIGHTS",
                    help="continue from these weights instead of random ones: 'default' or "
                         "'fast' (a shipped model), or a .safetensors, checkpoint or TacDiff "
@@ -121,6 +126,7 @@ def run_train(args: argparse.Namespace) -> int:
                       threads=args.threads,
                       seed=args.seed, contact_share=args.contact_share,
                       hole_share=args.hole_share, terminal_fraction=args.terminal_fraction,
+                      loss=args.loss,
                       extra={"init": str(init)} if init is not None else {})
     net = train(shards, args.out, cfg, progress=not args.quiet, init=init)
     path = export_onnx(net, Path(args.out) / "model.onnx",

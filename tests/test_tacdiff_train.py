@@ -133,6 +133,11 @@ def test_train_tacdiff_tiny_run_resumes_and_exports(tmp_path: Path):
     before = (run / "log.jsonl").read_text()
     assert main(args) == 0  # finished run: resumes, trains no further
     assert (run / "log.jsonl").read_text() == before
+    import onnx
+
+    meta = {p.key: p.value for p in onnx.load(str(run / "model.onnx")).metadata_props}
+    assert meta["tacswitch.loss"] == "v_mse"  # the CLI defaults, recorded in the model
+    assert json.loads(meta["tacswitch.terminal_fraction"]) == 0.3
     # onnxruntime matches torch.
     net = load_network(run / "model.safetensors")
     model = TacDiffModel(run / "model.onnx", threads=1)

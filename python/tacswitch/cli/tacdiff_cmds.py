@@ -131,7 +131,9 @@ def run_train(args: argparse.Namespace) -> int:
     net = train(shards, args.out, cfg, progress=not args.quiet, init=init)
     path = export_onnx(net, Path(args.out) / "model.onnx",
                        metadata={"steps": args.steps, "seed": args.seed,
-                                 "frames": sum(len(s["cond"]) for s in shards)})
+                                 "frames": sum(len(s["cond"]) for s in shards),
+                                 "loss": args.loss,
+                                 "terminal_fraction": args.terminal_fraction})
     if not args.quiet:
         print(f"exported {path}")
     return 0

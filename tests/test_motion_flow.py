@@ -53,7 +53,7 @@ def test_flow_ignores_a_global_brightness_change_at_640x480() -> None:
 def test_default_preset_is_balanced_and_presets_differ(mini, grid) -> None:
     img, ref = mini.imgs[4], mini.f0
     assert flow.DEFAULT_PRESET == "balanced"
-    default = predict_motion(img, ref, grid)
+    default = predict_motion(img, ref, grid, method="flow")
     np.testing.assert_array_equal(default, flow.flow_motion(img, ref, grid, preset="balanced"))
     assert not np.array_equal(default, flow.flow_motion(img, ref, grid, preset="medium"))
     assert not np.array_equal(default, flow.flow_motion(img, ref, grid, preset="fast"))
@@ -223,9 +223,11 @@ def test_cli_slip_markerless_flags_a_growing_shear_after_the_grasp_start(mini, t
 
 
 def test_default_method_is_flow_with_a_reference_and_mechanics_without(mini, grid) -> None:
-    img, ref = mini.imgs[4], mini.f0
+    # (A no-contact reference makes "auto" run the mechanics rule: test_motion_reference.py.)
+    img, ref = mini.imgs[4], mini.imgs[4][:, ::-1].copy()
     np.testing.assert_array_equal(predict_motion(img, ref, grid),
                                   predict_motion(img, ref, grid, method="flow"))
+    ref = mini.f0
     np.testing.assert_array_equal(predict_motion(img, None, grid),
                                   predict_motion(img, None, grid, method="mechanics"))
     assert np.abs(predict_motion(ref, ref.copy(), grid)).max() < 0.05
@@ -233,10 +235,12 @@ def test_default_method_is_flow_with_a_reference_and_mechanics_without(mini, gri
 
 def test_suppress_imprint_keeps_zero_and_the_brightness_bound(mini, grid) -> None:
     for img in (mini.f0, mini.imgs[3]):
-        assert np.abs(predict_motion(img, img.copy(), grid, suppress_imprint=True)).max() == 0
+        m = predict_motion(img, img.copy(), grid, method="flow", suppress_imprint=True)
+        assert np.abs(m).max() == 0
     for img in (mini.f0, mini.imgs[5]):
         for gain, offset in ((1.15, 5.0), (0.85, -5.0), (1.0, 8.0)):
-            m = predict_motion(_brighter(img, gain, offset), img, grid, suppress_imprint=True)
+            m = predict_motion(_brighter(img, gain, offset), img, grid, method="flow",
+                               suppress_imprint=True)
             assert np.hypot(m[:, 0], m[:, 1]).max() < 0.2, (gain, offset)
     # Untouched gel: the weight is ~1 under a gain change (matched by the median ratio); an
     # offset is not matched, but 3 grey levels still leave it above 0.8.
@@ -256,8 +260,9 @@ def test_suppress_imprint_trusts_the_flow_less_where_a_contact_appeared(mini, gr
         disk = np.hypot(xx - mini.centres[i][0], yy - mini.centres[i][1]) < mini.radii[i]
         assert wt[disk].min() < 0.3 and np.median(wt) > 0.9
         near = np.linalg.norm(grid - mini.centres[i], axis=1) < 1.5 * mini.radii[i]
-        plain = np.linalg.norm(predict_motion(mini.imgs[i], mini.f0, grid)[near], axis=1)
-        supp = np.linalg.norm(predict_motion(mini.imgs[i], mini.f0, grid,
+        plain = np.linalg.norm(predict_motion(mini.imgs[i], mini.f0, grid, method="flow")[near],
+                               axis=1)
+        supp = np.linalg.norm(predict_motion(mini.imgs[i], mini.f0, grid, method="flow",
                                              suppress_imprint=True)[near], axis=1)
         assert supp.mean() < 0.6 * plain.mean(), (supp.mean(), plain.mean())
 

@@ -23,13 +23,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--model", default=None, help="ONNX model (default: the shipped one)")
     p.add_argument("--method", choices=("auto", "model", "flow", "outward", "mechanics"),
                    default="auto",
-                   help="auto (default): flow with --ref, mechanics without; model: the ONNX "
+                   help="auto (default): mechanics without --ref or when --ref lacks the "
+                        "frame's contact (the no-contact frame), flow with a --ref of the same "
+                        "contact; model: the ONNX "
                         "model; flow: dense optical flow from --ref (training-free, needs "
                         "--ref); outward: the no-learning baseline (markers move outward from "
                         "the contact); mechanics: the simulator's elastic press law applied to "
                         "the imprint (no learning; with or without --ref)")
     p.add_argument("--gain", default=None, metavar="SENSOR|G",
-                   help="mechanics / outward only: how far a press moves your gel: a sensor "
+                   help="mechanics / outward / auto (when it runs mechanics): how far a "
+                        "press moves your gel: a sensor "
                         "name (gelsight, gelsight_mini: fitted on real presses) or a number "
                         ">= 0, e.g. from tacswitch.motion.calibration.calibrate_press_gain "
                         "(default: the rule's own)")
@@ -83,14 +86,16 @@ def run(args: argparse.Namespace) -> int:
     from tacswitch.cli.options import UsageError, input_file, load_model_option, output_dir
     from tacswitch.cli.progress import progress, say
     from tacswitch.cli.sources import collect_images, read_quiet, report_unreadable
-    from tacswitch.motion.infer import load_model, predict_motion, resolve_method
+    from tacswitch.motion.infer import load_model, predict_motion
 
     if args.method == "flow" and not args.ref:
         raise UsageError("--ref: --method flow measures motion from a reference frame; pass the "
                          "markerless no-contact frame")
     model = load_model_option(load_model, args.model)
     ref = read_image(input_file(args.ref, "--ref"), "--ref", quiet=True) if args.ref else None
-    gain = _gain_option(args.gain, resolve_method(args.method, ref is not None))
+    # "auto" runs the mechanics rule without --ref or against a no-contact --ref, flow
+    # otherwise (which ignores the gain): check --gain as the rule's.
+    gain = _gain_option(args.gain, "mechanics" if args.method == "auto" else args.method)
     centres = _read_centres(str(input_file(args.centres, "--centres"))) if args.centres else None
     files = collect_images(args.inputs)
     out = output_dir(args.out, "--out")

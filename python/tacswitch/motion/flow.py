@@ -59,8 +59,8 @@ from numpy.typing import NDArray
 
 __all__ = ["ALGORITHMS", "BALANCED_WORK_WIDTH", "DEFAULT_PRESET", "DIS_PRESETS",
            "IMPRINT_CHANGE", "IMPRINT_SIGMA_REL", "IMPRINT_SMOOTH_REL", "PAD_REL", "SMOOTH_REL",
-           "dense_flow", "flow_motion", "imprint_weight", "normalise_pair", "sample_field",
-           "work_factor"]
+           "check_flow_options", "dense_flow", "flow_motion", "imprint_weight", "normalise_pair",
+           "sample_field", "work_factor"]
 
 #: Flow algorithms accepted by :func:`flow_motion`.
 ALGORITHMS = ("dis", "farneback", "deepflow", "pcaflow", "rlof")
@@ -281,12 +281,7 @@ def flow_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8], centres: NDArray
     flow less where an imprint appeared (:func:`imprint_weight`) and fill it from the
     surrounding gel, smoothing over :data:`IMPRINT_SMOOTH_REL` of the width (see the module doc).
     """
-    if not isinstance(suppress_imprint, (bool, np.bool_)):
-        raise TypeError(f"suppress_imprint: expected a bool, got {type(suppress_imprint).__name__}")
-    if algorithm not in ALGORITHMS:
-        raise ValueError(f"algorithm: unknown {algorithm!r}; choose from {list(ALGORITHMS)}")
-    if preset not in DIS_PRESETS:
-        raise ValueError(f"preset: unknown {preset!r}; choose from {list(DIS_PRESETS)}")
+    check_flow_options(algorithm, preset, suppress_imprint)
     if len(centres) == 0 or np.array_equal(img, ref):
         return np.zeros((len(centres), 2), np.float32)
     k = work_factor(img.shape[1], algorithm, preset)
@@ -313,6 +308,17 @@ def flow_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8], centres: NDArray
     pts = centres if k == 1 else ((centres + 0.5) / k - 0.5).astype(np.float32)
     out = sample_field(flow, pts) * np.float32(k)
     return np.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0)
+
+
+def check_flow_options(algorithm: Any, preset: Any, suppress_imprint: Any) -> None:
+    """``TypeError`` / ``ValueError`` naming the argument unless the options of
+    :func:`flow_motion` are valid."""
+    if not isinstance(suppress_imprint, (bool, np.bool_)):
+        raise TypeError(f"suppress_imprint: expected a bool, got {type(suppress_imprint).__name__}")
+    if algorithm not in ALGORITHMS:
+        raise ValueError(f"algorithm: unknown {algorithm!r}; choose from {list(ALGORITHMS)}")
+    if preset not in DIS_PRESETS:
+        raise ValueError(f"preset: unknown {preset!r}; choose from {list(DIS_PRESETS)}")
 
 
 def imprint_weight(gi: NDArray[np.float32], gr: NDArray[np.float32]) -> NDArray[np.float32]:

@@ -171,8 +171,12 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             training grid (the GelSight Mini preset's 9 x 11 grid, pitch 28.5 px at 320 x 240)
             scaled to the frame, for every method; pass your sensor's own centres (e.g.
             ``tacswitch.extract_markers(ref_with_markers).centres``) otherwise.
-        method: ``"auto"`` (default: ``"flow"`` when ``ref`` is given, ``"mechanics"``
-            without it — the methods that scored best on real frames, see the README),
+        method: ``"auto"`` (default): without ``ref``, ``"mechanics"``; with ``ref``,
+            ``"flow"`` when ``ref`` shows the same contact as ``img`` (or none), and
+            ``"mechanics"`` (with ``ref``) when ``ref`` lacks ``img``'s contact, e.g. the
+            no-contact frame (:mod:`tacswitch.motion.reference`: against it the imprint
+            appears, and flow turns its shading into false motion) — the choice that scored
+            best on real frames, see the README;
             ``"model"`` (the ONNX model), ``"flow"`` (training-free dense optical flow
             ``ref -> img`` read at the centres, :mod:`tacswitch.motion.flow`; exactly zero for
             identical frames, insensitive to a global brightness change), ``"outward"`` (the
@@ -183,16 +187,20 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             that fades over a gel thickness outside the contact; with or without ``ref``).
         model: ONNX model path (default: the shipped model); sessions are cached per path.
             Other methods use it only for the default centres.
-        algorithm: ``method="flow"`` only: ``"dis"`` (default), ``"farneback"``, ``"deepflow"``,
-            ``"pcaflow"`` or ``"rlof"`` (the last three from opencv-contrib, 10-100x slower).
-        preset: ``method="flow"`` with DIS only: ``"balanced"`` (default: within the speed
-            budgets), ``"ultrafast"``, ``"fast"`` or ``"medium"`` (OpenCV's; ``"medium"`` is
-            ~2x slower, a little more accurate with a reference of the same capture).
-        suppress_imprint: ``method="flow"`` only: ``True`` when ``ref`` is the no-contact frame:
-            the flow is trusted less where an imprint appeared (its shading is not motion) and
-            filled from the gel around it (:func:`tacswitch.motion.flow.flow_motion`); default
-            ``False`` (a reference of the same contact).
-        gain: ``method="mechanics"`` or ``"outward"`` only: how far a press moves this sensor's
+        algorithm: ``method="flow"`` (or ``"auto"`` when it runs flow): ``"dis"`` (default),
+            ``"farneback"``, ``"deepflow"``, ``"pcaflow"`` or ``"rlof"`` (the last three from
+            opencv-contrib, 10-100x slower).
+        preset: ``method="flow"`` (or ``"auto"`` when it runs flow) with DIS only:
+            ``"balanced"`` (default: within the speed budgets), ``"ultrafast"``, ``"fast"`` or
+            ``"medium"`` (OpenCV's; ``"medium"`` is ~2x slower, a little more accurate with a
+            reference of the same capture).
+        suppress_imprint: ``method="flow"`` (or ``"auto"`` when it runs flow): ``True`` when
+            ``ref`` is the no-contact frame: the flow is trusted less where an imprint
+            appeared (its shading is not motion) and filled from the gel around it
+            (:func:`tacswitch.motion.flow.flow_motion`); default ``False`` (a reference of the
+            same contact).
+        gain: ``method="mechanics"``, ``"outward"`` or ``"auto"`` (used when it runs the
+            mechanics rule, ignored when it runs flow): how far a press moves this sensor's
             gel, which one image does not show. A sensor name, ``"gelsight"`` or
             ``"gelsight_mini"`` (gains fitted on that sensor's real presses:
             :data:`tacswitch.sim.presets.MECHANICS_GAINS` / ``OUTWARD_GAINS``; the real Mini's
@@ -212,19 +220,24 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
     check_model_arg(model)
     if method not in METHODS:
         raise ValueError(f"method: unknown {method!r}; choose from {list(METHODS)}")
-    if method == "auto":
-        # Measured on real frames: flow from a reference beats zero motion and the shipped
-        # model by far on real texture warped by known fields; without a reference the
-        # mechanics rule at its real-fitted gain is the only method below zero motion on the
-        # real GelSight's grain-matched press motion (held-out presses 1.62 vs 2.22 px, cosine
-        # 0.64 vs the outward rule's 0.49; the Mini's gel barely moves: 0.26 vs 0.15 px).
-        method = resolve_method(method, ref is not None)
-    if method != "flow":
+    auto = method == "auto"
+    if auto and ref is None:
+        # Without a reference the mechanics rule at its real-fitted gain is the only method
+        # below zero motion on the real GelSight's grain-matched press motion (held-out presses
+        # 1.62 vs 2.22 px, cosine 0.64 vs the outward rule's 0.49).
+        method = "mechanics"
+    if method not in ("flow", "auto"):
         for name, value in (("algorithm", algorithm), ("preset", preset),
                             ("suppress_imprint", suppress_imprint)):
             if value is not None:
                 raise ValueError(f"{name}: applies to method='flow' only; got method={method!r}")
-    rule_gain = None if gain is None else _rule_gain(method, gain)
+    rule_gain = None if gain is None else _rule_gain("mechanics" if auto else method, gain)
+    if method in ("flow", "auto"):
+        from tacswitch.motion.flow import check_flow_options
+
+        # Checked even when "auto" will run the mechanics rule, which ignores them.
+        check_flow_options(algorithm or "dis", preset or "balanced",
+                           False if suppress_imprint is None else suppress_imprint)
     if method == "model":
         return load_model(model)(img, ref=ref, centres=centres)
     frame = _bgr(img, "img")
@@ -239,6 +252,12 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
                          "markerless no-contact frame (or the frame at the grasp start)")
     pts = (load_model(model).centres_for(*frame.shape[:2]) if centres is None
            else as_points(centres, "centres"))
+    if method == "auto":
+        # With a reference: flow follows a contact present in both frames (real warp proxy,
+        # same-contact reference: 2.7 vs 10.2 px for zero motion), but turns an imprint that
+        # appears into false motion (real frames + calibrated press field, no-contact
+        # reference: flow 4.45, mechanics 1.64, zero 2.74 px); see motion/reference.py.
+        method = resolve_method(method, frame, ref_arr)
     if method == "flow":
         from tacswitch.motion.flow import DEFAULT_PRESET, flow_motion
 
@@ -259,10 +278,21 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
     return outward_motion(frame, ref_arr, pts, gain=rule_gain)
 
 
-def resolve_method(method: str, has_ref: bool) -> str:
-    """The method ``method="auto"`` stands for (``"flow"`` with a reference, ``"mechanics"``
-    without); any other name is returned as is."""
-    return ("flow" if has_ref else "mechanics") if method == "auto" else method
+def resolve_method(method: str, img: Any = None, ref: Any = None) -> str:
+    """The method :func:`predict_motion` runs for ``method`` on ``img`` (validated BGR uint8)
+    and ``ref`` (None: single frame): ``"auto"`` stands for ``"mechanics"`` without a
+    reference or with one that lacks ``img``'s contact
+    (:func:`tacswitch.motion.reference.is_new_contact`), else ``"flow"``; any other name is
+    returned as is."""
+    if method != "auto":
+        return method
+    if ref is None:
+        return "mechanics"
+    from tacswitch.motion.reference import is_new_contact
+
+    if np.array_equal(img, ref) or not is_new_contact(img, ref):
+        return "flow"
+    return "mechanics"
 
 
 def _rule_gain(method: str, gain: Any) -> float:

@@ -1,0 +1,98 @@
+"""What kind of reference a markerless pair has: does ``ref`` lack the contact ``img`` shows?
+
+Optical flow from a reference follows what moves between the two frames. With a reference of the
+same contact (the grasp start, an earlier frame) the imprint is in both frames and moves with the
+gel, and flow is the best method measured (real texture warped by known fields: 2.7 px against
+10.2 px for zero motion at 640 x 480, cosine 0.97). Against the no-contact frame the imprint
+*appears*: its shading is not motion, and DIS turns it into 4-20 px of false motion within about
+two contact radii on taxim's real presses (where the gel moves 1-3 px); the contact-mechanics
+rule, which reads the imprint's shape instead, is then far better (real frames with the
+calibrated press field: 1.64 px against flow's 4.45 and zero's 2.74). ``predict_motion``'s
+``method="auto"`` therefore asks this module which case a pair is.
+
+The cue: where the two frames differ (relative change of the blurred grey level above
+:data:`CHANGE`, after matching the median gain), a new contact has its shading gradients in
+``img`` only — the reference shows flat gel there — while a reference of the same contact (at
+another depth or load, or sheared) has them too. :func:`contact_energy_ratio` is the gradient
+energy of ``ref`` over that of ``img`` inside the changed region; a ratio under
+:data:`NEW_CONTACT_RATIO` means a new contact.
+
+Measured (``benches/bench_motion_reference.py``, BENCHMARKS.md "Markerless motion: which
+reference"): taxim's real no-contact frame against its 48 GelSight presses 0.17-0.53, against
+the 24 GelSight Mini presses 0.01-0.03; the same presses warped by known fields and captured
+(MJPEG / H.264, exposure drift), against the no-contact frame 0.14-0.68 / 0.01-0.45 and against
+the unwarped press (the same contact) 0.59-1.22 / 0.58-1.19; simulated held-out pairs:
+no-contact 0.02-1.0 (the shallowest presses overlap, where both methods give little motion),
+the same contact at another depth and load 0.68-2.2. The threshold sits in the gap of the real
+frames (:data:`NEW_CONTACT_RATIO`); no accuracy figure was used to choose it. Cost: 0.6 ms at
+320 x 240, 1.1 ms at 640 x 480 (the frames are area-downsampled to :data:`WORK_WIDTH` first).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["CHANGE", "NEW_CONTACT_RATIO", "WORK_WIDTH", "contact_energy_ratio", "is_new_contact"]
+
+#: Width (px) the frames are area-downsampled to before the test (a coarse, cheap statistic).
+WORK_WIDTH = 160
+#: Relative grey-level change (after gain matching) that marks the changed region.
+CHANGE = 0.04
+#: Smallest changed region, a fraction of the frame's pixels: below it nothing new is there.
+MIN_CHANGED_FRAC = 0.002
+#: :func:`contact_energy_ratio` below this: ``ref`` lacks ``img``'s contact.
+NEW_CONTACT_RATIO = 0.6
+
+
+def _grey_small(img: NDArray[np.uint8], k: int) -> NDArray[np.float32]:
+    import cv2
+
+    g: Any = img
+    if g.ndim == 3:
+        g = cv2.cvtColor(g, cv2.COLOR_BGRA2GRAY if g.shape[2] == 4 else cv2.COLOR_BGR2GRAY)
+    if k > 1:
+        h, w = g.shape
+        g = cv2.resize(g, (max(1, w // k), max(1, h // k)), interpolation=cv2.INTER_AREA)
+    return np.asarray(g, np.float32)
+
+
+def _gradient_energy(b: NDArray[np.float32], region: NDArray[np.float32]) -> float:
+    """Sum of the squared Sobel gradient of ``b`` over ``region`` (a 0 / 1 float mask)."""
+    import cv2
+
+    gx = cv2.Sobel(b, cv2.CV_32F, 1, 0, ksize=3)
+    gy = cv2.Sobel(b, cv2.CV_32F, 0, 1, ksize=3)
+    return float(np.vdot(gx * gx + gy * gy, region))
+
+
+def contact_energy_ratio(img: NDArray[np.uint8], ref: NDArray[np.uint8]) -> float:
+    """Shading-gradient energy of ``ref`` over that of ``img`` where the two frames differ
+    (validated uint8 frames of one shape, BGR or grey); 1.0 when nothing changed (identical
+    frames, a pure brightness change). Small: ``ref`` shows flat gel where ``img`` has a
+    contact (see the module doc)."""
+    import cv2
+
+    k = max(1, round(img.shape[1] / WORK_WIDTH))
+    gi, gr = _grey_small(img, k), _grey_small(ref, k)
+    s = max(1.0, gi.shape[1] / 80.0)
+    bi = np.asarray(cv2.GaussianBlur(gi, (0, 0), s, borderType=cv2.BORDER_REFLECT), np.float32)
+    br = np.asarray(cv2.GaussianBlur(gr, (0, 0), s, borderType=cv2.BORDER_REFLECT), np.float32)
+    # Median gain on every other pixel each way: a contact changes a small part of the frame.
+    gain = float(np.median(bi[::2, ::2])) / max(float(np.median(br[::2, ::2])), 1.0)
+    bi *= np.float32(1.0 / max(gain, 1e-3))
+    region = (np.abs(bi - br) > np.float32(CHANGE) * np.maximum(br, 4.0)).astype(np.float32)
+    if float(region.sum()) < max(4.0, MIN_CHANGED_FRAC * region.size):
+        return 1.0
+    e_img = _gradient_energy(bi, region)
+    if e_img <= 0:
+        return 1.0
+    return _gradient_energy(br, region) / e_img
+
+
+def is_new_contact(img: NDArray[np.uint8], ref: NDArray[np.uint8]) -> bool:
+    """True when ``img`` shows a contact that ``ref`` lacks (``ref`` is a no-contact frame for
+    it): :func:`contact_energy_ratio` below :data:`NEW_CONTACT_RATIO`."""
+    return contact_energy_ratio(img, ref) < NEW_CONTACT_RATIO

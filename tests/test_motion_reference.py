@@ -1,0 +1,99 @@
+"""``predict_motion``'s ``method="auto"`` with a reference: the mechanics rule against a frame that
+lacks the contact (the no-contact frame), flow against a frame of the same contact; the test
+that tells them apart (:mod:`tacswitch.motion.reference`) on taxim's real presses."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tacswitch import predict_motion
+from tacswitch.motion import flow, mechanics, proxy, reference
+from tacswitch.motion.infer import resolve_method
+
+
+@pytest.fixture(scope="module")
+def mini() -> proxy.RealPresses:
+    return proxy.load_real_presses("gelsight_mini")
+
+
+@pytest.fixture(scope="module")
+def grid() -> np.ndarray:
+    return proxy.marker_grid("gelsight_mini")[0]
+
+
+def _sheared(data: proxy.RealPresses, i: int, amp: float = 8.0) -> np.ndarray:
+    fld = proxy.random_field("shear", tuple(data.centres[i]), float(data.radii[i]), amp,
+                             np.random.default_rng(i), shape=data.imgs[i].shape[:2])
+    return proxy.warp(data.imgs[i], fld)
+
+
+def test_the_no_contact_frame_is_told_from_a_reference_of_the_same_contact(mini) -> None:
+    for i in range(0, len(mini.imgs), 3):
+        # Real: the no-contact frame lacks every press; the press itself, sheared, does not.
+        assert reference.is_new_contact(mini.imgs[i], mini.f0), i
+        assert not reference.is_new_contact(_sheared(mini, i), mini.imgs[i]), i
+        # A contact that goes away is not a new one (flow follows the release).
+        assert not reference.is_new_contact(mini.f0, mini.imgs[i]), i
+
+
+def test_real_gelsight_presses_against_the_no_contact_frame() -> None:
+    gs = proxy.load_real_presses("gelsight")
+    ratios = [reference.contact_energy_ratio(im, gs.f0) for im in gs.imgs[::6]]
+    assert max(ratios) < reference.NEW_CONTACT_RATIO
+    assert reference.contact_energy_ratio(_sheared(gs, 5), gs.imgs[5]) > 0.8
+
+
+def test_auto_runs_mechanics_against_the_no_contact_frame_and_flow_otherwise(mini, grid) -> None:
+    img = mini.imgs[6]
+    np.testing.assert_array_equal(predict_motion(img, mini.f0, grid),
+                                  mechanics.mechanics_motion(img, mini.f0, grid))
+    np.testing.assert_array_equal(predict_motion(img, mini.f0, grid, gain="gelsight"),
+                                  mechanics.mechanics_motion(img, mini.f0, grid, gain=0.25))
+    same = _sheared(mini, 6)
+    np.testing.assert_array_equal(predict_motion(same, img, grid), flow.flow_motion(same, img,
+                                                                                    grid))
+    # The gain is the rule's; flow ignores it.
+    np.testing.assert_array_equal(predict_motion(same, img, grid, gain=3.0),
+                                  flow.flow_motion(same, img, grid))
+    assert resolve_method("auto", img, mini.f0) == "mechanics"
+    assert resolve_method("auto", same, img) == "flow"
+    assert resolve_method("auto", img, None) == "mechanics"
+    assert resolve_method("flow", img, mini.f0) == "flow"
+
+
+def test_auto_with_a_reference_is_consistent(mini, grid) -> None:
+    for img in (mini.f0, mini.imgs[3]):
+        assert not predict_motion(img, img.copy(), grid).any()
+        # A global exposure change is no new contact: flow, under the 0.2 px bound.
+        brighter = np.clip(img.astype(np.float32) * 1.12 + 4, 0, 255).astype(np.uint8)
+        assert reference.contact_energy_ratio(brighter, img) == 1.0
+        assert np.hypot(*predict_motion(brighter, img, grid).T).max() < 0.2
+
+
+@settings(max_examples=25, deadline=None)
+@given(h=st.integers(1, 40), w=st.integers(1, 40), level=st.integers(0, 255),
+       noise=st.floats(0, 60))
+def test_ratio_is_finite_on_any_frame(h: int, w: int, level: int, noise: float) -> None:
+    rng = np.random.default_rng(h * 41 + w)
+    a = np.full((h, w, 3), level, np.uint8)
+    b = np.clip(a + rng.normal(0, noise, a.shape), 0, 255).astype(np.uint8)
+    r = reference.contact_energy_ratio(b, a)
+    assert np.isfinite(r) and r >= 0
+    assert reference.contact_energy_ratio(a, a) == 1.0
+
+
+def test_auto_rejects_flow_only_options_and_bad_gains(mini, grid) -> None:
+    # Flow's options are checked even when "auto" runs the mechanics rule (which ignores them).
+    with pytest.raises(ValueError, match=r"^preset: unknown 'slow'"):
+        predict_motion(mini.imgs[2], mini.f0, grid, preset="slow")
+    np.testing.assert_array_equal(predict_motion(mini.imgs[2], mini.f0, grid, preset="medium"),
+                                  predict_motion(mini.imgs[2], mini.f0, grid))
+    with pytest.raises(ValueError, match=r"^preset: applies to method='flow' only"):
+        predict_motion(mini.imgs[2], None, grid, preset="medium")
+    with pytest.raises(ValueError, match=r"^gain: must be a finite number >= 0"):
+        predict_motion(mini.imgs[2], mini.f0, grid, gain=-1.0)
+    with pytest.raises(ValueError, match=r"^gain: unknown sensor 'digit'"):
+        predict_motion(mini.imgs[2], mini.f0, grid, gain="digit")

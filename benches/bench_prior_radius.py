@@ -13,11 +13,13 @@ scored on:
    contact).
 
     python benches/bench_prior_radius.py [--frames 3] [--radii 3,8,12] [--parts proxy,fots,sim]
-        [--models LABEL=PATH,...] [--seed 0] [--update]
+        [--models LABEL=PATH,...] [--seed 0[,1,...]] [--update [--section TITLE --intro TEXT]]
 
 ``--models`` scores these TacDiff ONNX files instead of the radius copies, each at the radius
 it records (e.g. models trained at r = 12 against the zero-shot copies); our TELEA default
-(``remove_markers``, r = 12) is scored alongside. ``--seed`` picks other real presses.
+(``remove_markers``, r = 12) is scored alongside. ``--seed`` picks other real presses (a comma
+list: one proxy table per set). ``--section`` writes another BENCHMARKS.md section than the
+radius one (a model comparison), ``--intro`` its opening paragraph.
 
 Needs ``onnx`` (the ``train`` extra) for the model copies; FOTS frames from /work/shared.
 """
@@ -159,13 +161,23 @@ def sim_rows(models: dict[str, str], n: int = 4) -> list[list[str]]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--frames", type=int, default=3, help="real presses per sensor")
-    ap.add_argument("--seed", type=int, default=0, help="which real presses (realproxy seed)")
+    ap.add_argument("--seed", default="0",
+                    help="which real presses (realproxy seed; a comma list: one table each)")
     ap.add_argument("--radii", default="3,8,12")
     ap.add_argument("--models", default="",
                     help="LABEL=PATH,... TacDiff ONNX files to score instead of the copies")
     ap.add_argument("--parts", default="proxy,fots,sim")
     ap.add_argument("--update", action="store_true", help="write the BENCHMARKS.md section")
+    ap.add_argument("--section", default=SECTION,
+                    help="BENCHMARKS.md section title (a '## ' heading) that --update writes")
+    ap.add_argument("--intro", default="", help="opening paragraph of that section")
     args = ap.parse_args()
+    if not args.section.startswith("## "):
+        raise SystemExit(f"--section: must start with '## '; got {args.section!r}")
+    try:
+        seeds = [int(x) for x in args.seed.split(",") if x.strip()]
+    except ValueError:
+        raise SystemExit(f"--seed: expected integers like 0,1,2; got {args.seed!r}") from None
     parts = args.parts.split(",")
     out = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -173,11 +185,11 @@ def main() -> None:
             models = dict(item.split("=", 1) for item in args.models.split(","))
         else:
             models = model_copies([int(r) for r in args.radii.split(",")], Path(tmp))
-        if "proxy" in parts:
-            out.append(f"Real-frame proxy ({args.frames} presses per sensor, seed {args.seed}, "
+        for seed in seeds if "proxy" in parts else []:
+            out.append(f"Real-frame proxy ({args.frames} presses per sensor, seed {seed}, "
                        "x 7 cases), masked MAE:\n\n"
                        + table(["sensor", "method", *CASES, "all"],
-                               proxy_rows(args.frames, models, args.seed)))
+                               proxy_rows(args.frames, models, seed)))
         if "fots" in parts and any(REAL.glob("*.png")):
             out.append("Real FOTS GelSight Mini frames, held-out MAE, signed error, ghost:\n\n"
                        + table(["method", "held-out MAE", "signed", "ghost"],
@@ -187,12 +199,14 @@ def main() -> None:
                        + table(["preset", "method", "masked MAE", "MAE in contact"],
                                sim_rows(models)))
     what = f"--models '{args.models}'" if args.models else f"--radii {args.radii}"
-    body = "\n\n".join([*out, f"Machine: {machine()}.",
+    body = "\n\n".join([*([args.intro] if args.intro else []), *out, f"Machine: {machine()}.",
                          f"Command: `python benches/bench_prior_radius.py --frames {args.frames} "
-                         f"--seed {args.seed} {what} --parts {args.parts}`"])
+                         f"--seed {args.seed} {what} --parts {args.parts}"
+                         + (f" --section '{args.section}'" if args.section != SECTION else "")
+                         + "`"])
     print(body)
     if args.update:
-        update_markdown(SECTION, body)
+        update_markdown(args.section, body)
 
 
 if __name__ == "__main__":

@@ -336,7 +336,7 @@ def test_prior_radius_is_read_from_the_model(sample, tmp_path):
 
     s, mask = sample
     assert PRIOR_RADIUS == 3  # models that record no radius
-    for name in ("default", "fast"):  # the shipped 0.4 models were trained at r = 12
+    for name in ("default", "fast"):  # the shipped models (0.4 on) were trained at r = 12
         assert infer.load_model(name).prior_radius == 12.0
     path = tmp_path / "m.onnx"
     shutil.copy(infer.model_path("fast"), path)

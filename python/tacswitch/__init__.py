@@ -31,11 +31,13 @@ from tacswitch.inpaint import (
 )
 from tacswitch.markers import Markers, dilate_mask, extract_markers
 from tacswitch.motion.infer import MotionModel, predict_motion
+from tacswitch.motion.sequence import MarkerlessTracker
 from tacswitch.slip import SlipDetector, SlipState
 from tacswitch.tracking import MarkerTracker, estimate_pitch, match_markers
 
 __all__ = [
     "MarkerTracker",
+    "MarkerlessTracker",
     "Markers",
     "MotionModel",
     "SlipDetector",

@@ -4,6 +4,9 @@
 - :mod:`tacswitch.motion.data`: synthetic training/evaluation pairs from :mod:`tacswitch.sim`;
 - :mod:`tacswitch.motion.model`, :mod:`~tacswitch.motion.train`, :mod:`~tacswitch.motion.export`:
   the networks, training and ONNX export (need torch, ``pip install "tacswitch[train]"``);
+- :mod:`tacswitch.motion.sequence`: :class:`MarkerlessTracker`, motion from rest over a video
+  that starts at the no-contact frame;
+- :mod:`tacswitch.motion.reference`: does a reference lack the frame's contact;
 - :mod:`tacswitch.motion.flow` (dense optical flow from a reference),
   :mod:`~tacswitch.motion.heuristic` (the outward-from-contact rule) and
   :mod:`~tacswitch.motion.mechanics` (an elastic press law on the imprint): the training-free
@@ -18,5 +21,6 @@ Importing this package imports neither torch nor onnxruntime.
 from __future__ import annotations
 
 from tacswitch.motion.infer import MotionModel, default_model_path, predict_motion
+from tacswitch.motion.sequence import MarkerlessTracker
 
-__all__ = ["MotionModel", "default_model_path", "predict_motion"]
+__all__ = ["MarkerlessTracker", "MotionModel", "default_model_path", "predict_motion"]

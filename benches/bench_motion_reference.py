@@ -136,10 +136,12 @@ def sim_sets(root: Path, n: int) -> tuple[dict[str, tuple[list[Sample], float]],
 
 def _timings(img: np.ndarray, f0: np.ndarray, same: np.ndarray, grid: np.ndarray,
              rounds: int) -> dict[str, float]:
-    """Median ms per call of flow and auto with a no-contact and a same-contact reference."""
-    fns = {"flow, no-contact ref": lambda: flow_motion(img, f0, grid),
+    """Median ms per call of ``predict_motion`` with ``method="flow"`` and ``"auto"`` (the same
+    validation), with a no-contact and a same-contact reference, and of the test alone."""
+    fns = {"method='flow', no-contact ref": lambda: predict_motion(img, f0, grid, method="flow"),
            "auto, no-contact ref (runs mechanics)": lambda: predict_motion(img, f0, grid),
-           "flow, same-contact ref": lambda: flow_motion(same, img, grid),
+           "method='flow', same-contact ref": lambda: predict_motion(same, img, grid,
+                                                                    method="flow"),
            "auto, same-contact ref (runs flow)": lambda: predict_motion(same, img, grid),
            "the reference test alone": lambda: contact_energy_ratio(img, f0)}
     return {k: 1e3 * t.median for k, t in interleaved(fns, rounds=rounds, repeat=10).items()}
@@ -207,8 +209,8 @@ def main() -> int:
         "Part 1, the test's statistic (min / p10 / median / p90 / max; share called a new "
         "contact):", "",
         table(["pairs", "n", "ratio", "new contact %"], ratio_rows), "",
-        "Part 3, speed (one frame, median of interleaved rounds, real frames; machine shared "
-        "with a training run, compare within the table):", "",
+        "Part 3, speed (`predict_motion` end to end, one frame, median of 15 interleaved rounds "
+        "x 10 calls, real frames, OpenCV on both cores; compare within the table):", "",
         table(["frame", "call", "median"], speed_rows), "",
         "Part 2, accuracy (px of each frame; `sensor gain`: `MECHANICS_GAINS` of the frame's "
         "sensor, as `gain=\"gelsight\"` gives; cosine over markers moving >= min px). Data: real "

@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
 
 from tacswitch import sim
+
+if TYPE_CHECKING:
+    from tacswitch.motion import proxy
 
 
 def disc_image(
@@ -63,3 +67,19 @@ def marker_frame_dir(tmp_path: Path, marker_frames: list[np.ndarray]) -> Path:
     for i, f in enumerate(marker_frames):
         cv2.imwrite(str(src / f"{i}.png"), f)
     return src
+
+
+@pytest.fixture(scope="session")
+def mini() -> proxy.RealPresses:
+    """taxim's real markerless GelSight Mini presses at 320 x 240 (the taxim package)."""
+    from tacswitch.motion import proxy
+
+    return proxy.load_real_presses("gelsight_mini")
+
+
+@pytest.fixture(scope="session")
+def grid() -> np.ndarray:
+    """The GelSight Mini marker grid (rest centres, x, y px) at 320 x 240."""
+    from tacswitch.motion import proxy
+
+    return proxy.marker_grid("gelsight_mini")[0]

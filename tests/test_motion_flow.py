@@ -9,17 +9,6 @@ from tacswitch import predict_motion
 from tacswitch.motion import flow, heuristic, proxy
 
 
-@pytest.fixture(scope="module")
-def mini() -> proxy.RealPresses:
-    """taxim's real markerless GelSight Mini presses at 320 x 240."""
-    return proxy.load_real_presses("gelsight_mini")
-
-
-@pytest.fixture(scope="module")
-def grid() -> np.ndarray:
-    return proxy.marker_grid("gelsight_mini")[0]
-
-
 @pytest.mark.parametrize("method", ["flow", "outward"])
 def test_identical_frames_give_zero_motion(mini, grid, method: str) -> None:
     for img in (mini.f0, mini.imgs[3]):

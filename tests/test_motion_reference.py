@@ -14,16 +14,6 @@ from tacswitch.motion import flow, mechanics, proxy, reference
 from tacswitch.motion.infer import resolve_method
 
 
-@pytest.fixture(scope="module")
-def mini() -> proxy.RealPresses:
-    return proxy.load_real_presses("gelsight_mini")
-
-
-@pytest.fixture(scope="module")
-def grid() -> np.ndarray:
-    return proxy.marker_grid("gelsight_mini")[0]
-
-
 def _sheared(data: proxy.RealPresses, i: int, amp: float = 8.0) -> np.ndarray:
     fld = proxy.random_field("shear", tuple(data.centres[i]), float(data.radii[i]), amp,
                              np.random.default_rng(i), shape=data.imgs[i].shape[:2])

@@ -10,16 +10,6 @@ from tacswitch.motion import mechanics, proxy
 from tacswitch.motion.sequence import MarkerlessTracker
 
 
-@pytest.fixture(scope="module")
-def mini() -> proxy.RealPresses:
-    return proxy.load_real_presses("gelsight_mini")
-
-
-@pytest.fixture(scope="module")
-def grid() -> np.ndarray:
-    return proxy.marker_grid("gelsight_mini")[0]
-
-
 def test_press_then_shear_is_the_rule_plus_the_flow_from_the_anchor(mini, grid) -> None:
     i = 6
     tr = MarkerlessTracker(mini.f0, grid, gain="gelsight")

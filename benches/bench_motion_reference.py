@@ -35,7 +35,15 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from harness import held_out_motion_pairs, interleaved, machine, publish, table
+from harness import (
+    MOTION_COLUMNS,
+    held_out_motion_pairs,
+    interleaved,
+    machine,
+    motion_row,
+    publish,
+    table,
+)
 
 from tacswitch.motion import proxy
 from tacswitch.motion.evaluate import motion_metrics
@@ -190,10 +198,7 @@ def main() -> int:
             pred = np.concatenate([fn(*s[:3], s[4]) for s in samples])
             ms = 1e3 * (time.perf_counter() - t0) / len(samples)
             m = motion_metrics(pred, true, min_px=min_px)
-            rows.append([name, meth, f"{m['e_rmse_mean']:.3f}", f"{m['e_mag_mean']:.3f}",
-                         f"{m['nan_pct']:.0f}", f"{m['cos_mean']:.2f}",
-                         f"{m['within30_pct']:.0f}", f"{min_px:.2f}",
-                         f"{len(samples)} / {m['n_orient']}", f"{ms:.0f}"])
+            rows.append(motion_row(name, meth, m, min_px, len(samples), ms))
         print(f"done {name}", file=sys.stderr, flush=True)
     speed_rows = speed(args.rounds)
     notes = [
@@ -222,9 +227,8 @@ def main() -> int:
         "only in simulation.",
     ]
     cmd = "OMP_NUM_THREADS=1 python benches/bench_motion_reference.py " + " ".join(sys.argv[1:])
-    publish(SECTION, notes, ["data, reference", "method", "e_rmse mean (px)", "e_mag mean (px)",
-                             "NaN %", "cos", "within 30 deg %", "min px", "frames / moved",
-                             "ms / frame (busy)"], rows, cmd.strip(), args.update)
+    publish(SECTION, notes, ["data, reference", *MOTION_COLUMNS], rows, cmd.strip(),
+            args.update)
     return 0
 
 

@@ -35,7 +35,14 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from harness import held_out_motion_pairs, machine, publish, pure_press_gains
+from harness import (
+    MOTION_COLUMNS,
+    held_out_motion_pairs,
+    machine,
+    motion_row,
+    publish,
+    pure_press_gains,
+)
 
 from tacswitch.motion import proxy
 from tacswitch.motion.evaluate import motion_metrics
@@ -325,10 +332,7 @@ def main() -> int:
     rows = []
     for name, (samples, min_px) in settings.items():
         for meth, m in score(samples, min_px).items():
-            rows.append([name, meth, f"{m['e_rmse_mean']:.3f}", f"{m['e_mag_mean']:.3f}",
-                         f"{m['nan_pct']:.0f}", f"{m['cos_mean']:.2f}",
-                         f"{m['within30_pct']:.0f}", f"{min_px:.2f}",
-                         f"{len(samples)} / {m['n_orient']}", f"{m['ms']:.0f}"])
+            rows.append(motion_row(name, meth, m, min_px, len(samples), m["ms"]))
             print(" | ".join(rows[-1]), flush=True)
     notes = [f"{machine()}; OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', '-')}.", "",
              "**Real frames + modelled field**: taxim's real presses (GelSight 640 x 480, Mini "
@@ -362,9 +366,7 @@ def main() -> int:
              "data it is scored on (scale clamped at >= 0; cosine and within-30 are the rule's "
              "own), i.e. what a perfect magnitude prior would give."]
     cmd = "OMP_NUM_THREADS=1 python benches/bench_motion_single.py " + " ".join(sys.argv[1:])
-    publish(SECTION, notes, ["data, setting", "method", "e_rmse mean (px)", "e_mag mean (px)",
-                             "NaN %", "cos", "within 30 deg %", "min px", "frames / moved",
-                             "ms / frame (busy)"], rows, cmd.strip(), args.update)
+    publish(SECTION, notes, ["data, setting", *MOTION_COLUMNS], rows, cmd.strip(), args.update)
     return 0
 
 

@@ -111,6 +111,21 @@ def table(header: list[str], rows: list[list[str]]) -> str:
     return "\n".join(lines)
 
 
+#: Columns of the markerless-motion accuracy tables (:func:`motion_row`); the first names the
+#: data and its reference.
+MOTION_COLUMNS = ["method", "e_rmse mean (px)", "e_mag mean (px)", "NaN %", "cos",
+                  "within 30 deg %", "min px", "frames / moved", "ms / frame (busy)"]
+
+
+def motion_row(data: str, method: str, m: dict[str, float], min_px: float, frames: int,
+               ms: float) -> list[str]:
+    """One row of a markerless-motion accuracy table (:data:`MOTION_COLUMNS` after ``data``)
+    from :func:`tacswitch.motion.evaluate.motion_metrics`' output ``m``."""
+    return [data, method, f"{m['e_rmse_mean']:.3f}", f"{m['e_mag_mean']:.3f}",
+            f"{m['nan_pct']:.0f}", f"{m['cos_mean']:.2f}", f"{m['within30_pct']:.0f}",
+            f"{min_px:.2f}", f"{frames} / {m['n_orient']}", f"{ms:.0f}"]
+
+
 def update_markdown(section: str, body: str) -> None:
     """Replaces (or appends) ``section`` in BENCHMARKS.md, leaving other sections alone.
     The file is replaced atomically, so an interrupted run never truncates it."""

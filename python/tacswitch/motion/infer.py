@@ -232,10 +232,11 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             if value is not None:
                 raise ValueError(f"{name}: applies to method='flow' only; got method={method!r}")
     rule_gain = None if gain is None else _rule_gain("mechanics" if auto else method, gain)
-    if method in ("flow", "auto"):
+    if auto:
         from tacswitch.motion.flow import check_flow_options
 
-        # Checked even when "auto" will run the mechanics rule, which ignores them.
+        # Checked here because "auto" may run the mechanics rule, which ignores them (flow
+        # checks its own).
         check_flow_options(algorithm or "dis", preset or "balanced",
                            False if suppress_imprint is None else suppress_imprint)
     if method == "model":
@@ -290,9 +291,8 @@ def resolve_method(method: str, img: Any = None, ref: Any = None) -> str:
         return "mechanics"
     from tacswitch.motion.reference import is_new_contact
 
-    if np.array_equal(img, ref) or not is_new_contact(img, ref):
-        return "flow"
-    return "mechanics"
+    # Identical frames are no new contact (nothing changed): flow, which returns zero.
+    return "mechanics" if is_new_contact(img, ref) else "flow"
 
 
 def _rule_gain(method: str, gain: Any) -> float:

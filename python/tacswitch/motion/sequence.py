@@ -63,8 +63,8 @@ class MarkerlessTracker:
 
     def reset(self) -> None:
         """Forgets the anchor: the next frame is judged against the no-contact frame again."""
-        self._anchor: NDArray[np.uint8] | None = None
-        self._anchor_motion: NDArray[np.float32] | None = None
+        # (anchor frame, its motion from rest by the rule), from the first frame of a contact.
+        self._anchor: tuple[NDArray[np.uint8], NDArray[np.float32]] | None = None
         self.anchor_index: int | None = None
         self._count = 0
 
@@ -84,16 +84,14 @@ class MarkerlessTracker:
         c = self.centres
         if len(c) == 0:
             return np.zeros((0, 2), np.float32)
-        contact = not np.array_equal(img, self.no_contact) and is_new_contact(img,
-                                                                              self.no_contact)
-        if not contact:
+        if not is_new_contact(img, self.no_contact):
             # No contact (yet, or any more): texture motion against the no-contact frame.
-            self._anchor = self._anchor_motion = self.anchor_index = None
+            self._anchor = self.anchor_index = None
             return flow_motion(img, self.no_contact, c)
-        if self._anchor is None or self._anchor_motion is None:
-            self._anchor = img.copy()
-            self._anchor_motion = mechanics_motion(img, self.no_contact, c, gain=self.gain)
+        if self._anchor is None:
+            self._anchor = (img.copy(), mechanics_motion(img, self.no_contact, c, gain=self.gain))
             self.anchor_index = index
-            return self._anchor_motion.copy()
-        at = (c + self._anchor_motion).astype(np.float32)
-        return (self._anchor_motion + flow_motion(img, self._anchor, at)).astype(np.float32)
+            return self._anchor[1].copy()
+        anchor, pressed = self._anchor
+        at = (c + pressed).astype(np.float32)
+        return (pressed + flow_motion(img, anchor, at)).astype(np.float32)

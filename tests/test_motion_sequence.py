@@ -54,3 +54,30 @@ def test_reset_and_bad_inputs(mini, grid) -> None:
     assert empty.update(mini.imgs[2]).shape == (0, 2)
     default = MarkerlessTracker(mini.f0)
     assert default.update(mini.imgs[2]).shape == (99, 2)
+
+
+def test_video_that_starts_in_contact_anchors_on_its_first_frame(mini, grid) -> None:
+    i = 6
+    tr = MarkerlessTracker(None, grid, gain="gelsight")
+    first = tr.update(mini.imgs[i])
+    np.testing.assert_array_equal(first, mechanics.mechanics_motion(mini.imgs[i], None, grid,
+                                                                   gain=0.25))
+    assert tr.anchor_index == 0
+    # The same frame again: the flow from the anchor is exactly zero, the motion unchanged.
+    np.testing.assert_array_equal(tr.update(mini.imgs[i].copy()), first)
+    fld = proxy.random_field("shear", tuple(mini.centres[i]), float(mini.radii[i]), 10.0,
+                             np.random.default_rng(4), shape=(240, 320))
+    true = first + fld.at(grid + first)
+    got = tr.update(proxy.warp(mini.imgs[i], fld))
+    err = np.linalg.norm(got - true, axis=1).mean()
+    assert err < 0.3 * np.linalg.norm(true, axis=1).mean()
+    assert tr.anchor_index == 0  # no no-contact frame: the contact cannot be seen to end
+    with pytest.raises(ValueError, match=r"^frame: shape \(120, 320, 3\) does not match the "
+                                         r"first frame"):
+        tr.update(mini.imgs[i][:120])
+    tr.reset()
+    tr.update(mini.imgs[3])
+    assert tr.anchor_index == 0
+    assert MarkerlessTracker().update(mini.imgs[2]).shape == (99, 2)
+    with pytest.raises(ValueError, match=r"^frame: expected a BGR"):
+        MarkerlessTracker(None).update(mini.imgs[2][..., 0])

@@ -16,6 +16,12 @@ no-contact frame, which for a frame without contact is texture motion only (exac
 identical frame). Measured in ``benches/bench_motion_sequence.py`` (BENCHMARKS.md "Markerless
 motion over a sequence").
 
+A video that starts in contact has no no-contact frame (``no_contact=None``): the first frame is
+the anchor and the rule runs on it alone (single frame, as ``predict_motion(img)``); the contact
+cannot be seen to end, so the anchor stays until :meth:`~MarkerlessTracker.reset`. Checked on
+real marker motion: the two FOTS GelSight Mini frames (a press, then the same contact sheared),
+markers removed, ``benches/bench_motion_fots.py``.
+
 Units and conventions: frames ``H x W x 3`` uint8 BGR of one size, centres and motion ``(x, y)``
 px with pixel centres at integers.
 """
@@ -35,7 +41,9 @@ class MarkerlessTracker:
     """Marker motion from rest over a markerless video (module doc).
 
     Args:
-        no_contact: markerless frame of the sensor without contact, ``H x W x 3`` uint8 BGR.
+        no_contact: markerless frame of the sensor without contact, ``H x W x 3`` uint8 BGR, or
+            None when the video starts in contact (the first frame is then the anchor, see the
+            module doc).
         centres: ``N x 2`` float32 marker rest centres ``(x, y)`` px (default: the shipped motion
             model's grid scaled to the frame, as :func:`tacswitch.predict_motion`).
         gain: the mechanics rule's press gain (a sensor name or a number >= 0, as
@@ -43,26 +51,46 @@ class MarkerlessTracker:
         model: motion model path, used only for the default centres.
 
     Attributes:
-        centres: the rest centres used; ``anchor_index``: index (0-based count of
-        :meth:`update` calls since the last reset) of the current anchor frame, or None.
+        centres: the rest centres used (None until the first frame when both ``no_contact``
+        and ``centres`` were None); ``anchor_index``: index (0-based count of :meth:`update`
+        calls since the last reset) of the current anchor frame, or None.
     """
 
-    def __init__(self, no_contact: Any, centres: Any = None, *, gain: float | str | None = None,
+    def __init__(self, no_contact: Any = None, centres: Any = None, *,
+                 gain: float | str | None = None,
                  model: str | os.PathLike[str] | None = None) -> None:
-        from tacswitch._checks import as_points, check_downsampled_size
-        from tacswitch.motion.infer import MIN_IMAGE_SIDE_PX, _bgr, _rule_gain, load_model
+        from tacswitch._checks import as_points
+        from tacswitch.motion.infer import _bgr, _rule_gain
         from tacswitch.motion.mechanics import MECHANICS_GAIN
 
-        self.no_contact = _bgr(no_contact, "no_contact").copy()
-        check_downsampled_size(self.no_contact.shape, 1, MIN_IMAGE_SIDE_PX, "no_contact")
-        h, w = self.no_contact.shape[:2]
-        self.centres = (load_model(model).centres_for(h, w) if centres is None
-                        else as_points(centres, "centres").copy())
+        self._model = model
+        self.no_contact: NDArray[np.uint8] | None = None
+        self.centres: NDArray[np.float32] | None = (
+            None if centres is None else as_points(centres, "centres").copy())
+        # The frame shape every update must have, and what fixed it (for the error message).
+        self._shape: tuple[int, ...] | None = None
+        self._shape_of = ""
+        if no_contact is not None:
+            self.no_contact = self._checked(_bgr(no_contact, "no_contact"), "no_contact",
+                                            "no_contact").copy()
         self.gain = MECHANICS_GAIN if gain is None else _rule_gain("mechanics", gain)
         self.reset()
 
+    def _checked(self, img: NDArray[np.uint8], name: str, what: str) -> NDArray[np.uint8]:
+        """``img`` (argument ``name``) after the size check; fixes the frame shape (``what``
+        fixed it, for later errors) and the default centres from the first frame seen."""
+        from tacswitch._checks import check_downsampled_size
+        from tacswitch.motion.infer import MIN_IMAGE_SIDE_PX, load_model
+
+        check_downsampled_size(img.shape, 1, MIN_IMAGE_SIDE_PX, name)
+        if self.centres is None:
+            self.centres = load_model(self._model).centres_for(*img.shape[:2])
+        self._shape, self._shape_of = img.shape, what
+        return img
+
     def reset(self) -> None:
-        """Forgets the anchor: the next frame is judged against the no-contact frame again."""
+        """Forgets the anchor: the next frame is judged against the no-contact frame again
+        (without one, the next frame becomes the new anchor)."""
         # (anchor frame, its motion from rest by the rule), from the first frame of a contact.
         self._anchor: tuple[NDArray[np.uint8], NDArray[np.float32]] | None = None
         self.anchor_index: int | None = None
@@ -76,15 +104,24 @@ class MarkerlessTracker:
         from tacswitch.motion.reference import is_new_contact
 
         img = _bgr(frame, "frame")
-        if img.shape != self.no_contact.shape:
-            raise ValueError(f"frame: shape {img.shape} does not match no_contact "
-                             f"{self.no_contact.shape}")
+        if self._shape is None:
+            self._checked(img, "frame", "the first frame")
+        elif img.shape != self._shape:
+            raise ValueError(f"frame: shape {img.shape} does not match {self._shape_of} "
+                             f"{self._shape}")
         index = self._count
         self._count += 1
         c = self.centres
+        assert c is not None  # set by _checked at construction or on the first frame
         if len(c) == 0:
             return np.zeros((0, 2), np.float32)
-        if not is_new_contact(img, self.no_contact):
+        if self.no_contact is None:
+            # Starts in contact: the first frame is the anchor, the rule on it alone.
+            if self._anchor is None:
+                self._anchor = (img.copy(), mechanics_motion(img, None, c, gain=self.gain))
+                self.anchor_index = index
+                return self._anchor[1].copy()
+        elif not is_new_contact(img, self.no_contact):
             # No contact (yet, or any more): texture motion against the no-contact frame.
             self._anchor = self.anchor_index = None
             return flow_motion(img, self.no_contact, c)

@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch.inpaint import DEFAULT_RADIUS
+from tacswitch.tacdiff.infer import CROP_CONTEXT
 
 #: Box side (px) of the local means compared against the reference.
 BOX = 7
@@ -132,7 +133,8 @@ def model_mask(img: NDArray[np.uint8], mask: NDArray[np.bool_],
 
 def inpaint_hybrid(img: Any, mask: Any, ref: Any = None, *, steps: int | None = None,
                    radius: float = DEFAULT_RADIUS, margin: int = 6, threshold: float | None = None,
-                   seed: int | None = 0, model: str | os.PathLike[str] | None = None
+                   seed: int | None = 0, separation: int = CROP_CONTEXT,
+                   model: str | os.PathLike[str] | None = None
                    ) -> tuple[NDArray[np.uint8], HybridInfo]:
     """TELEA everywhere, TacDiff on the holes in or near the contact.
 
@@ -146,6 +148,8 @@ def inpaint_hybrid(img: Any, mask: Any, ref: Any = None, *, steps: int | None = 
         margin: px the contact region is grown by before picking holes.
         threshold: contact threshold (grey levels with ``ref``; texture ratio without).
         seed: noise seed of the diffusion sampler.
+        separation: px; the network fills holes closer than this to one another in separate
+            passes (:func:`~tacswitch.tacdiff.infer.inpaint_tacdiff`; 0: one pass).
         model: TacDiff ONNX path (default: the shipped model).
 
     Returns:
@@ -169,7 +173,8 @@ def inpaint_hybrid(img: Any, mask: Any, ref: Any = None, *, steps: int | None = 
     net = model_mask(arr, m, ref_arr, filled=filled, margin=margin, radius=int(radius),
                      threshold=threshold)
     k = DEFAULT_STEPS if steps is None else steps
-    out = inpaint_tacdiff(filled, net, k, seed=seed, model=model) if net.any() else filled
+    out = (inpaint_tacdiff(filled, net, k, seed=seed, separation=separation, model=model)
+           if net.any() else filled)
     total = int(m.sum())
     used = int(net.sum())
     return out, HybridInfo(total, used, used / total if total else 0.0)

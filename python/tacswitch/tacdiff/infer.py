@@ -19,6 +19,10 @@
    step (inside the ONNX graph).
 4. Tiles are merged by the Rust :func:`tacswitch.merge_patches` (feathered); only masked pixels
    of the output differ from the input.
+5. Holes within ``separation`` px of one another (:mod:`~tacswitch.tacdiff.passes`) run in
+   separate passes, each seeing the other holes as gel holding the prior; a usual marker grid is
+   one pass. On the real FOTS GelSight Mini frames' dense held-out check (twice the markers, 4
+   passes) this cut the default model's held-out MAE from 2.27 to 1.91 (TELEA 1.97).
 """
 
 from __future__ import annotations
@@ -369,6 +373,14 @@ def _planes(arr: NDArray[np.uint8], m: NDArray[np.bool_], model: TacDiffModel,
     reflect-padded to a multiple of the model's size step): condition, mask, the run's noise
     (drawn once per frame, on the pixels to fill only; the network never reads it elsewhere),
     the classical prior and, for two-fill priors, the spread."""
+    noise = rng.standard_normal((3, int(np.count_nonzero(m))), dtype=np.float32)
+    return _pad(_frame_planes(arr, m, model, noise), model.multiple)
+
+
+def _frame_planes(arr: NDArray[np.uint8], m: NDArray[np.bool_], model: TacDiffModel,
+                  noise: NDArray[np.float32]) -> NDArray[np.float32]:
+    """The planes of :func:`_planes` before padding (``C x H x W``); ``noise`` is ``3 x N``, in
+    the row-major order of ``m``'s pixels."""
     h, w = m.shape
     planes = np.zeros((model.channels, h, w), np.float32)
     # to_net written straight into the planes (same float32 operations, no temporaries).
@@ -379,7 +391,7 @@ def _planes(arr: NDArray[np.uint8], m: NDArray[np.bool_], model: TacDiffModel,
     idx = np.flatnonzero(m)
     flat = planes.reshape(len(planes), h * w)
     flat[3, idx] = 1.0
-    flat[4:7, idx] = rng.standard_normal((3, len(idx)), dtype=np.float32)
+    flat[4:7, idx] = noise
     # The prior is the frame off the mask and the spread 0 there (prior_on_mask), so only the
     # masked pixels are converted and combined (identical to prior_planes, a third of the work).
     flat[7:10] = flat[0:3]
@@ -387,7 +399,12 @@ def _planes(arr: NDArray[np.uint8], m: NDArray[np.bool_], model: TacDiffModel,
     flat[7:10, idx] = prior.T
     if spread is not None:
         flat[10:13, idx] = spread.T
-    k = model.multiple
+    return planes
+
+
+def _pad(planes: NDArray[np.float32], k: int) -> NDArray[np.float32]:
+    """``C x H x W`` planes reflect-padded (bottom, right) to a multiple of ``k``."""
+    _, h, w = planes.shape
     ph, pw = -(-h // k) * k, -(-w // k) * k
     if (ph, pw) == (h, w):
         return planes
@@ -397,10 +414,66 @@ def _planes(arr: NDArray[np.uint8], m: NDArray[np.bool_], model: TacDiffModel,
     return padded
 
 
+def _pass_planes(planes: NDArray[np.float32], m: NDArray[np.bool_], sub: NDArray[np.bool_]
+                 ) -> NDArray[np.float32]:
+    """The unpadded planes of one pass: the holes of ``m`` outside the pass ``sub`` become known
+    gel holding the prior (condition = prior, mask 0, noise 0, spread 0, as on any known
+    pixel); the pass's holes keep the prior, spread and noise of the whole mask."""
+    out = planes.copy()
+    h, w = m.shape
+    idx = np.flatnonzero(m & ~sub)
+    flat = out.reshape(len(out), h * w)
+    flat[0:3, idx] = flat[7:10, idx]
+    flat[3:7, idx] = 0.0
+    if len(out) > 10:
+        flat[10:13, idx] = 0.0
+    return out
+
+
+def _network(planes: NDArray[np.float32], m: NDArray[np.bool_], net: TacDiffModel, steps: int,
+             sampler: Sampler, patch: PatchArg, ov: int, ctx: int | None
+             ) -> NDArray[np.float32]:
+    """The ``3 x H' x W'`` image estimate of one network pass over the padded ``planes``
+    filling ``m`` (regions chosen by :func:`_choose`; the prior where nothing ran)."""
+    from tacswitch.inpaint import merge_patches, tile
+
+    h, w = m.shape
+    kind, data = _choose(m, net.multiple, patch, ov, ctx)
+    if kind == "whole":
+        return _sample(net, planes[None], steps, sampler)[0]
+    if kind == "holes":
+        windows, owner = data
+        return _sample_boxes(net, planes, windows, _window_owner(owner, net.multiple),
+                             steps, sampler)
+    if kind == "crops":
+        crops, labels = data
+        return _sample_boxes(net, planes, crops, _crop_owner(labels), steps, sampler)
+    origins, run, side = data
+    hwc = np.ascontiguousarray(planes[:, :h, :w].transpose(1, 2, 0))
+    patches, _ = tile(hwc, side, ov)
+    merged = np.ascontiguousarray(patches[..., :3])
+    if run.any():
+        res = _sample(net, np.ascontiguousarray(patches[run].transpose(0, 3, 1, 2)), steps,
+                      sampler)
+        merged[run] = res.transpose(0, 2, 3, 1)
+    x0: NDArray[np.float32] = merge_patches(merged, origins, (h, w, 3),
+                                            mode="feather").transpose(2, 0, 1)
+    return x0
+
+
+def _paste(out: NDArray[np.uint8], x0: NDArray[np.float32], m: NDArray[np.bool_]) -> None:
+    """Writes the estimate ``x0`` (``3 x H' x W'``, [-1, 1]) into ``out`` on the pixels of
+    ``m``, as uint8."""
+    h, w = m.shape
+    idx = np.flatnonzero(m)
+    out.reshape(h * w, 3)[idx] = from_net(np.ascontiguousarray(x0[:, :h, :w]).reshape(3, h * w)
+                                          [:, idx].T)
+
+
 def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
                     sampler: Sampler = "dpmpp2m", seed: int | None = 0,
                     patch: PatchArg = "auto", overlap: int = DEFAULT_OVERLAP,
-                    context: int | None = None,
+                    context: int | None = None, separation: int = CROP_CONTEXT,
                     model: str | os.PathLike[str] | None = None) -> NDArray[np.uint8]:
     """Fills the masked pixels of a BGR frame with the TacDiff diffusion model.
 
@@ -422,6 +495,17 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
         context: px of known gel kept around the holes in ``"holes"`` windows and
             ``"crops"`` crops (None: :data:`DEFAULT_CONTEXT` = 16 for windows,
             :data:`CROP_CONTEXT` = 8 for crops).
+        separation: px (>= 0). Holes (8-connected parts of ``mask``) within this distance of
+            one another (Chebyshev, between their nearest pixels) are filled in separate passes
+            (:func:`tacswitch.tacdiff.passes.hole_passes`): each pass runs the network on its
+            own holes while the other holes show the classical prior as known gel, so no hole
+            sees a hole of its own pass within ``separation`` px (the network was trained on
+            marker grids, with gel around every hole; crowded holes, e.g. a mask holding twice
+            the markers, bias its fill). Prior and noise are those of the whole mask, so a pass
+            changes only what a hole's neighbours look like. The default
+            :data:`CROP_CONTEXT` (8) is the gel a per-hole crop keeps. A usual marker grid has
+            no holes that close: one pass, output identical to ``separation=0``, for a check
+            of about 2 ms at 640 x 480; 0 always runs one pass.
         model: ONNX model path, or a shipped model by name: ``"default"`` (the default) or
             ``"fast"`` (narrower, about twice as fast, slightly less accurate).
 
@@ -429,7 +513,8 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
         A new ``H x W x 3`` uint8 image; pixels outside ``mask`` are bit-identical to ``img``.
     """
     from tacswitch._checks import as_count
-    from tacswitch.inpaint import _as_mask, merge_patches, tile
+    from tacswitch.inpaint import _as_mask
+    from tacswitch.tacdiff.passes import hole_passes, pass_masks
 
     arr = as_image_u8(img, "img")
     if arr.ndim != 3 or arr.shape[2] != 3:
@@ -437,6 +522,7 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
                          f"colour frames); got shape {arr.shape}")
     m = _as_mask(mask, arr.shape).astype(bool)
     timesteps(steps)  # validates steps before any work
+    sep = as_count(separation, "separation", 0, None)
     if not m.any():
         return arr.copy()
     if m.all():
@@ -448,30 +534,19 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
             raise ValueError(f"patch: must be a multiple of {net.multiple}; got {side}")
     ov = as_count(overlap, "overlap", 0)
     ctx = None if context is None else as_count(context, "context", 0)
-    h, w = m.shape
-    planes = _planes(arr, m, net, np.random.default_rng(seed))
-    kind, data = _choose(m, net.multiple, patch, ov, ctx)
-    if kind == "whole":
-        x0 = _sample(net, planes[None], steps, sampler)[0]
-    elif kind == "holes":
-        windows, owner = data
-        x0 = _sample_boxes(net, planes, windows, _window_owner(owner, net.multiple),
-                           steps, sampler)
-    elif kind == "crops":
-        crops, labels = data
-        x0 = _sample_boxes(net, planes, crops, _crop_owner(labels), steps, sampler)
-    else:
-        origins, run, side = data
-        hwc = np.ascontiguousarray(planes[:, :h, :w].transpose(1, 2, 0))
-        patches, _ = tile(hwc, side, ov)
-        merged = np.ascontiguousarray(patches[..., :3])
-        if run.any():
-            res = _sample(net, np.ascontiguousarray(patches[run].transpose(0, 3, 1, 2)), steps,
-                          sampler)
-            merged[run] = res.transpose(0, 2, 3, 1)
-        x0 = merge_patches(merged, origins, (h, w, 3), mode="feather").transpose(2, 0, 1)
+    # Noise drawn once for every pixel to fill (as a one-pass run draws it), and the prior of
+    # the whole mask: a pixel gets both whatever its pass.
+    noise = np.random.default_rng(seed).standard_normal((3, int(np.count_nonzero(m))),
+                                                        dtype=np.float32)
+    planes = _frame_planes(arr, m, net, noise)
+    labels, pass_of = hole_passes(m, sep)
     out = arr.copy()
-    idx = np.flatnonzero(m)
-    out.reshape(h * w, 3)[idx] = from_net(np.ascontiguousarray(x0[:, :h, :w]).reshape(3, h * w)
-                                          [:, idx].T)
+    if pass_of.max(initial=0) <= 0:
+        _paste(out, _network(_pad(planes, net.multiple), m, net, steps, sampler, patch, ov, ctx),
+               m)
+        return out
+    for sub in pass_masks(labels, pass_of):
+        x0 = _network(_pad(_pass_planes(planes, m, sub), net.multiple), sub, net, steps,
+                      sampler, patch, ov, ctx)
+        _paste(out, x0, sub)
     return out

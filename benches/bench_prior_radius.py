@@ -8,18 +8,24 @@ scored on:
 1. the real-frame proxy (:mod:`tacswitch.realproxy`: taxim's real GelSight / Mini presses,
    painted markers, crisp / soft lossless / MJPEG / H.264; own adaptive mask; masked MAE over
    the true footprint, grey levels);
-2. the real FOTS GelSight Mini frames with markers (held-out shifted-mask pixels, MAE);
+2. the real FOTS GelSight Mini frames with markers (held-out shifted-mask pixels, MAE): dense
+   (every shifted hole at once, twice the real hole density, the stress case) and sparse (a
+   quarter of them at a time, pooled over the 4 sets: ``realproxy.sparse_heldout_scores``);
 3. held-out simulated frames (4 per preset, true mask dilated once; masked MAE and MAE in
    contact).
 
     python benches/bench_prior_radius.py [--frames 3] [--radii 3,8,12] [--parts proxy,fots,sim]
-        [--models LABEL=PATH,...] [--seed 0[,1,...]] [--update [--section TITLE --intro TEXT]]
+        [--models LABEL=PATH,...] [--seed 0[,1,...]] [--separation S[,S...]]
+        [--update [--section TITLE --intro TEXT]]
 
 ``--models`` scores these TacDiff ONNX files instead of the radius copies, each at the radius
 it records (e.g. models trained at r = 12 against the zero-shot copies); our TELEA default
 (``remove_markers``, r = 12) is scored alongside. ``--seed`` picks other real presses (a comma
 list: one proxy table per set). ``--section`` writes another BENCHMARKS.md section than the
-radius one (a model comparison), ``--intro`` its opening paragraph.
+radius one (a model comparison), ``--intro`` its opening paragraph. ``--separation`` scores
+TacDiff and hybrid at each hole separation given (``inpaint_tacdiff(separation=...)``: holes
+closer than this are filled in separate passes; 0 = one pass), one row each; default: the
+library's default only.
 
 Needs ``onnx`` (the ``train`` extra) for the model copies; FOTS frames from /work/shared.
 """
@@ -62,27 +68,39 @@ def model_copies(radii: list[int], tmp: Path) -> dict[str, str]:
     return out
 
 
-def _combos(models: dict[str, str]) -> list[tuple[str, str, str | None]]:
-    """``(row label, method, model path)``: TELEA default first, then each model x method."""
+Combo = tuple[str, str, str | None, int | None]
+
+
+def _combos(models: dict[str, str], separations: list[int] | None = None) -> list[Combo]:
+    """``(row label, method, model path, separation)``: TELEA default first, then each model x
+    method (x separation when given; None: the library's default)."""
     from tacswitch.tacdiff.infer import load_model
 
-    rows: list[tuple[str, str, str | None]] = [("TELEA default (r=12)", "telea", None)]
+    rows: list[Combo] = [("TELEA default (r=12)", "telea", None, None)]
     for method in METHODS:
         for label, path in models.items():
             r = load_model(path).prior_radius
-            rows.append((f"{method} {label} (prior r={r:g})", method, path))
+            for sep in separations or [None]:
+                tag = "" if sep is None else f", separation {sep}"
+                rows.append((f"{method} {label} (prior r={r:g}{tag})", method, path, sep))
     return rows
 
 
-def _fill(method: str, path: str | None):  # type: ignore[no-untyped-def]
+def _fill(method: str, path: str | None, sep: int | None = None):  # type: ignore[no-untyped-def]
     import tacswitch as ts
     from tacswitch import realproxy as R
+    from tacswitch.tacdiff import inpaint_hybrid, inpaint_tacdiff
 
     def fill(img, extra):  # type: ignore[no-untyped-def]
         m = R._with(R.default_mask(img), extra)
         if path is None:
             return ts.remove_markers(img, m)
-        return ts.remove_markers(img, m, method=method, model=path)
+        if sep is None:
+            return ts.remove_markers(img, m, method=method, model=path)
+        # remove_markers' tacdiff / hybrid with the separation set (same defaults otherwise).
+        if method == "tacdiff":
+            return inpaint_tacdiff(img, m, model=path, separation=sep)
+        return inpaint_hybrid(img, m, model=path, separation=sep)[0]
 
     return fill
 
@@ -91,15 +109,16 @@ def _case(name: str) -> str:
     return "/".join(name.split("/")[2:])
 
 
-def proxy_rows(n: int, models: dict[str, str], seed: int = 0) -> list[list[str]]:
+def proxy_rows(n: int, models: dict[str, str], seed: int = 0,
+               separations: list[int] | None = None) -> list[list[str]]:
     from tacswitch import realproxy as R
 
     want = {f"{s}/{c}" for v in CASES.values() for s, c in v}
     rows = []
     for sensor in R.SENSORS:
         frames = [f for f in R.proxy_frames(sensor, n, seed=seed) if _case(f.name) in want]
-        for label, method, path in _combos(models):
-            res = R.run(frames, _fill(method, path))
+        for label, method, path, sep in _combos(models, separations):
+            res = R.run(frames, _fill(method, path, sep))
             per = {c: R.pool([x for x in res if _case(x.name) in {f"{s}/{k}" for s, k in v}])
                    for c, v in CASES.items()}
             rows.append([sensor, label, *(f"{per[c].mae:.3f}" for c in CASES),
@@ -108,7 +127,8 @@ def proxy_rows(n: int, models: dict[str, str], seed: int = 0) -> list[list[str]]
     return rows
 
 
-def fots_rows(models: dict[str, str]) -> list[list[str]]:
+def fots_rows(models: dict[str, str], separations: list[int] | None = None
+              ) -> list[list[str]]:
     import cv2
 
     from tacswitch import realproxy as R
@@ -121,17 +141,33 @@ def fots_rows(models: dict[str, str]) -> list[list[str]]:
         holdout, hidden = R.shifted_holdout(img)
         prep.append((img, holdout, hidden, dilate_mask(R.threshold_mask(img), 3)))
     rows = []
-    for label, method, path in _combos(models):
-        sc = [R.heldout_scores(img, _fill(method, path), ho, hid, holes)
-              for img, ho, hid, holes in prep]
+    for label, method, path, sep in _combos(models, separations):
+        fill = _fill(method, path, sep)
+        sc = [R.heldout_scores(img, fill, ho, hid, holes) for img, ho, hid, holes in prep]
+        sp = [R.sparse_heldout_scores(img, fill, ho, hid) for img, ho, hid, _ in prep]
         rows.append([label, f"{np.mean([s[0] for s in sc]):.3f}",
                      f"{np.mean([s[1] for s in sc]):+.3f}",
+                     f"{np.mean([s[0] for s in sp]):.3f}", f"{np.mean([s[1] for s in sp]):+.3f}",
                      f"{np.mean([np.mean(s[2]) for s in sc]):+.3f}"])
         print(rows[-1], flush=True)
     return rows
 
 
-def sim_rows(models: dict[str, str], n: int = 4) -> list[list[str]]:
+def _sim_fill(img, m, method, path, kw):  # type: ignore[no-untyped-def]
+    """``remove_markers(img, m, method, model=path, **kw)``; with a separation, the function
+    behind it (``remove_markers`` does not take one)."""
+    import tacswitch as ts
+    from tacswitch.tacdiff import inpaint_hybrid, inpaint_tacdiff
+
+    if "separation" not in kw:
+        return ts.remove_markers(img, m, method=method, model=path, **kw)
+    if method == "tacdiff":
+        return inpaint_tacdiff(img, m, model=path, **kw)
+    return inpaint_hybrid(img, m, kw.pop("ref", None), model=path, **kw)[0]
+
+
+def sim_rows(models: dict[str, str], n: int = 4, separations: list[int] | None = None
+             ) -> list[list[str]]:
     import tacswitch as ts
     from tacswitch import tradeoff
     from tacswitch.metrics import masked_mae
@@ -140,7 +176,7 @@ def sim_rows(models: dict[str, str], n: int = 4) -> list[list[str]]:
     rows = []
     for preset in ("gelsight", "gelsight_mini"):
         frames = tradeoff.simulated_frames(n, preset, seed=HELD_OUT_SEED, mask="true")
-        for label, method, path in _combos(models):
+        for label, method, path, sep in _combos(models, separations):
             mae, contact = [], []
             for f in frames:
                 m = f.mask.astype(bool)
@@ -148,7 +184,9 @@ def sim_rows(models: dict[str, str], n: int = 4) -> list[list[str]]:
                     out = ts.remove_markers(f.with_markers, m)
                 else:
                     kw = {"ref": f.reference} if method == "hybrid" else {}
-                    out = ts.remove_markers(f.with_markers, m, method=method, model=path, **kw)
+                    if sep is not None:
+                        kw["separation"] = sep
+                    out = _sim_fill(f.with_markers, m, method, path, kw)
                 mae.append(masked_mae(out, f.truth, f.scored))
                 sc = f.scored & f.contact
                 if sc.any():
@@ -167,6 +205,8 @@ def main() -> None:
     ap.add_argument("--models", default="",
                     help="LABEL=PATH,... TacDiff ONNX files to score instead of the copies")
     ap.add_argument("--parts", default="proxy,fots,sim")
+    ap.add_argument("--separation", default="",
+                    help="hole separations (px, comma list) to score TacDiff and hybrid at")
     ap.add_argument("--update", action="store_true", help="write the BENCHMARKS.md section")
     ap.add_argument("--section", default=SECTION,
                     help="BENCHMARKS.md section title (a '## ' heading) that --update writes")
@@ -178,6 +218,11 @@ def main() -> None:
         seeds = [int(x) for x in args.seed.split(",") if x.strip()]
     except ValueError:
         raise SystemExit(f"--seed: expected integers like 0,1,2; got {args.seed!r}") from None
+    try:
+        seps = [int(x) for x in args.separation.split(",") if x.strip()] or None
+    except ValueError:
+        raise SystemExit(f"--separation: expected integers like 0,8; got {args.separation!r}"
+                         ) from None
     parts = args.parts.split(",")
     out = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -189,19 +234,22 @@ def main() -> None:
             out.append(f"Real-frame proxy ({args.frames} presses per sensor, seed {seed}, "
                        "x 7 cases), masked MAE:\n\n"
                        + table(["sensor", "method", *CASES, "all"],
-                               proxy_rows(args.frames, models, seed)))
+                               proxy_rows(args.frames, models, seed, seps)))
         if "fots" in parts and any(REAL.glob("*.png")):
-            out.append("Real FOTS GelSight Mini frames, held-out MAE, signed error, ghost:\n\n"
-                       + table(["method", "held-out MAE", "signed", "ghost"],
-                               fots_rows(models)))
+            out.append("Real FOTS GelSight Mini frames, held-out MAE and signed error (dense: "
+                       "every shifted hole at once, twice the real hole density; sparse: a "
+                       "quarter at a time, pooled over 4 sets), ghost:\n\n"
+                       + table(["method", "dense MAE", "dense signed", "sparse MAE",
+                                "sparse signed", "ghost"], fots_rows(models, seps)))
         if "sim" in parts:
             out.append("Held-out simulated frames (4 per preset, true mask dilated once):\n\n"
                        + table(["preset", "method", "masked MAE", "MAE in contact"],
-                               sim_rows(models)))
+                               sim_rows(models, separations=seps)))
     what = f"--models '{args.models}'" if args.models else f"--radii {args.radii}"
     body = "\n\n".join([*([args.intro] if args.intro else []), *out, f"Machine: {machine()}.",
                          f"Command: `python benches/bench_prior_radius.py --frames {args.frames} "
                          f"--seed {args.seed} {what} --parts {args.parts}"
+                         + (f" --separation {args.separation}" if seps else "")
                          + (f" --section '{args.section}'" if args.section != SECTION else "")
                          + "`"])
     print(body)

@@ -18,7 +18,9 @@ Scores (grey levels, all channels):
 
 Without ground truth, on real frames WITH markers (:func:`heldout_scores`): the marker mask is
 shifted by half a pitch onto bare gel, those real pixels are hidden and filled along with the
-markers, and the fill is scored there; and the ghost around the real markers
+markers, and the fill is scored there (dense: every shifted hole at once, about half of a GelSight
+Mini frame masked, the stress case; sparse, :func:`sparse_heldout_scores`: a quarter of them at a
+time, near the real hole density); and the ghost around the real markers
 (:func:`ghost_per_marker` with no clean frame).
 
 Images are uint8 BGR, points ``(x, y)`` px. Needs the ``taxim`` package for the presses (the
@@ -370,6 +372,69 @@ def heldout_scores(img: NDArray[np.uint8], fill: Fill, holdout: NDArray[np.bool_
     err = out[holdout].astype(np.float64) - img[holdout]
     return (float(np.abs(err).mean()), float(err.mean()),
             ghost_per_marker(fill(img, None), ghost_holes))
+
+
+#: Phases of the sparse held-out check per grid axis (:func:`sparse_holdouts`): 2 x 2 = 4 sets,
+#: each holding every other held-out hole along x and y.
+SPARSE_PHASES = 2
+
+
+def sparse_holdouts(holdout: NDArray[np.bool_], phases: int = SPARSE_PHASES,
+                    pitch: float | None = None) -> list[NDArray[np.bool_]]:
+    """The held-out holes of :func:`shifted_holdout` split into ``phases ** 2`` sets, by the
+    row and column (modulo ``phases``) of each hole's centre on the grid they form: a set holds
+    every ``phases``-th hole along x and y, so filling one set with the markers keeps the
+    hole density near the real one (1 + 1 / phases ** 2 holes per marker instead of 2). Sets
+    without a hole are left out.
+
+    ``pitch``: grid pitch in px (default: the median distance from each held-out hole's centre
+    to its nearest neighbour's; holes cut by the frame border shift their centres a little,
+    which the rounding to the nearest grid row absorbs).
+    """
+    import cv2
+
+    from tacswitch._checks import as_count
+
+    k = as_count(phases, "phases", 1)
+    _, labels, _, cen = cv2.connectedComponentsWithStats(holdout.astype(np.uint8),
+                                                         connectivity=8)
+    c = np.asarray(cen[1:], np.float64)  # (x, y) per hole
+    if len(c) == 0:
+        return []
+    if pitch is None:
+        if len(c) < 2:
+            return [np.asarray(holdout, bool).copy()]
+        d = np.hypot(*(c[:, None, :] - c[None, :, :]).transpose(2, 0, 1))
+        np.fill_diagonal(d, np.inf)
+        pitch = float(np.median(d.min(axis=1)))
+    if not pitch > 0:
+        raise ValueError(f"pitch: expected a positive grid pitch in px; got {pitch!r}")
+    col = np.rint((c[:, 0] - c[:, 0].min()) / pitch).astype(np.int64) % k
+    row = np.rint((c[:, 1] - c[:, 1].min()) / pitch).astype(np.int64) % k
+    phase = np.concatenate([[-1], row * k + col])
+    per_pixel = phase[labels]
+    return [m for m in (per_pixel == q for q in range(k * k)) if m.any()]
+
+
+def sparse_heldout_scores(img: NDArray[np.uint8], fill: Fill, holdout: NDArray[np.bool_],
+                          hidden: NDArray[np.uint8], phases: int = SPARSE_PHASES
+                          ) -> tuple[float, float]:
+    """``(MAE, signed error)`` of ``fill`` over the held-out real gel pixels, held out one set
+    of :func:`sparse_holdouts` at a time (``img`` with only that set's markers copied in, filled
+    with the real markers) and pooled over all sets: the sparse variant of
+    :func:`heldout_scores`, whose masks hold twice the markers (about half a GelSight Mini frame
+    masked), a density no marker grid has and the stress case of methods that read the holes'
+    surroundings (TacDiff)."""
+    errs = []
+    for sub in sparse_holdouts(holdout, phases):
+        frame = img.copy()
+        frame[sub] = hidden[sub]
+        out = fill(frame, sub)
+        errs.append(out[sub].astype(np.float64) - img[sub])
+    err = np.concatenate(errs) if errs else np.zeros(0)
+    if err.size == 0:
+        return float("nan"), float("nan")
+    return float(np.abs(err).mean()), float(err.mean())
 
 
 # --- The methods compared ---------------------------------------------------------------------

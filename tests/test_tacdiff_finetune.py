@@ -88,6 +88,12 @@ def test_finetune_keeps_the_start_model_when_nothing_beats_it(tmp_path: Path,
     assert len(state["start"]) == len(state["per_marker"]["2"]) > 10
     # Validation on the start model's own weights reproduces its score (same inference).
     assert abs(state["scores"]["2"] - np.mean(state["start"])) < 0.05
+    # It trained with the fast model's own objective (recorded in its ONNX), not the defaults.
+    import torch
+
+    ck = torch.load(run / "checkpoint.pt", map_location="cpu", weights_only=False)
+    assert (ck["config"]["loss"], ck["config"]["terminal_fraction"]) == ("v_mse", 0.9)
+    assert ft.start_objective(model_path("default")) == ("x0_l1", 0.9)
     for bad in (["--val-every", "0"], ["--val-frames", "0"], ["--steps", "0"]):
         assert main([*args[:4], str(tmp_path / "x"), *args[5:], *bad]) == 1
 
@@ -121,6 +127,19 @@ def test_finetune_trains_at_the_start_models_prior_radius(tmp_path: Path, marker
     assert ck["config"]["prior_radius"] == 7.0  # the sampler's fills and the EMA's record
     assert TacDiffModel(tmp_path / "ft" / "start.onnx").prior_radius == 7.0
     assert TacDiffModel(res.model).prior_radius == 7.0
+    # A start exported without a recorded objective trains with the defaults; an explicit one
+    # overrides it, and a bad one is refused by name.
+    assert (ck["config"]["loss"], ck["config"]["terminal_fraction"]) == ("v_mse", 0.2)
+    ft.finetune(marker_frames, tmp_path / "ft2", init=start, steps=1, batch=1, crop=64, lr=0.0,
+                val_every=1, threads=1, progress=False, loss="x0_l1", terminal_fraction=0.5)
+    ck = torch.load(tmp_path / "ft2" / "checkpoint.pt", map_location="cpu", weights_only=False)
+    assert (ck["config"]["loss"], ck["config"]["terminal_fraction"]) == ("x0_l1", 0.5)
+    with pytest.raises(ValueError, match="^terminal_fraction: must be in"):
+        ft.finetune(marker_frames, tmp_path / "ft3", init=start, steps=1, progress=False,
+                    terminal_fraction=1.5)
+    with pytest.raises(ValueError, match="^loss: expected one of"):
+        ft.finetune(marker_frames, tmp_path / "ft4", init=start, steps=1, progress=False,
+                    loss="l2")
 
 
 def test_shipped_weights_record_their_models_prior_radius():

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 
+from tacswitch.tacdiff.train import LOSSES  # numpy-only import, no torch
 from tacswitch.tacdiff.transplant import DEFAULT_RING
 
 
@@ -54,6 +55,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="starting weights: 'default' or 'fast' (a shipped model), or a "
                         ".safetensors, checkpoint or TacDiff .onnx file (default: the shipped "
                         "default model's)")
+    p.add_argument("--loss", default=None, choices=LOSSES,
+                   help="training loss (default: the one the starting model records, e.g. "
+                        "x0_l1 for the shipped default)")
+    p.add_argument("--terminal-fraction", type=float, default=None, metavar="F",
+                   help="share of crops trained at t = 1, in [0, 1] (default: the starting "
+                        "model's, 0.9 for the shipped models)")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(run=run)
 
@@ -85,7 +92,8 @@ def run(args: argparse.Namespace) -> int:
     result = finetune(frames, args.out, init=args.init, steps=args.steps, batch=args.batch,
                       crop=args.crop, lr=args.lr, seed=args.seed, offset=offset,
                       transplant=args.transplant, ring=args.ring, val_every=args.val_every,
-                      val_frames=args.val_frames, progress=not args.quiet,
+                      val_frames=args.val_frames, progress=not args.quiet, loss=args.loss,
+                      terminal_fraction=args.terminal_fraction,
                       extra={"finetune": [str(f) for f in files]})
     # The choice is the result: printed even with -q.
     print(result.summary())

@@ -233,6 +233,28 @@ def start_onnx(init: str | Path | None, out: Path) -> Path:
     return export_onnx(load_network(p), out / "start.onnx")
 
 
+def start_objective(start: Path) -> tuple[str, float]:
+    """``(loss, terminal_fraction)`` the starting model was trained with, as its ONNX records
+    them (``tacswitch.loss``, ``tacswitch.terminal_fraction``; the 0.5 models: x0_l1 / v_mse at
+    0.9); the training defaults for models exported before they were recorded. A fine-tune keeps
+    its start's objective: K = 1 sampling, the shipped setting, runs only the pure-noise step
+    that a terminal fraction of 0.9 trains, and a different loss would pull the weights to
+    another estimate (median vs mean) than the one they were chosen for."""
+    import json as _json
+
+    from tacswitch.tacdiff.infer import load_model
+    from tacswitch.tacdiff.train import TrainConfig, check_loss
+
+    meta = load_model(start).metadata
+    loss = check_loss(meta.get("tacswitch.loss", TrainConfig.loss), "model")
+    raw = meta.get("tacswitch.terminal_fraction")
+    frac = TrainConfig.terminal_fraction if raw is None else float(_json.loads(raw))
+    if not 0 <= frac <= 1:
+        raise ValueError(f"model: {str(start)!r} records tacswitch.terminal_fraction={raw!r}; "
+                         "expected a number in [0, 1]")
+    return loss, frac
+
+
 def init_weights(init: str | Path | None) -> Path:
     """The weights file training starts from: the shipped default's safetensors (None or
     ``"default"``), the fast model's ONNX (``"fast"``), or ``init`` itself."""
@@ -251,6 +273,7 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
              offset: tuple[int, int] | None = None, transplant: bool = True,
              ring: int = DEFAULT_RING, val_every: int = 100, val_share: float = 0.2,
              val_frames: int = 8, threads: int = 0, progress: bool = True,
+             loss: str | None = None, terminal_fraction: float | None = None,
              extra: dict[str, Any] | None = None) -> FinetuneResult:
     """Fine-tunes TacDiff on ``frames`` (a sensor's marker frames, no ground truth) and keeps the
     best of the starting model and the validated checkpoints (module docstring).
@@ -265,10 +288,18 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
         transplant, ring: as :func:`~tacswitch.tacdiff.data.marker_offset_pairs`.
         val_every: validate the EMA weights every this many steps (and at the end).
         val_share, val_frames: frames held out for validation (:func:`split_frames`).
+        loss, terminal_fraction: training objective (:class:`~.train.TrainConfig`); None: the
+            starting model's own (:func:`start_objective`).
     """
     from tacswitch.tacdiff.data import marker_offset_pairs, removal_markers
     from tacswitch.tacdiff.export import export_onnx
-    from tacswitch.tacdiff.train import TrainConfig, load_network, save_weights, train
+    from tacswitch.tacdiff.train import (
+        TrainConfig,
+        check_loss,
+        load_network,
+        save_weights,
+        train,
+    )
     from tacswitch.tacdiff.transplant import default_offset
     from tacswitch.tracking import estimate_pitch
 
@@ -297,6 +328,11 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
     if not val.pairs["loss_mask"].any():
         raise ValueError("frames: no validation marker lands on real gel; pass offset")
     start = start_onnx(init, run)
+    inherited = start_objective(start)
+    loss = inherited[0] if loss is None else check_loss(loss)
+    terminal_fraction = inherited[1] if terminal_fraction is None else float(terminal_fraction)
+    if not 0 <= terminal_fraction <= 1:  # also refuses NaN
+        raise ValueError(f"terminal_fraction: must be in [0, 1]; got {terminal_fraction!r}")
     weights = init_weights(init)
     arch = load_network(weights).cfg
     state_path = run / "finetune.json"
@@ -335,7 +371,7 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
     # The start model's prior radius: its weights were trained (and it is scored) with it.
     cfg = TrainConfig(base=arch.base, mults=arch.mults, attention=arch.attention,
                       prior=arch.prior, prior_radius=arch.prior_radius, steps=steps, batch=batch,
-                      crop=crop, lr=lr,
+                      crop=crop, lr=lr, loss=loss, terminal_fraction=terminal_fraction,
                       warmup=min(100, steps // 10), seed=seed, threads=threads,
                       extra={**(extra or {}), "offset": list(offset), "transplant": transplant,
                              "ring": ring, "train_frames": tr, "val_frames": va})
@@ -354,6 +390,7 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
     else:
         export_onnx(load_network(run / "best.safetensors"), target,
                     metadata={"finetuned_on": len(tr), "step": best, "seed": seed,
+                              "loss": loss, "terminal_fraction": terminal_fraction,
                               "transplant": transplant, "validation": state["scores"][str(best)],
                               "validation_start": float(start_scores.mean())})
         chosen = int(best)

@@ -76,7 +76,8 @@ def finetune_case(frames: np.ndarray, run: Path, args: argparse.Namespace, seed:
     res = finetune(list(frames), run, init=args.model, steps=args.steps, batch=args.batch,
                    crop=args.crop, lr=args.lr, seed=seed, ring=args.ring,
                    val_every=args.val_every, threads=int(os.environ.get("BENCH_THREADS", "0")),
-                   progress=bool(os.environ.get("BENCH_PROGRESS")))
+                   progress=bool(os.environ.get("BENCH_PROGRESS")), loss=args.loss,
+                   terminal_fraction=args.terminal_fraction)
     last = export_onnx(load_network(run / "model.safetensors"), run / "last.onnx")
     return res, last
 
@@ -99,6 +100,10 @@ def main() -> None:
     ap.add_argument("--val-every", type=int, default=100)
     ap.add_argument("--model", default="fast",
                     help="the starting model: default, fast or a weights/ONNX path")
+    ap.add_argument("--loss", default=None,
+                    help="training loss (default: the starting model's recorded one)")
+    ap.add_argument("--terminal-fraction", type=float, default=None,
+                    help="share of crops at t = 1 (default: the starting model's)")
     ap.add_argument("--fots", default=None, help="folder of real marker frames (FOTS) too")
     ap.add_argument("--json", default=None)
     args = ap.parse_args()
@@ -130,9 +135,12 @@ def main() -> None:
                                      "offset": res.val_offset, "overlap": res.val_overlap}
                 rows.append(row)
                 print(json.dumps(row), flush=True)
+    own = "the start model's"
     print(f"\nFine-tune from '{args.model}' ({args.steps} steps, batch {args.batch}, lr "
-          f"{args.lr}, ring {args.ring}), {args.style} markers; masked MAE over the true "
-          f"footprint of the {args.test} held-out frames (grey levels)\n")
+          f"{args.lr}, ring {args.ring}, loss {args.loss or own}, terminal fraction "
+          f"{own if args.terminal_fraction is None else args.terminal_fraction}), "
+          f"{args.style} markers; masked MAE over the true footprint of the {args.test} "
+          "held-out frames (grey levels)\n")
     print("| sensor | capture | seed | TELEA default | zero-shot | fine-tuned (last) | "
           "chosen by validation | validation start -> chosen |\n|---|---|---|---|---|---|---|---|")
     for r in rows:

@@ -275,6 +275,29 @@ def test_motion_command_matches_predict_motion(tmp_path: Path, motion_pair: dict
                  "--centres", str(centres), "-o", str(out), "-q"]) == 1
 
 
+def test_motion_sequence_is_the_markerless_tracker(tmp_path: Path, mini) -> None:
+    from tacswitch.motion.sequence import MarkerlessTracker
+
+    frames = tmp_path / "video"
+    frames.mkdir()
+    video = [mini.f0, mini.imgs[6], np.roll(mini.imgs[6], 3, axis=1)]
+    for k, f in enumerate(video):
+        cv2.imwrite(str(frames / f"{k:03d}.png"), f)
+    cv2.imwrite(str(tmp_path / "ref.png"), mini.f0)
+    for ref in (["--ref", str(tmp_path / "ref.png")], []):
+        out = tmp_path / f"o{len(ref)}"
+        assert main(["motion", str(frames), *ref, "--sequence", "--gain", "gelsight", "-o",
+                     str(out), "-q"]) == 0
+        tr = MarkerlessTracker(mini.f0 if ref else None, gain="gelsight")
+        for k, f in enumerate(video):
+            pts, motion = _read_motion_csv(out / f"{k:03d}.csv")
+            np.testing.assert_allclose(motion, tr.update(f), atol=1e-3)
+            assert tr.centres is not None
+            np.testing.assert_allclose(pts, tr.centres, atol=1e-3)
+    assert main(["motion", str(frames), "--sequence", "--method", "flow", "--ref",
+                 str(tmp_path / "ref.png"), "-o", str(tmp_path / "x"), "-q"]) == 2
+
+
 def test_train_motion_tiny_run_exports_a_usable_model(tmp_path: Path,
                                                       motion_pair: dict) -> None:
     pytest.importorskip("torch")

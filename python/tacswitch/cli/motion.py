@@ -36,6 +36,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "name (gelsight, gelsight_mini: fitted on real presses) or a number "
                         ">= 0, e.g. from tacswitch.motion.calibration.calibrate_press_gain "
                         "(default: the rule's own)")
+    p.add_argument("--sequence", action="store_true",
+                   help="the inputs are the frames of one video, in name order: each frame's "
+                        "motion from rest by tacswitch.MarkerlessTracker (--ref: the no-contact "
+                        "frame; without it the video starts in contact and its first frame is "
+                        "the anchor); method auto only")
     p.add_argument("-o", "--out", default="motion-out", help="output folder (default: %(default)s)")
     p.add_argument("--scale", type=float, default=3.0, help="arrow length per px of motion")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")
@@ -91,6 +96,9 @@ def run(args: argparse.Namespace) -> int:
     if args.method == "flow" and not args.ref:
         raise UsageError("--ref: --method flow measures motion from a reference frame; pass the "
                          "markerless no-contact frame")
+    if args.sequence and args.method != "auto":
+        raise UsageError(f"--sequence: the tracker chooses its own methods (the mechanics rule "
+                         f"at the contact, flow from it); drop --method {args.method}")
     model = load_model_option(load_model, args.model)
     ref = read_image(input_file(args.ref, "--ref"), "--ref", quiet=True) if args.ref else None
     # "auto" runs the mechanics rule without --ref or against a no-contact --ref, flow
@@ -99,6 +107,11 @@ def run(args: argparse.Namespace) -> int:
     centres = _read_centres(str(input_file(args.centres, "--centres"))) if args.centres else None
     files = collect_images(args.inputs)
     out = output_dir(args.out, "--out")
+    tracker = None
+    if args.sequence:
+        from tacswitch.motion.sequence import MarkerlessTracker
+
+        tracker = MarkerlessTracker(ref, centres, gain=gain, model=args.model)
     failed: list[tuple[Path, str]] = []
     done = 0
     with progress(files, desc="motion", unit="img", quiet=args.quiet) as bar:
@@ -107,9 +120,14 @@ def run(args: argparse.Namespace) -> int:
             if img is None:
                 failed.append((path, f"inputs: cannot read an image from {str(path)!r}"))
                 continue
-            pts = model.centres_for(*img.shape[:2]) if centres is None else centres
-            motion = (model(img, ref=ref, centres=pts) if args.method == "model" else
-                      predict_motion(img, ref, pts, method=args.method, gain=gain))
+            if tracker is not None:
+                motion = tracker.update(img)
+                assert tracker.centres is not None  # set by the first update
+                pts = tracker.centres
+            else:
+                pts = model.centres_for(*img.shape[:2]) if centres is None else centres
+                motion = (model(img, ref=ref, centres=pts) if args.method == "model" else
+                          predict_motion(img, ref, pts, method=args.method, gain=gain))
             buf = io.StringIO()
             w = csv.writer(buf)
             w.writerow(["x", "y", "dx", "dy"])

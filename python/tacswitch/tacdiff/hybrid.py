@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch.inpaint import DEFAULT_RADIUS
-from tacswitch.tacdiff.infer import CROP_CONTEXT
+from tacswitch.tacdiff.infer import SEPARATION
 
 #: Box side (px) of the local means compared against the reference.
 BOX = 7
@@ -133,7 +133,7 @@ def model_mask(img: NDArray[np.uint8], mask: NDArray[np.bool_],
 
 def inpaint_hybrid(img: Any, mask: Any, ref: Any = None, *, steps: int | None = None,
                    radius: float = DEFAULT_RADIUS, margin: int = 6, threshold: float | None = None,
-                   seed: int | None = 0, separation: int = CROP_CONTEXT,
+                   seed: int | None = 0, separation: int = SEPARATION,
                    model: str | os.PathLike[str] | None = None
                    ) -> tuple[NDArray[np.uint8], HybridInfo]:
     """TELEA everywhere, TacDiff on the holes in or near the contact.
@@ -148,8 +148,8 @@ def inpaint_hybrid(img: Any, mask: Any, ref: Any = None, *, steps: int | None = 
         margin: px the contact region is grown by before picking holes.
         threshold: contact threshold (grey levels with ``ref``; texture ratio without).
         seed: noise seed of the diffusion sampler.
-        separation: px; the network fills holes closer than this to one another in separate
-            passes (:func:`~tacswitch.tacdiff.infer.inpaint_tacdiff`; 0: one pass).
+        separation: px; the network fills its holes within this distance of one another in
+            separate passes (:func:`~tacswitch.tacdiff.infer.inpaint_tacdiff`; 0: one pass).
         model: TacDiff ONNX path (default: the shipped model).
 
     Returns:

@@ -22,7 +22,8 @@
 5. Holes within ``separation`` px of one another (:mod:`~tacswitch.tacdiff.passes`) run in
    separate passes, each seeing the other holes as gel holding the prior; a usual marker grid is
    one pass. On the real FOTS GelSight Mini frames' dense held-out check (twice the markers, 4
-   passes) this cut the default model's held-out MAE from 2.27 to 1.91 (TELEA 1.97).
+   passes) this cut the default model's held-out MAE from 2.27 to 1.91 (TELEA 1.97); on the
+   sparse one (a quarter of the held-out holes at a time) it costs 1.88 -> 1.92 (TELEA 1.89).
 """
 
 from __future__ import annotations
@@ -72,6 +73,16 @@ DEFAULT_CONTEXT = 16
 #: simulated GelSight frames by +1.0 % / -1.2 %, at 36 % of the pixels (BENCHMARKS.md, TacDiff
 #: speed). 16 px (64 x 64 crops) is within 0.5 % but barely cheaper than the whole frame.
 CROP_CONTEXT = 8
+#: Default hole separation (px) of :func:`inpaint_tacdiff`: holes within this Chebyshev distance
+#: of one another are filled in separate passes (:mod:`~tacswitch.tacdiff.passes`). The network
+#: never saw holes that close: on its GelSight Mini training masks (``data.render_pair``, 320 x
+#: 240, the masks ``remove_markers`` builds) 0.8 % of the holes have a neighbour within 4 px,
+#: 3 % within 6 and 23 % within 8; GelSight's (640 x 480) none within 24. At 4, the real FOTS
+#: GelSight Mini frames (holes 5-9 px apart) and every proxy and simulated frame are one pass,
+#: while the FOTS held-out checks, whose held-out holes lie 3-4 px from the real markers, are
+#: split: there 8 gave the same held-out MAE but ran the real frames alone in 3 passes and moved
+#: their ghost from -0.07 to -0.18 grey levels (BENCHMARKS.md, crowded holes in separate passes).
+SEPARATION = 4
 
 PatchArg = int | Literal["auto", "holes", "crops"] | None
 
@@ -473,7 +484,7 @@ def _paste(out: NDArray[np.uint8], x0: NDArray[np.float32], m: NDArray[np.bool_]
 def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
                     sampler: Sampler = "dpmpp2m", seed: int | None = 0,
                     patch: PatchArg = "auto", overlap: int = DEFAULT_OVERLAP,
-                    context: int | None = None, separation: int = CROP_CONTEXT,
+                    context: int | None = None, separation: int = SEPARATION,
                     model: str | os.PathLike[str] | None = None) -> NDArray[np.uint8]:
     """Fills the masked pixels of a BGR frame with the TacDiff diffusion model.
 
@@ -499,13 +510,12 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
             one another (Chebyshev, between their nearest pixels) are filled in separate passes
             (:func:`tacswitch.tacdiff.passes.hole_passes`): each pass runs the network on its
             own holes while the other holes show the classical prior as known gel, so no hole
-            sees a hole of its own pass within ``separation`` px (the network was trained on
-            marker grids, with gel around every hole; crowded holes, e.g. a mask holding twice
-            the markers, bias its fill). Prior and noise are those of the whole mask, so a pass
-            changes only what a hole's neighbours look like. The default
-            :data:`CROP_CONTEXT` (8) is the gel a per-hole crop keeps. A usual marker grid has
-            no holes that close: one pass, output identical to ``separation=0``, for a check
-            of about 2 ms at 640 x 480; 0 always runs one pass.
+            sees a hole of its own pass that close (crowded holes, e.g. a mask holding twice the
+            markers, are outside what the network was trained on and bias its fill). Prior and
+            noise are those of the whole mask, so a pass changes only what a hole's neighbours
+            look like. Default :data:`SEPARATION` (4 px, closer than the training masks' holes
+            came). A marker grid without holes that close is one pass, output identical to
+            ``separation=0``, for a check of about 2 ms at 640 x 480; 0 always runs one pass.
         model: ONNX model path, or a shipped model by name: ``"default"`` (the default) or
             ``"fast"`` (narrower, about twice as fast, slightly less accurate).
 

@@ -1,19 +1,18 @@
 """Hole passes: which holes TacDiff may fill together (numpy + OpenCV; no onnxruntime).
 
-The network was trained on crops with one marker grid, where every hole has gel around it. When
-holes crowd (a mask holding twice the markers, as the shifted held-out check on real frames
-builds, or holes merged by a wide dilation), each hole's context holds other holes instead of
-gel, an input the network never saw: on the real FOTS GelSight Mini frames it adds per-hole colour
-biases (held-out MAE 2.26 against TELEA's 1.92). :func:`hole_passes` splits the holes into
+The network was trained on marker grids whose holes keep some gel between them. When holes
+crowd closer than that (a mask holding twice the markers, as the shifted held-out check on real
+frames builds, or holes merged by a wide dilation), each hole's context holds other holes instead
+of gel, an input the network never saw: on the real FOTS GelSight Mini frames it adds per-hole
+colour biases (held-out MAE 2.27 against TELEA's 1.97). :func:`hole_passes` splits the holes into
 passes such that no two holes of one pass lie within ``separation`` px of each other; TacDiff
-fills one pass at a time on a frame whose other holes are filled classically
+fills one pass at a time, the other holes showing the classical prior
 (:func:`tacswitch.tacdiff.infer.inpaint_tacdiff`).
 
 Distances are Chebyshev (chessboard) distances between the nearest pixels of two holes, in px:
 two holes are *neighbours* when a pixel of one lies within the ``(2 s + 1) x (2 s + 1)`` square
-around a pixel of the other (``s = separation``), i.e. inside the ``s`` px of context a crop of
-:func:`~tacswitch.tacdiff.infer.hole_crops` keeps around it. Holes are the 8-connected
-components of the mask.
+around a pixel of the other (``s = separation``), i.e. with fewer than ``s`` px of gel between
+them. Holes are the 8-connected components of the mask.
 """
 
 from __future__ import annotations

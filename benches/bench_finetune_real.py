@@ -77,7 +77,7 @@ def finetune_case(frames: np.ndarray, run: Path, args: argparse.Namespace, seed:
                    crop=args.crop, lr=args.lr, seed=seed, ring=args.ring,
                    val_every=args.val_every, threads=int(os.environ.get("BENCH_THREADS", "0")),
                    progress=bool(os.environ.get("BENCH_PROGRESS")), loss=args.loss,
-                   terminal_fraction=args.terminal_fraction)
+                   terminal_fraction=args.terminal_fraction, recompress=args.recompress)
     last = export_onnx(load_network(run / "model.safetensors"), run / "last.onnx")
     return res, last
 
@@ -104,6 +104,9 @@ def main() -> None:
                     help="training loss (default: the starting model's recorded one)")
     ap.add_argument("--terminal-fraction", type=float, default=None,
                     help="share of crops at t = 1 (default: the starting model's)")
+    ap.add_argument("--recompress", default="auto",
+                    help="the fine-tune's re-compression of its transplants (auto, none, "
+                         "jpeg:Q, h264:CRF)")
     ap.add_argument("--fots", default=None, help="folder of real marker frames (FOTS) too")
     ap.add_argument("--json", default=None)
     args = ap.parse_args()
@@ -129,6 +132,7 @@ def main() -> None:
                                ts.remove_markers(rec[i], method="tacdiff", model=model))
                         vals.append(score(out, clean[i], footprint[i]))
                     row[name] = [float(v) for v in np.mean(vals, axis=0)]
+                row["recompress"] = res.recompress
                 row["validation"] = {"start": res.start_score, "scores": res.scores,
                                      "chosen_step": res.chosen_step, "noise": res.noise,
                                      "markers": res.val_markers, "frames": res.val_frames,

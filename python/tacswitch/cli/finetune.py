@@ -61,6 +61,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--terminal-fraction", type=float, default=None, metavar="F",
                    help="share of crops trained at t = 1, in [0, 1] (default: the starting "
                         "model's, 0.9 for the shipped models)")
+    p.add_argument("--recompress", default="auto", metavar="auto|none|jpeg:Q|h264:CRF",
+                   help="re-compress the transplanted frames like your recording, so the gel "
+                        "around a moved marker is quantised with it as around a real one "
+                        "(default: auto, which recognises a JPEG/MJPEG source's quality; H.264 "
+                        "recordings: pass h264:CRF, e.g. h264:23)")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(run=run)
 
@@ -93,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
                       crop=args.crop, lr=args.lr, seed=args.seed, offset=offset,
                       transplant=args.transplant, ring=args.ring, val_every=args.val_every,
                       val_frames=args.val_frames, progress=not args.quiet, loss=args.loss,
-                      terminal_fraction=args.terminal_fraction,
+                      terminal_fraction=args.terminal_fraction, recompress=args.recompress,
                       extra={"finetune": [str(f) for f in files]})
     # The choice is the result: printed even with -q.
     print(result.summary())

@@ -23,7 +23,7 @@ bool: pixels to fill at inference, what remove_markers would mask) and ``loss_ma
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -204,8 +204,9 @@ def removal_markers(frame: NDArray[np.uint8], **extract_opts: Any) -> Markers:
 
 def marker_offset_pairs(frames: Sequence[NDArray[np.uint8]], *, offset: tuple[int, int] | None
                         = None, radius: int = 3, transplant: bool = True,
-                        ring: int = DEFAULT_RING, **extract_opts: Any
-                        ) -> dict[str, NDArray[Any]]:
+                        ring: int = DEFAULT_RING,
+                        recompress: Callable[[NDArray[np.uint8]], NDArray[np.uint8]] | None
+                        = None, **extract_opts: Any) -> dict[str, NDArray[Any]]:
     """Training pairs from a sensor with markers only (the paper's marker-offset strategy).
 
     Args:
@@ -220,6 +221,9 @@ def marker_offset_pairs(frames: Sequence[NDArray[np.uint8]], *, offset: tuple[in
             inference (default); False: the paper's clean shifted holes in the TELEA frame.
         ring: px beyond the removal mask over which a marker's darkening is measured
             (``transplant`` only).
+        recompress: applied to each transplanted input frame (``transplant`` only), so the gel
+            around a moved marker is quantised with the marker as on the source recording
+            (:mod:`~tacswitch.tacdiff.recompress`); the target stays the frame itself.
         **extract_opts: passed to :func:`tacswitch.extract_markers` (see :func:`removal_markers`).
 
     Returns:
@@ -252,7 +256,7 @@ def marker_offset_pairs(frames: Sequence[NDArray[np.uint8]], *, offset: tuple[in
             shift = default_offset(pitch) if transplant else (half, half)
         if transplant:
             cond, moved, real, _ = move_markers(f, mask, shift, ring=ring, radius=radius)
-            conds.append(cond)
+            conds.append(cond if recompress is None else recompress(cond))
             targets.append(f)
             masks.append(moved)
             losses.append(real)

@@ -12,6 +12,12 @@ So the fine-tune checks itself on pixels it never trains on:
   overlap the training holes least), so the scored gel pixels were never a training target
   even where every frame must be used (fewer than :data:`MIN_FRAMES_TO_SPLIT`).
 
+Both the training and the validation transplants are re-compressed like the source recording
+(``recompress``, :mod:`~tacswitch.tacdiff.recompress`: a JPEG/MJPEG source's quality is
+recognised; H.264 is named by the user): on a compressed recording the gel around a real
+marker is quantised together with it, and a fine-tune on transplants without that distortion
+improved its own validation while making held-out frames worse.
+
 The score is the masked MAE (grey levels) of the model's fill, exactly as
 :func:`~tacswitch.tacdiff.infer.inpaint_tacdiff` runs it (ONNX, K=1), on the moved markers'
 real-gel pixels, per moved marker. The starting model is scored first; every ``val_every`` steps
@@ -33,6 +39,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tacswitch.tacdiff.recompress import Recompress
 from tacswitch.tacdiff.transplant import DEFAULT_RING
 
 #: Below this many frames every frame trains and validates (held-out gel only).
@@ -56,6 +63,8 @@ class FinetuneResult:
         val_offset: ``(dx, dy)`` px of the validation transplant; ``val_markers``: markers
             scored; ``val_overlap``: share of their pixels that were training targets too (0
             unless the grid is too dense for any other shift; held-out frames still differ).
+        recompress: how the transplanted frames were re-compressed (``"none"``, ``"jpeg:Q"``,
+            ``"h264:CRF"``).
     """
 
     model: Path
@@ -68,6 +77,7 @@ class FinetuneResult:
     val_offset: tuple[int, int] = (0, 0)
     val_markers: int = 0
     val_overlap: float = 0.0
+    recompress: str = "none"
 
     @property
     def kept_start(self) -> bool:
@@ -79,7 +89,8 @@ class FinetuneResult:
         head = (f"validation (held-out transplanted markers: {self.val_markers} on "
                 f"{len(self.val_frames)} frame(s)"
                 + (f", {100 * self.val_overlap:.0f} % on training gel" if self.val_overlap
-                   else "") + f"; masked MAE in grey levels): start {self.start_score:.3f}")
+                   else "") + f", re-compressed: {self.recompress}"
+                f"; masked MAE in grey levels): start {self.start_score:.3f}")
         if not self.scores:
             return head + "; no checkpoint validated"
         best = min(self.scores, key=lambda k: self.scores[k])
@@ -173,14 +184,16 @@ class ValidationSet:
 
 
 def validation_set(frames: Sequence[NDArray[np.uint8]], offset: tuple[int, int], *,
-                   ring: int = DEFAULT_RING, **extract_opts: Any) -> ValidationSet:
-    """The validation transplant of ``frames`` by ``offset`` (see the module docstring)."""
+                   ring: int = DEFAULT_RING, recompress: Recompress | None = None,
+                   **extract_opts: Any) -> ValidationSet:
+    """The validation transplant of ``frames`` by ``offset`` (see the module docstring),
+    re-compressed by ``recompress`` like the training pairs."""
     import cv2
 
     from tacswitch.tacdiff.data import marker_offset_pairs
 
     pairs = marker_offset_pairs(frames, offset=offset, transplant=True, ring=ring,
-                                **extract_opts)
+                                recompress=recompress, **extract_opts)
     labels = np.stack([cv2.connectedComponents(m.view(np.uint8), connectivity=8)[1]
                        for m in pairs["mask"]]).astype(np.int32)
     return ValidationSet(pairs, labels, offset)
@@ -274,6 +287,7 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
              ring: int = DEFAULT_RING, val_every: int = 100, val_share: float = 0.2,
              val_frames: int = 8, threads: int = 0, progress: bool = True,
              loss: str | None = None, terminal_fraction: float | None = None,
+             recompress: str = "auto",
              extra: dict[str, Any] | None = None) -> FinetuneResult:
     """Fine-tunes TacDiff on ``frames`` (a sensor's marker frames, no ground truth) and keeps the
     best of the starting model and the validated checkpoints (module docstring).
@@ -290,9 +304,13 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
         val_share, val_frames: frames held out for validation (:func:`split_frames`).
         loss, terminal_fraction: training objective (:class:`~.train.TrainConfig`); None: the
             starting model's own (:func:`start_objective`).
+        recompress: how the transplanted frames (training and validation) are re-compressed
+            like the source: ``"auto"``, ``"none"``, ``"jpeg:Q"`` or ``"h264:CRF"``
+            (:func:`~tacswitch.tacdiff.recompress.recompressor`).
     """
     from tacswitch.tacdiff.data import marker_offset_pairs, removal_markers
     from tacswitch.tacdiff.export import export_onnx
+    from tacswitch.tacdiff.recompress import recompressor
     from tacswitch.tacdiff.train import (
         TrainConfig,
         check_loss,
@@ -311,6 +329,7 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
     if len(frames) == 0:
         raise ValueError("frames: need at least one frame")
     tr, va = split_frames(len(frames), val_share, val_frames)
+    redo, redo_text = recompressor(recompress, frames) if transplant else (None, "none")
     first = removal_markers(frames[0])
     if offset is None:
         pitch = estimate_pitch(first.centres)
@@ -320,11 +339,11 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
     assert offset is not None
     offset = (int(offset[0]), int(offset[1]))
     pairs = marker_offset_pairs([frames[i] for i in tr], offset=offset, transplant=transplant,
-                                ring=ring)
+                                ring=ring, recompress=redo)
     if not pairs["loss_mask"].any():
         raise ValueError("frames: no shifted marker pixel lands on real gel; pass offset")
     val_offset, overlap = validation_offset(first.mask, offset, ring=ring)
-    val = validation_set([frames[i] for i in va], val_offset, ring=ring)
+    val = validation_set([frames[i] for i in va], val_offset, ring=ring, recompress=redo)
     if not val.pairs["loss_mask"].any():
         raise ValueError("frames: no validation marker lands on real gel; pass offset")
     start = start_onnx(init, run)
@@ -346,7 +365,8 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
     if progress:
         print(f"start model {start.name}: validation {start_scores.mean():.3f} on "
               f"{val.markers} held-out markers ({len(va)} frame(s), offset {val.offset}, "
-              f"{100 * overlap:.0f} % of their pixels on training gel)", flush=True)
+              f"{100 * overlap:.0f} % of their pixels on training gel; transplants "
+              f"re-compressed: {redo_text})", flush=True)
 
     def validate(step: int, ema: Any) -> None:
         path = export_onnx(ema, run / f".val_{step}.onnx")
@@ -374,7 +394,8 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
                       crop=crop, lr=lr, loss=loss, terminal_fraction=terminal_fraction,
                       warmup=min(100, steps // 10), seed=seed, threads=threads,
                       extra={**(extra or {}), "offset": list(offset), "transplant": transplant,
-                             "ring": ring, "train_frames": tr, "val_frames": va})
+                             "ring": ring, "recompress": redo_text, "train_frames": tr,
+                             "val_frames": va})
     train([pairs], run, cfg, progress=progress, init=weights, callback=validate,
           callback_every=val_every)
     best = state.get("best")
@@ -391,6 +412,7 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
         export_onnx(load_network(run / "best.safetensors"), target,
                     metadata={"finetuned_on": len(tr), "step": best, "seed": seed,
                               "loss": loss, "terminal_fraction": terminal_fraction,
+                              "recompress": redo_text,
                               "transplant": transplant, "validation": state["scores"][str(best)],
                               "validation_start": float(start_scores.mean())})
         chosen = int(best)
@@ -398,7 +420,7 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
     _write_json(state_path, state)
     return FinetuneResult(target, chosen, float(start_scores.mean()),
                           {int(k): v for k, v in state["scores"].items()}, noise, tr, va,
-                          val.offset, val.markers, overlap)
+                          val.offset, val.markers, overlap, redo_text)
 
 
 def _write_json(path: Path, obj: dict[str, Any]) -> None:

@@ -22,8 +22,10 @@ Here each real marker's appearance is measured and moved to the shifted position
    pseudo-fill (and the darkened rings of the originals) never are a target.
 
 Offsets that are multiples of 8 px keep each moved marker on the same phase of the 8 x 8 JPEG
-and H.264 transform blocks as the original, so its codec ringing stays plausible without a
-second compression of the whole frame. Images are ``H x W x 3`` uint8 BGR; offsets ``(dx, dy)``
+and H.264 transform blocks as the original, so its codec ringing stays plausible. The gel
+*around* a moved marker was still compressed without it; ``tacswitch finetune`` therefore
+re-compresses the result like the source (:mod:`~tacswitch.tacdiff.recompress`).
+Images are ``H x W x 3`` uint8 BGR; offsets ``(dx, dy)``
 in px, positive right and down.
 """
 

@@ -138,13 +138,13 @@ def test_finetune_trains_at_the_start_models_prior_radius(tmp_path: Path, marker
     assert (ck["config"]["loss"], ck["config"]["terminal_fraction"]) == ("x0_l1", 0.5)
     assert res.recompress == ck["config"]["extra"]["recompress"] == "jpeg:80"
     assert "re-compressed: jpeg:80" in res.summary()
-    with pytest.raises(ValueError, match="^recompress: expected"):
+    with pytest.raises(ValueError, match=r"^recompress: expected"):
         ft.finetune(marker_frames, tmp_path / "ft5", init=start, steps=1, progress=False,
                     recompress="jpeg:101")
-    with pytest.raises(ValueError, match="^terminal_fraction: must be in"):
+    with pytest.raises(ValueError, match=r"^terminal_fraction: must be in"):
         ft.finetune(marker_frames, tmp_path / "ft3", init=start, steps=1, progress=False,
                     terminal_fraction=1.5)
-    with pytest.raises(ValueError, match="^loss: expected one of"):
+    with pytest.raises(ValueError, match=r"^loss: expected one of"):
         ft.finetune(marker_frames, tmp_path / "ft4", init=start, steps=1, progress=False,
                     loss="l2")
 

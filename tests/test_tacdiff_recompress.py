@@ -1,4 +1,4 @@
-"""Re-compressing the fine-tune's transplanted frames like the source (tacswitch.tacdiff.recompress)."""
+"""Re-compressing the fine-tune's transplants like the source (tacswitch.tacdiff.recompress)."""
 
 from __future__ import annotations
 
@@ -12,10 +12,15 @@ from tacswitch.tacdiff.data import marker_offset_pairs
 from tacswitch.tacdiff.recompress import jpeg_quality, recompressor
 
 
-@settings(max_examples=6, deadline=None)
+@settings(max_examples=8, deadline=None)
 @given(quality=st.integers(30, 95))
 def test_the_quality_of_a_jpeg_source_is_recognised(mini, quality: int) -> None:
-    assert jpeg_quality(jpeg_roundtrip(mini.imgs[2], quality)) == quality
+    src = jpeg_roundtrip(mini.imgs[2], quality)
+    found = jpeg_quality(src)
+    # The quality itself or a neighbour with the same tables: re-compressing there reproduces
+    # the source's quantisation.
+    assert found is not None and abs(found - quality) <= 2
+    assert np.abs(jpeg_roundtrip(src, found).astype(int) - src).mean() < 0.1
 
 
 def test_lossless_and_video_sources_are_not_taken_for_jpeg(mini, marker_frames) -> None:
@@ -37,7 +42,7 @@ def test_specs_and_their_errors(mini) -> None:
     assert recompressor("jpeg:40", [])[1] == "jpeg:40"
     assert recompressor("h264:23", [])[1] == "h264:23"
     for bad in ("jpeg", "jpeg:0", "jpeg:x", "h264:60", "png:3", ""):
-        with pytest.raises(ValueError, match="^recompress: expected"):
+        with pytest.raises(ValueError, match=r"^recompress: expected"):
             recompressor(bad, [src])
 
 

@@ -32,22 +32,25 @@ Recompress = Callable[[NDArray[np.uint8]], NDArray[np.uint8]]
 QUALITIES = range(20, 100)
 #: A JPEG-decoded frame re-encoded at its own quality changes by at most this many grey levels
 #: on average (libjpeg is near idempotent there: 0.00-0.01 on real proxy frames at q75), and by
-#: less than a third of its neighbouring qualities' change.
-IDEMPOTENT_MAE, DIP_RATIO = 0.1, 1.0 / 3.0
+#: less than a third of what qualities :data:`PLATEAU` away change it (neighbouring qualities
+#: can round to the same quantisation tables, so the nearest ones may match as well).
+IDEMPOTENT_MAE, DIP_RATIO, PLATEAU = 0.1, 1.0 / 3.0, 3
 
 
 def jpeg_quality(frame: NDArray[np.uint8]) -> int | None:
-    """The JPEG quality ``frame`` was decoded from, or None (lossless, a video codec, another
-    encoder's tables): the quality whose JPEG round trip leaves it nearly unchanged while the
-    qualities next to it do not (a round trip at the source's own quantisation tables is close
-    to idempotent; at other tables it re-quantises)."""
+    """The JPEG quality ``frame`` was decoded from (or one with the same quantisation tables),
+    or None (lossless, a video codec, another encoder's tables, or above quality 96, where a
+    re-compression changes little): the quality whose JPEG round trip leaves it nearly
+    unchanged while qualities a few steps away do not (a round trip at the source's own
+    tables is close to idempotent; at other tables it re-quantises)."""
     from tacswitch.sim.capture import jpeg_roundtrip
 
     f = np.asarray(frame)
     err = {q: float(np.abs(jpeg_roundtrip(f, q).astype(np.int16) - f).mean()) for q in QUALITIES}
     q = min(err, key=lambda k: err[k])
-    near = [err[k] for k in (q - 1, q + 1) if k in err]
-    if err[q] > IDEMPOTENT_MAE or not near or err[q] > DIP_RATIO * min(near):
+    if q - PLATEAU not in err or q + PLATEAU not in err or err[q] > IDEMPOTENT_MAE:
+        return None
+    if err[q] > DIP_RATIO * min(err[q - PLATEAU], err[q + PLATEAU]):
         return None
     return q
 

@@ -39,10 +39,11 @@ IDEMPOTENT_MAE, DIP_RATIO, PLATEAU = 0.1, 1.0 / 3.0, 3
 
 def jpeg_quality(frame: NDArray[np.uint8]) -> int | None:
     """The JPEG quality ``frame`` was decoded from (or one with the same quantisation tables),
-    or None (lossless, a video codec, another encoder's tables, or above quality 96, where a
-    re-compression changes little): the quality whose JPEG round trip leaves it nearly
-    unchanged while qualities a few steps away do not (a round trip at the source's own
-    tables is close to idempotent; at other tables it re-quantises)."""
+    or None (lossless, a video codec, another encoder's tables, or above about quality 93,
+    where a re-compression changes little and the neighbours' round trips are as small): the
+    quality whose JPEG round trip leaves it nearly unchanged while qualities a few steps away
+    do not (a round trip at the source's own tables is close to idempotent; at other tables it
+    re-quantises)."""
     from tacswitch.sim.capture import jpeg_roundtrip
 
     f = np.asarray(frame)

@@ -68,7 +68,8 @@ def recompressor(spec: str, frames: Sequence[NDArray[np.uint8]]) -> tuple[Recomp
     if text == "auto":
         q = jpeg_quality(frames[0]) if len(frames) else None
         if q is None:
-            return None, "none (no JPEG source recognised)"
+            return None, ("none (no JPEG source recognised; frames from a compressed video: "
+                          "pass h264:CRF)")
         text = f"jpeg:{q}"
     kind, _, value = text.partition(":")
     try:

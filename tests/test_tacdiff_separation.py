@@ -120,7 +120,34 @@ def test_remove_markers_tacdiff_uses_the_passes():
     img[m] = 40
     out = ts.remove_markers(img, m, method="tacdiff", model="fast")
     assert np.array_equal(out, inpaint_tacdiff(img, m, model="fast"))
-    assert not np.array_equal(out, inpaint_tacdiff(img, m, model="fast", separation=0))
+    one = inpaint_tacdiff(img, m, model="fast", separation=0)
+    assert not np.array_equal(out, one)
+    # remove_markers(separation=...) and the CLI's --separation reach it.
+    assert np.array_equal(ts.remove_markers(img, m, method="tacdiff", model="fast",
+                                            separation=0), one)
+    with pytest.raises(ValueError, match=r"^separation: "):
+        ts.remove_markers(img, m, method="tacdiff", model="fast", separation=-1)
+
+
+def test_remove_markers_cli_separation(tmp_path, capsys):
+    from tacswitch.cli import main
+
+    truth = _smooth_gel(64, 96, 3)
+    img = truth.copy()
+    img[_dots(64, 96, 11.0, 4.0, 3)] = 40
+    cv2.imwrite(str(tmp_path / "a.png"), img)
+    base = ["remove-markers", str(tmp_path / "a.png"), "--method", "tacdiff", "--model", "fast",
+            "-q"]
+    assert main([*base, "-o", str(tmp_path / "s0"), "--separation", "0"]) == 0
+    assert main([*base, "-o", str(tmp_path / "s4")]) == 0
+    mask = ts.extract_markers(img, dilate="auto", exclude_border=False).mask
+    expect = ts.remove_markers(img, mask, method="tacdiff", model="fast", separation=0)
+    assert np.array_equal(cv2.imread(str(tmp_path / "s0" / "a.png")), expect)
+    assert main([*base, "-o", str(tmp_path / "x"), "--separation", "-1"]) == 2
+    assert "--separation: must be >= 0" in capsys.readouterr().err
+    assert main(["remove-markers", str(tmp_path / "a.png"), "-o", str(tmp_path / "t"),
+                 "--separation", "2", "-q"]) == 0
+    assert "--separation is ignored by --method telea" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("bad, exc", [(-1, ValueError), (2.5, TypeError), (True, TypeError),

@@ -325,6 +325,7 @@ def remove_markers(
     ref: NDArray[Any] | None = None,
     seed: int | None = 0,
     model: str | os.PathLike[str] | None = None,
+    separation: int | None = None,
     **extract_opts: Any,
 ) -> NDArray[Any]:
     """Removes the painted markers of a tactile image (marker -> markerless).
@@ -359,6 +360,9 @@ def remove_markers(
         seed: TacDiff noise seed (None: fresh randomness each call).
         model: TacDiff ONNX file, or ``"fast"`` for the shipped narrow model (default: the
             shipped model).
+        separation: TacDiff / hybrid: holes within this many px of one another are filled in
+            separate passes (default :data:`tacswitch.tacdiff.infer.SEPARATION`, 4; 0: one
+            pass), see :func:`tacswitch.tacdiff.inpaint_tacdiff`.
         **extract_opts: passed to :func:`tacswitch.extract_markers` when ``mask`` is None.
 
     Returns:
@@ -375,6 +379,9 @@ def remove_markers(
     if method in _MODEL_METHODS:
         check_model_arg(model)
         seed = as_seed(seed)
+        from tacswitch.tacdiff.infer import SEPARATION
+
+        sep = SEPARATION if separation is None else as_count(separation, "separation", 0, None)
     if mask is None:
         from tacswitch.markers import extract_markers
 
@@ -398,12 +405,12 @@ def remove_markers(
         from tacswitch.tacdiff import DEFAULT_STEPS, inpaint_tacdiff
 
         k = DEFAULT_STEPS if steps is None else steps
-        return inpaint_tacdiff(arr, m, k, seed=seed, model=model)
+        return inpaint_tacdiff(arr, m, k, seed=seed, model=model, separation=sep)
     if method == "hybrid":
         from tacswitch.tacdiff import inpaint_hybrid
 
         return inpaint_hybrid(arr, m, ref, steps=steps, radius=radius, seed=seed,
-                              model=model)[0]
+                              model=model, separation=sep)[0]
     r = _as_radius(radius)
     _check_ns_input(arr, m)
     if not m.any():

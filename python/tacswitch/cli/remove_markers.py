@@ -52,6 +52,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         f"hybrid, the best on real frames; {NS_RADIUS} for ns)")
     p.add_argument("--steps", type=int, default=None,
                    help="tacdiff/hybrid sampler steps K (default: 1)")
+    p.add_argument("--separation", type=int, default=None, metavar="PX",
+                   help="tacdiff/hybrid: holes within PX of one another are filled in separate "
+                        "passes (default: 4; 0: one pass)")
     p.add_argument("--ref", default=None,
                    help="hybrid: no-contact frame of the sensor to find the contact against "
                         "(default for a video: its first frame, which should show no contact; "
@@ -82,7 +85,7 @@ def _remover(args: argparse.Namespace, ref: np.ndarray | None) -> Remover:
 
     opts: dict[str, Any] = extraction_options(args)
     if args.method in MODEL_METHODS:
-        opts.update(steps=args.steps, ref=ref, model=args.model)
+        opts.update(steps=args.steps, ref=ref, model=args.model, separation=args.separation)
 
     def remove(img: np.ndarray) -> np.ndarray:
         return ts.remove_markers(img, method=args.method, radius=args.radius, **opts)
@@ -127,8 +130,11 @@ def _check_options(args: argparse.Namespace) -> None:
         raise UsageError(f"--radius: must be >= 1 px; got {args.radius}")
     if args.steps is not None and args.steps < 1:
         raise UsageError(f"--steps: must be >= 1; got {args.steps}")
+    if args.separation is not None and args.separation < 0:
+        raise UsageError(f"--separation: must be >= 0 px; got {args.separation}")
     ignored = [flag for flag, value, used_by in (
         ("--steps", args.steps, MODEL_METHODS), ("--model", args.model, MODEL_METHODS),
+        ("--separation", args.separation, MODEL_METHODS),
         ("--ref", args.ref, ("hybrid",))) if value is not None and args.method not in used_by]
     if ignored:
         users = {"--ref": "hybrid"}

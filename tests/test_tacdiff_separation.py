@@ -198,3 +198,13 @@ def test_hybrid_forwards_the_separation(monkeypatch):
     hybrid.inpaint_hybrid(truth, m, ref, model="fast")
     hybrid.inpaint_hybrid(truth, m, ref, model="fast", separation=0)
     assert seen == [SEPARATION, 0]
+
+
+def test_hybrid_checks_the_separation_even_without_contact():
+    from tacswitch.tacdiff import inpaint_hybrid
+
+    img = _smooth_gel(32, 32, 0)
+    m = np.zeros((32, 32), bool)
+    m[10:14, 10:14] = True
+    with pytest.raises(ValueError, match=r"^separation: "):
+        inpaint_hybrid(img, m, separation=-1)  # flat gel: the network would not run

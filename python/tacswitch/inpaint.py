@@ -379,9 +379,8 @@ def remove_markers(
     if method in _MODEL_METHODS:
         check_model_arg(model)
         seed = as_seed(seed)
-        from tacswitch.tacdiff.infer import SEPARATION
-
-        sep = SEPARATION if separation is None else as_count(separation, "separation", 0, None)
+        # The TacDiff entry points check it and own its default.
+        passes: dict[str, Any] = {} if separation is None else {"separation": separation}
     if mask is None:
         from tacswitch.markers import extract_markers
 
@@ -405,12 +404,12 @@ def remove_markers(
         from tacswitch.tacdiff import DEFAULT_STEPS, inpaint_tacdiff
 
         k = DEFAULT_STEPS if steps is None else steps
-        return inpaint_tacdiff(arr, m, k, seed=seed, model=model, separation=sep)
+        return inpaint_tacdiff(arr, m, k, seed=seed, model=model, **passes)
     if method == "hybrid":
         from tacswitch.tacdiff import inpaint_hybrid
 
         return inpaint_hybrid(arr, m, ref, steps=steps, radius=radius, seed=seed,
-                              model=model, separation=sep)[0]
+                              model=model, **passes)[0]
     r = _as_radius(radius)
     _check_ns_input(arr, m)
     if not m.any():

@@ -253,15 +253,13 @@ def start_objective(start: Path) -> tuple[str, float]:
     its start's objective: K = 1 sampling, the shipped setting, runs only the pure-noise step
     that a terminal fraction of 0.9 trains, and a different loss would pull the weights to
     another estimate (median vs mean) than the one they were chosen for."""
-    import json as _json
-
     from tacswitch.tacdiff.infer import load_model
     from tacswitch.tacdiff.train import TrainConfig, check_loss
 
     meta = load_model(start).metadata
     loss = check_loss(meta.get("tacswitch.loss", TrainConfig.loss), "model")
     raw = meta.get("tacswitch.terminal_fraction")
-    frac = TrainConfig.terminal_fraction if raw is None else float(_json.loads(raw))
+    frac = TrainConfig.terminal_fraction if raw is None else float(json.loads(raw))
     if not 0 <= frac <= 1:
         raise ValueError(f"model: {str(start)!r} records tacswitch.terminal_fraction={raw!r}; "
                          "expected a number in [0, 1]")

@@ -156,10 +156,12 @@ def inpaint_hybrid(img: Any, mask: Any, ref: Any = None, *, steps: int | None = 
         ``(image, info)``: the markerless frame (unmasked pixels bit-identical to ``img``) and a
         :class:`HybridInfo` with the share of hole pixels the network filled.
     """
-    from tacswitch._checks import as_image_u8
+    from tacswitch._checks import as_count, as_image_u8
     from tacswitch.inpaint import _as_mask, inpaint_telea
     from tacswitch.tacdiff.infer import DEFAULT_STEPS, inpaint_tacdiff
 
+    # Checked here too: the network (which checks it) may not run when no hole is near contact.
+    as_count(separation, "separation", 0, None)
     arr = as_image_u8(img, "img")
     if arr.ndim != 3 or arr.shape[2] != 3:
         raise ValueError(f"img: expected a BGR H x W x 3 uint8 image; got shape {arr.shape}")

@@ -139,17 +139,33 @@ def render_pair_sample(preset: str, seed: Any, *, classes: tuple[str, ...],
 MAX_MARKERS = 140
 
 
+#: Gel-pair presets beyond the simulator's own: two real optics at the Mini's size and scale.
+MIXED_PRESETS = ("mixed", "mixed_moving")
+
+
 def _gel_preset(name: str, rng: np.random.Generator) -> Any:
     """``name``, or for ``"mixed"`` the Mini preset or the GelSight calibration at the Mini's
-    size and scale (320 x 240, 0.059 mm/px, pitch 40 px), half each: two real optics."""
+    size and scale (320 x 240, 0.059 mm/px, pitch 40 px), half each: two real optics, each with
+    its own gel's measured press law (the Mini's gel barely moves under a press). For
+    ``"mixed_moving"`` the same two optics, both with the GelSight gel's press law: a gel's
+    press gain is a property of the unit (a real GelSight Mini's gel moves like the GelSight's,
+    taxim's does not), so a model trained on it cannot tie the gain to a sensor's look."""
     import dataclasses
 
-    from tacswitch.sim.presets import get_preset
+    from tacswitch.sim.presets import (
+        GELSIGHT_PRESS_DECAY_MM,
+        GELSIGHT_PRESS_DILATION,
+        get_preset,
+    )
 
-    if name != "mixed":
+    if name not in MIXED_PRESETS:
         return get_preset(name)
     if rng.random() < 0.5:
-        return get_preset("gelsight_mini")
+        mini = get_preset("gelsight_mini")
+        if name == "mixed_moving":
+            mini = dataclasses.replace(mini, press_dilation=GELSIGHT_PRESS_DILATION,
+                                       press_decay_mm=GELSIGHT_PRESS_DECAY_MM)
+        return mini
     return dataclasses.replace(get_preset("gelsight"), name="gelsight_320", height=240,
                                width=320, mm_per_px=0.059, pitch=40.0, diameter=11.5,
                                edge_px=1.5)

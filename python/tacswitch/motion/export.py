@@ -18,7 +18,9 @@ A :class:`~tacswitch.motion.model.ConsistentMotionNet` exports with one more inp
                                           motion of image from rest (reference ignored)
 
 and its graph computes ``G(x, (x - r) h) - h G(r, 0)`` (both terms in one batch of two), so
-identical frames give exactly zero motion.
+identical frames give exactly zero motion. A
+:class:`~tacswitch.motion.model.SingleFrameMotionNet` (design ``single``) exports ``G(x, 0)``
+alone, with the inputs ``image`` and ``centres``.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from typing import Any
 import torch
 from torch import nn
 
-from tacswitch.motion.model import ConsistentMotionNet, MotionNet
+from tacswitch.motion.model import ConsistentMotionNet, MotionNet, SingleFrameMotionNet
 
 OPSET = 17
 
@@ -46,7 +48,7 @@ class _ConsistentGraph(nn.Module):
 
 
 class _Graph(nn.Module):
-    def __init__(self, net: MotionNet) -> None:
+    def __init__(self, net: MotionNet | SingleFrameMotionNet) -> None:
         super().__init__()
         self.net = net
 
@@ -55,7 +57,8 @@ class _Graph(nn.Module):
         return self.net(image, centres.unsqueeze(0), reference)[0]
 
 
-def export_onnx(net: MotionNet | ConsistentMotionNet, path: str | Path, *,
+def export_onnx(net: MotionNet | ConsistentMotionNet | SingleFrameMotionNet,
+                path: str | Path, *,
                 metadata: dict[str, Any] | None = None, height: int = 240,
                 width: int = 320) -> Path:
     """Writes ``net`` (eval mode) as ONNX to ``path`` (atomically) and returns the path."""
@@ -85,6 +88,6 @@ def export_onnx(net: MotionNet | ConsistentMotionNet, path: str | Path, *,
                           dynamic_axes=axes, opset_version=OPSET, dynamo=False)
     net.train(was_training)
     meta = {"tacswitch.kind": "motion", "tacswitch.arch": net.arch,
-            "tacswitch.design": "consistent" if consistent else "plain",
+            "tacswitch.design": "consistent" if consistent else getattr(net, "design", "plain"),
             "tacswitch.use_ref": json.dumps(net.use_ref)}
     return write_onnx(tmp, target, meta, metadata)

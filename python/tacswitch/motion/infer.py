@@ -29,15 +29,28 @@ from numpy.typing import NDArray
 from tacswitch._checks import as_image_u8, as_points, check_downsampled_size, check_model_arg
 from tacswitch._ort import cached, open_session, session_options
 
-__all__ = ["METHODS", "MotionModel", "default_model_path", "load_model", "predict_motion",
-           "session_options"]
+__all__ = ["METHODS", "SHIPPED", "MotionModel", "default_model_path", "load_model", "model_path",
+           "predict_motion", "session_options"]
 
 #: File name of the shipped default model under ``tacswitch/models``.
 DEFAULT_MODEL = "motion_unet.onnx"
 
+#: Shipped models by name (``model="single"``): the default consistent model (pair and single
+#: frame), and the single-frame model trained at scale on the calibrated simulator.
+SHIPPED = {"default": DEFAULT_MODEL, "single": "motion_single.onnx"}
+
+
 def default_model_path() -> Path:
     """Path of the shipped default model."""
     return Path(__file__).resolve().parent.parent / "models" / DEFAULT_MODEL
+
+
+def model_path(model: str | os.PathLike[str] | None) -> Path:
+    """The ONNX file of ``model``: None or ``"default"`` (the shipped default), ``"single"``
+    (the shipped single-frame model), or a path."""
+    if model is None or (isinstance(model, str) and model in SHIPPED):
+        return default_model_path().parent / SHIPPED[model or "default"]
+    return Path(model)
 
 
 #: Smallest frame side (px, after the model's downsampling) the network's stem can take.
@@ -62,7 +75,7 @@ class MotionModel:
 
     def __init__(self, path: str | os.PathLike[str] | None = None, *,
                  threads: int | None = None) -> None:
-        self.path = Path(path) if path is not None else default_model_path()
+        self.path = model_path(path)
         self.session, meta = open_session(self.path, threads, kind="motion")
         self.metadata = dict(meta)
         self.arch = meta.get("tacswitch.arch", "?")
@@ -70,6 +83,10 @@ class MotionModel:
         self.design = meta.get("tacswitch.design", "plain")
         self.work_width = int(json.loads(meta.get("tacswitch.work_width", "320")))
         self.work_height = int(json.loads(meta.get("tacswitch.work_height", "240")))
+        #: Scale of the single-frame output (``ref`` omitted): the simulator's presses move
+        #: the gel more than real gels do for the same imprint, so a model trained on it records
+        #: the least-squares scale measured on real presses (absent: 1).
+        self.single_frame_gain = float(json.loads(meta.get("tacswitch.single_frame_gain", "1")))
         grid = json.loads(meta.get("tacswitch.default_centres", "[]"))
         self.default_centres = np.asarray(grid, np.float32).reshape(-1, 2)
         self._inputs = {i.name for i in self.session.get_inputs()}
@@ -88,14 +105,25 @@ class MotionModel:
         c = (self.default_centres + 0.5) * np.array([sx, sy], np.float32) - 0.5
         return c.astype(np.float32)
 
-    def __call__(self, img: Any, ref: Any = None, centres: Any = None) -> NDArray[np.float32]:
-        """See :func:`predict_motion`."""
+    def __call__(self, img: Any, ref: Any = None, centres: Any = None, *,
+                 gain: float | None = None) -> NDArray[np.float32]:
+        """See :func:`predict_motion`; ``gain`` (single frame only) replaces
+        :attr:`single_frame_gain`."""
+        if gain is not None:
+            if ref is not None:
+                raise ValueError("gain: scales the model's single-frame output only (ref=None)")
+            from tacswitch.motion.mechanics import check_gain
+
+            gain = check_gain(gain)
         frame = _bgr(img, "img")
         h, w = frame.shape[:2]
         if ref is not None:
             ref_arr = _bgr(ref, "ref")
             if ref_arr.shape != frame.shape:
                 raise ValueError(f"ref: shape {ref_arr.shape} does not match img {frame.shape}")
+            if self.design == "single":
+                raise ValueError("ref: this model predicts single-frame motion from rest; call it "
+                                 "without ref (or use method='flow' / 'auto' with a reference)")
         elif self.use_ref:
             raise ValueError("ref: this model predicts the motion since a reference frame; pass "
                              "the markerless frame at the start of the grasp (or the "
@@ -119,8 +147,11 @@ class MotionModel:
             # The consistent design's switch: 0 = single-frame motion from rest.
             feed["has_reference"] = np.array([0.0 if ref_arr is None else 1.0], np.float32)
         out = self.session.run(None, feed)[0]
-        if k > 1:
-            out = out * np.float32(k)
+        scale = float(k)
+        if ref_arr is None and self.design in ("consistent", "single"):
+            scale *= self.single_frame_gain if gain is None else gain
+        if scale != 1.0:
+            out = out * np.float32(scale)
         return np.nan_to_num(out.astype(np.float32, copy=False), nan=0.0, posinf=0.0,
                              neginf=0.0)
 
@@ -143,7 +174,7 @@ def _downsample(img: NDArray[np.uint8], k: int) -> NDArray[np.uint8]:
 
 def load_model(path: str | os.PathLike[str] | None = None) -> MotionModel:
     """The cached :class:`MotionModel` of ``path`` (one onnxruntime session per model file)."""
-    return cached(MotionModel, Path(path) if path is not None else default_model_path())
+    return cached(MotionModel, model_path(path))
 
 
 #: Smallest frame side (px) the training-free methods accept: DIS works on 8 x 8 patches and
@@ -211,7 +242,10 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             (mechanics: :data:`tacswitch.motion.mechanics.MECHANICS_GAIN`, the least-squares
             gain pooled over real GelSight and GelSight Mini presses, the best single gain on
             real data across both; outward: ``OUTWARD_GAIN``, 0.03 of the pitch, fitted on
-            simulated presses). The direction does not depend on it.
+            simulated presses). The direction does not depend on it. ``method="model"``: a
+            number >= 0 that replaces the model's recorded single-frame scale
+            (``MotionModel.single_frame_gain``, measured on real GelSight presses; 0.48 for the
+            shipped model); single frame only.
 
     Returns:
         ``N x 2`` float32 ``(dx, dy)`` px in ``img``'s pixels, one row per centre, never NaN
@@ -231,7 +265,8 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
                             ("suppress_imprint", suppress_imprint)):
             if value is not None:
                 raise ValueError(f"{name}: applies to method='flow' only; got method={method!r}")
-    rule_gain = None if gain is None else _rule_gain("mechanics" if auto else method, gain)
+    rule_gain = (None if gain is None or method == "model"
+                 else _rule_gain("mechanics" if auto else method, gain))
     if auto:
         from tacswitch.motion.flow import check_flow_options
 
@@ -240,7 +275,11 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
         check_flow_options(algorithm or "dis", preset or "balanced",
                            False if suppress_imprint is None else suppress_imprint)
     if method == "model":
-        return load_model(model)(img, ref=ref, centres=centres)
+        if isinstance(gain, str):
+            raise ValueError("gain: method='model' takes a number >= 0 (its single-frame scale), "
+                             f"not a sensor name; got {gain!r}")
+        return load_model(model)(img, ref=ref, centres=centres,
+                                 gain=gain)
     frame = _bgr(img, "img")
     check_downsampled_size(frame.shape, 1, MIN_IMAGE_SIDE_PX, "img")
     ref_arr = None

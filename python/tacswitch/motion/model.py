@@ -234,7 +234,8 @@ class ConsistentMotionNet(nn.Module):
             return self._g(x, torch.zeros_like(x))
         r = self.norm(ref)
         b = x.shape[0]
-        h = torch.ones(1, dtype=x.dtype) if has_ref is None else has_ref.to(x.dtype)
+        h = (torch.ones(1, dtype=x.dtype, device=x.device) if has_ref is None
+             else has_ref.to(x.dtype))
         f = self._g(torch.cat([x, r]), torch.cat([(x - r) * h, torch.zeros_like(r)]))
         return f[:b] - h * f[b:]
 
@@ -243,6 +244,28 @@ class ConsistentMotionNet(nn.Module):
                 ) -> torch.Tensor:
         f = self.field(img, ref, has_ref)
         return sample_at(f, centres, img.shape[1], img.shape[2])
+
+
+class SingleFrameMotionNet(nn.Module):
+    """The single-frame output ``G(x, 0)`` of a trained :class:`ConsistentMotionNet`, alone (the
+    paper's setting: one markerless frame -> each marker's motion from rest).
+
+    Exported as its own graph (design ``"single"``: inputs ``image`` and ``centres`` only) when
+    the pair output of the same weights is not wanted: there is no reference frame to confuse
+    with, and nothing of the pair branch runs.
+    """
+
+    def __init__(self, net: ConsistentMotionNet) -> None:
+        super().__init__()
+        self.arch, self.use_ref, self.design = net.arch, False, "single"
+        self.net = net
+
+    def forward(self, img: torch.Tensor, centres: torch.Tensor,
+                ref: torch.Tensor | None = None) -> torch.Tensor:
+        if ref is not None:
+            raise ValueError("ref: a single-frame model predicts the motion from rest; "
+                             "call it without ref")
+        return self.net(img, centres)
 
 
 class CorrMotionNet(ConsistentMotionNet):
@@ -294,7 +317,8 @@ class CorrMotionNet(ConsistentMotionNet):
         b = x.shape[0]
         f = self.feat(torch.cat([x, self.norm(ref)]))
         fx, fr = f[:b], f[b:]
-        h = torch.ones(1, dtype=x.dtype) if has_ref is None else has_ref.to(x.dtype)
+        h = (torch.ones(1, dtype=x.dtype, device=x.device) if has_ref is None
+             else has_ref.to(x.dtype))
         # h = 0: the reference term drops out and the first correlates the frame with itself.
         fr_eff = fx + h * (fr - fx)
         out = self._h(torch.cat([fx, fr]), torch.cat([fr_eff, fr]))

@@ -1,0 +1,166 @@
+"""The learned single-frame motion model against the rules, on REAL frames.
+
+One markerless frame, no reference (the paper's setting); every method predicts each marker's
+motion from rest. Three data, the first two with a real measurement as the truth:
+
+1. **real GelSight presses, the gel's own motion** (taxim's 640 x 480 presses: the coating's
+   grain block-matched between the no-contact frame and each press, each press's fitted
+   similarity removed, markers >= 2 contact radii from the contact; as
+   ``bench_press_calibration.py``). The least-squares output scale of each model is fitted on
+   the EVEN presses (as the rules' real gains were) and every method is scored on the ODD ones.
+2. **real marker motion**: the two FOTS GelSight Mini frames (hand-tracked markers, markers
+   removed by the default ``remove_markers``; a press, then the same contact sheared); cosine
+   over markers moving >= 2.5 px (whole-pixel truth).
+3. **real frames, modelled field** (taxim's real presses with the calibrated simulator's field
+   of their recorded contact, ``tacswitch.motion.proxy.make_contact_proxy``; every 2nd press):
+   the truth is the simulator's press law, the mechanics rule's own physics.
+
+Methods: zero; the outward rule; the mechanics rule at its default gain (the default of
+``predict_motion`` without ``ref``); the shipped single-frame model (``model="single"``) at its
+recorded scale, at scale 1, and at the scale fitted here on the even presses; the shipped
+consistent model's single-frame output; and any ``--model NAME=PATH``.
+
+    python benches/bench_motion_model_real.py [--model NAME=PATH ...] [--update]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+import bench_motion_fots as fots
+import bench_press_calibration as press
+from harness import MOTION_COLUMNS, machine, motion_row, publish
+
+SECTION = "## Learned single-frame motion model on real frames"
+
+Fn = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+def grain_truth(sensor: str = "gelsight") -> dict[str, list[Any]]:
+    """Per press: the real frame, the marker grid, the grain-matched motion (NaN where not
+    measured) and whether it is an odd (held-out) press."""
+    from tacswitch.motion import grainmatch as gm
+    from tacswitch.motion import proxy
+
+    cal = press.calibrate(sensor)
+    f0, imgs, _, _, k = press.native(sensor)
+    data = proxy.load_real_presses(sensor)
+    rest, _ = proxy.marker_grid(sensor)
+    h, w = f0.shape[:2]
+    about = ((w - 1) / 2, (h - 1) / 2)
+    hp0 = gm.highpass(f0)
+    order = list(range(0, len(imgs), 2)) + list(range(1, len(imgs), 2))
+    sims = np.concatenate([cal["sims"]["even"], cal["sims"]["odd"]])
+    out: dict[str, list[Any]] = {"img": [], "rest": [], "ok": [], "true": [], "odd": []}
+    for j, i in enumerate(order):
+        pts = (rest.astype(np.float64) + 0.5) * k - 0.5
+        found, pk = gm.match_patches(hp0, gm.highpass(imgs[i]), pts)
+        d = (found - gm.similarity_at(sims[j], pts, about)) / k
+        far = np.linalg.norm(rest - data.centres[i], axis=1) >= 2 * data.radii[i]
+        out["img"].append(data.imgs[i])
+        out["rest"].append(rest)
+        out["ok"].append(far & np.isfinite(d).all(1) & (pk >= 0.08))
+        out["true"].append(d.astype(np.float32))
+        out["odd"].append(i % 2 == 1)
+    return out
+
+
+def ls_scale(pred: np.ndarray, true: np.ndarray) -> float:
+    return max(0.0, float((pred * true).sum() / max(float((pred * pred).sum()), 1e-12)))
+
+
+def main() -> int:
+    import bench_motion_single as single
+
+    from tacswitch import remove_markers
+    from tacswitch.motion.evaluate import motion_metrics
+    from tacswitch.motion.heuristic import outward_motion
+    from tacswitch.motion.infer import MotionModel
+    from tacswitch.motion.mechanics import mechanics_motion
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--model", action="append", default=[], metavar="NAME=PATH",
+                    help="another single-frame or consistent motion model to score")
+    ap.add_argument("--fots", type=Path, default=fots.DATA, help="folder of the FOTS frames")
+    ap.add_argument("--update", action="store_true", help="write the section of BENCHMARKS.md")
+    args = ap.parse_args()
+    models = {"single": MotionModel("single", threads=2),
+              "consistent (default model)": MotionModel(threads=2)}
+    for spec in args.model:
+        name, _, path = spec.partition("=")
+        if not path:
+            ap.error(f"--model: expected NAME=PATH; got {spec!r}")
+        models[name] = MotionModel(path, threads=2)
+
+    g = grain_truth()
+    even = [j for j, o in enumerate(g["odd"]) if not o]
+    scales = {}
+    for name, m in models.items():
+        p = np.concatenate([m(g["img"][j], centres=g["rest"][j], gain=1.0)[g["ok"][j]]
+                            for j in even])
+        t = np.concatenate([g["true"][j][g["ok"][j]] for j in even])
+        scales[name] = ls_scale(p, t)
+
+    def fns() -> dict[str, Fn]:
+        out: dict[str, Fn] = {
+            "zero": lambda im, c: np.zeros((len(c), 2), np.float32),
+            "outward rule": lambda im, c: outward_motion(im, None, c),
+            "mechanics rule (predict_motion default)": lambda im, c: mechanics_motion(im, None,
+                                                                                       c)}
+        for name, m in models.items():
+            rec = m.single_frame_gain
+            out[f"model {name}, recorded scale {rec:g}"] = \
+                (lambda mm: lambda im, c: mm(im, centres=c))(m)
+            if rec != 1.0:
+                out[f"model {name}, scale 1"] = \
+                    (lambda mm: lambda im, c: mm(im, centres=c, gain=1.0))(m)
+            out[f"model {name}, scale {scales[name]:.3f} fitted on even presses"] = \
+                (lambda mm, s: lambda im, c: mm(im, centres=c, gain=s))(m, scales[name])
+        return out
+
+    rows: list[list[str]] = []
+    odd = [j for j, o in enumerate(g["odd"]) if o]
+    true = np.concatenate([g["true"][j][g["ok"][j]] for j in odd])
+    for meth, fn in fns().items():
+        pred = np.concatenate([fn(g["img"][j], g["rest"][j])[g["ok"][j]] for j in odd])
+        rows.append(motion_row("real GelSight presses, grain-matched gel motion (odd presses)",
+                               meth, motion_metrics(pred, true, min_px=0.5), 0.5, len(odd),
+                               float("nan")))
+    frames = fots.load(args.fots)
+    if len(frames) == 2:
+        for (name, im, rest, d) in frames:
+            clean = remove_markers(im)
+            for meth, fn in fns().items():
+                rows.append(motion_row(f"real FOTS GelSight Mini {name}.png, markers removed",
+                                       meth, motion_metrics(fn(clean, rest), d, min_px=2.5), 2.5,
+                                       1, float("nan")))
+    else:
+        print(f"(no FOTS frames under {args.fots}: skipped)", file=sys.stderr)
+    for title, (samples, min_px) in single.contact_settings(2).items():
+        if "gelsight_mini" in title or "no_contact" in title:
+            continue
+        t = np.concatenate([s[3] for s in samples])
+        for meth, fn in fns().items():
+            pred = np.concatenate([fn(s[0], s[2]) for s in samples])
+            rows.append(motion_row(title, meth, motion_metrics(pred, t, min_px=min_px), min_px,
+                                   len(samples), float("nan")))
+    notes = [f"{machine()}.", "",
+             "Single frame, no reference. e_rmse = mean per-marker error (px, the frame's own "
+             "pixels), cos = mean direction cosine over markers moving at least `min px`. "
+             "Output scales fitted on the even real GelSight presses (grain-matched): "
+             + ", ".join(f"{k} {v:.3f}" for k, v in scales.items()) + "."]
+    publish(SECTION, notes, ["data", *MOTION_COLUMNS], rows,
+            "python benches/bench_motion_model_real.py" + (" --update" if args.update else ""),
+            args.update)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -29,7 +29,6 @@ import argparse
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -41,35 +40,6 @@ from harness import MOTION_COLUMNS, machine, motion_row, publish
 SECTION = "## Learned single-frame motion model on real frames"
 
 Fn = Callable[[np.ndarray, np.ndarray], np.ndarray]
-
-
-def grain_truth(sensor: str = "gelsight") -> dict[str, list[Any]]:
-    """Per press: the real frame, the marker grid, the grain-matched motion (NaN where not
-    measured) and whether it is an odd (held-out) press."""
-    from tacswitch.motion import grainmatch as gm
-    from tacswitch.motion import proxy
-
-    cal = press.calibrate(sensor)
-    f0, imgs, _, _, k = press.native(sensor)
-    data = proxy.load_real_presses(sensor)
-    rest, _ = proxy.marker_grid(sensor)
-    h, w = f0.shape[:2]
-    about = ((w - 1) / 2, (h - 1) / 2)
-    hp0 = gm.highpass(f0)
-    order = list(range(0, len(imgs), 2)) + list(range(1, len(imgs), 2))
-    sims = np.concatenate([cal["sims"]["even"], cal["sims"]["odd"]])
-    out: dict[str, list[Any]] = {"img": [], "rest": [], "ok": [], "true": [], "odd": []}
-    for j, i in enumerate(order):
-        pts = (rest.astype(np.float64) + 0.5) * k - 0.5
-        found, pk = gm.match_patches(hp0, gm.highpass(imgs[i]), pts)
-        d = (found - gm.similarity_at(sims[j], pts, about)) / k
-        far = np.linalg.norm(rest - data.centres[i], axis=1) >= 2 * data.radii[i]
-        out["img"].append(data.imgs[i])
-        out["rest"].append(rest)
-        out["ok"].append(far & np.isfinite(d).all(1) & (pk >= 0.08))
-        out["true"].append(d.astype(np.float32))
-        out["odd"].append(i % 2 == 1)
-    return out
 
 
 def ls_scale(pred: np.ndarray, true: np.ndarray) -> float:
@@ -99,7 +69,7 @@ def main() -> int:
             ap.error(f"--model: expected NAME=PATH; got {spec!r}")
         models[name] = MotionModel(path, threads=2)
 
-    g = grain_truth()
+    g = press.grain_truth("gelsight", press.calibrate("gelsight")["sims"])
     even = [j for j, o in enumerate(g["odd"]) if not o]
     scales = {}
     for name, m in models.items():

@@ -168,14 +168,11 @@ def calibrate(sensor: str) -> dict:
             "old_odd": old, "preset_odd": now}
 
 
-def truth_and_rules(sensor: str, sims: dict[str, np.ndarray]) -> dict[str, list[np.ndarray]]:
-    """Per press (even-index presses first, then odd): the grain-matched real motion at the
-    sensor's marker grid (each press's fitted similarity removed; markers >= 2 a from the contact
-    with an NCC peak >= 0.08; working px) and the single-frame rules at unit gain there (both
-    rules are linear in their gain). The real measurement as a (noisy) truth."""
-    from tacswitch.motion.heuristic import outward_motion
-    from tacswitch.motion.mechanics import mechanics_motion
-
+def grain_truth(sensor: str, sims: dict[str, np.ndarray]) -> dict[str, list]:
+    """Per press (even-index presses first, then odd): the real frame (``img``, working size),
+    the sensor's marker grid (``rest``), the grain-matched real motion there (``true``: each
+    press's fitted similarity removed; working px), the markers where it counts (``ok``: >= 2 a
+    from the contact, NCC peak >= 0.08) and whether the press is odd (held out)."""
     f0, imgs, _, _, k = native(sensor)
     data = proxy.load_real_presses(sensor)
     rest, _ = proxy.marker_grid(sensor)
@@ -184,17 +181,36 @@ def truth_and_rules(sensor: str, sims: dict[str, np.ndarray]) -> dict[str, list[
     hp0 = gm.highpass(f0)
     order = list(range(0, len(imgs), 2)) + list(range(1, len(imgs), 2))
     sim_all = np.concatenate([sims["even"], sims["odd"]])
-    out: dict[str, list[np.ndarray]] = {"true": [], "outward": [], "mechanics": [], "odd": []}
+    out: dict[str, list] = {"img": [], "rest": [], "ok": [], "true": [], "odd": []}
     for j, i in enumerate(order):
         pts = (rest.astype(np.float64) + 0.5) * k - 0.5
         found, pk = gm.match_patches(hp0, gm.highpass(imgs[i]), pts)
         d = (found - gm.similarity_at(sim_all[j], pts, about)) / k
         far = np.linalg.norm(rest - data.centres[i], axis=1) >= 2 * data.radii[i]
-        ok = far & np.isfinite(d).all(1) & (pk >= 0.08)
-        out["true"].append(d[ok].astype(np.float32))
-        out["outward"].append(outward_motion(data.imgs[i], None, rest, gain=1.0)[ok])
-        out["mechanics"].append(mechanics_motion(data.imgs[i], None, rest, gain=1.0)[ok])
-        out["odd"].append(np.array(i % 2 == 1))
+        out["img"].append(data.imgs[i])
+        out["rest"].append(rest)
+        out["ok"].append(far & np.isfinite(d).all(1) & (pk >= 0.08))
+        out["true"].append(d.astype(np.float32))
+        out["odd"].append(i % 2 == 1)
+    return out
+
+
+def truth_and_rules(sensor: str, sims: dict[str, np.ndarray]) -> dict[str, list[np.ndarray]]:
+    """Per press (even-index presses first, then odd): the grain-matched real motion at the
+    sensor's marker grid (:func:`grain_truth`, where it counts) and the single-frame rules at
+    unit gain there (both rules are linear in their gain). The real measurement as a (noisy)
+    truth."""
+    from tacswitch.motion.heuristic import outward_motion
+    from tacswitch.motion.mechanics import mechanics_motion
+
+    g = grain_truth(sensor, sims)
+    out: dict[str, list[np.ndarray]] = {"true": [], "outward": [], "mechanics": [], "odd": []}
+    for img, rest, ok, true, odd in zip(g["img"], g["rest"], g["ok"], g["true"], g["odd"],
+                                        strict=True):
+        out["true"].append(true[ok])
+        out["outward"].append(outward_motion(img, None, rest, gain=1.0)[ok])
+        out["mechanics"].append(mechanics_motion(img, None, rest, gain=1.0)[ok])
+        out["odd"].append(np.array(odd))
     return out
 
 

@@ -276,8 +276,8 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
                            False if suppress_imprint is None else suppress_imprint)
     if method == "model":
         if isinstance(gain, str):
-            raise ValueError("gain: method='model' takes a number >= 0 (its single-frame scale), "
-                             f"not a sensor name; got {gain!r}")
+            raise ValueError("gain: applies to method='model' as a number >= 0 (its single-frame "
+                             f"scale), not a sensor name; got {gain!r}")
         return load_model(model)(img, ref=ref, centres=centres,
                                  gain=gain)
     frame = _bgr(img, "img")

@@ -93,7 +93,6 @@ def consistent_loss(net: Any, img: Any, ref: Any, cen: Any, tgt: Any, d_ref: Any
 
     With ``crop = (w, h)`` the frames are normalised whole, then one random crop (offsets on
     the stride-4 grid) is taken for the batch; markers outside it are left out."""
-    import torch
 
     from tacswitch.motion.model import sample_at
 
@@ -104,17 +103,27 @@ def consistent_loss(net: Any, img: Any, ref: Any, cen: Any, tgt: Any, d_ref: Any
         rng = rng if rng is not None else np.random.default_rng()
         x0 = 4 * int(rng.integers(0, (w - cw) // 4 + 1))
         y0 = 4 * int(rng.integers(0, (h - ch) // 4 + 1))
-        x, r = x[..., y0:y0 + ch, x0:x0 + cw], r[..., y0:y0 + ch, x0:x0 + cw]
-        cen = cen - torch.tensor([x0, y0], dtype=cen.dtype)
-        out = ((cen[..., 0] < 1) | (cen[..., 0] > cw - 2) | (cen[..., 1] < 1)
-               | (cen[..., 1] > ch - 2))[..., None]
-        tgt = torch.where(out, torch.nan, tgt)
-        d_ref = torch.where(out, torch.nan, d_ref)
+        x, r, cen, (tgt, d_ref) = crop_frames(x, r, cen, (tgt, d_ref), x0, y0, (cw, ch))
         h, w = ch, cw
     s_ref, pair = net.pair_fields(x, r)
     lp = sparse_loss(sample_at(pair, cen, h, w), tgt, kind)
     ls = sparse_loss(sample_at(s_ref, cen, h, w), d_ref, kind)
     return lp + single_weight * ls
+
+
+def crop_frames(x: Any, r: Any, cen: Any, targets: tuple[Any, ...], x0: int, y0: int,
+                size: tuple[int, int]) -> tuple[Any, Any, Any, tuple[Any, ...]]:
+    """The ``size = (w, h)`` crop at ``(x0, y0)`` of normalised frames ``x``, ``r``
+    (``B x C x H x W``): centres shifted into it, and each target (``B x N x 2``) NaN for the
+    markers outside it (they leave the loss)."""
+    import torch
+
+    cw, ch = size
+    x, r = x[..., y0:y0 + ch, x0:x0 + cw], r[..., y0:y0 + ch, x0:x0 + cw]
+    cen = cen - cen.new_tensor([x0, y0])
+    out = ((cen[..., 0] < 1) | (cen[..., 0] > cw - 2) | (cen[..., 1] < 1)
+           | (cen[..., 1] > ch - 2))[..., None]
+    return x, r, cen, tuple(torch.where(out, torch.nan, t) for t in targets)
 
 
 LOSSES = ("mse", "euclid")

@@ -189,7 +189,7 @@ def stream_loss(net: Any, b: dict[str, Any], kind: str, single_weight: float,
     import torch
 
     from tacswitch.motion.model import sample_at
-    from tacswitch.motion.train import sparse_loss
+    from tacswitch.motion.train import crop_frames, sparse_loss
 
     x, r = net.norm(b["image"]), net.norm(b["reference"])
     cen = b["rest"]
@@ -199,11 +199,8 @@ def stream_loss(net: Any, b: dict[str, Any], kind: str, single_weight: float,
     if cw and ch and (cw < w or ch < h):
         x0 = 4 * int(torch.randint(0, (w - cw) // 4 + 1, (1,), generator=gen, device=gen.device))
         y0 = 4 * int(torch.randint(0, (h - ch) // 4 + 1, (1,), generator=gen, device=gen.device))
-        x, r = x[..., y0:y0 + ch, x0:x0 + cw], r[..., y0:y0 + ch, x0:x0 + cw]
-        cen = cen - cen.new_tensor([x0, y0])
-        out = ((cen[..., 0] < 1) | (cen[..., 0] > cw - 2) | (cen[..., 1] < 1)
-               | (cen[..., 1] > ch - 2))[..., None]
-        tgt, d_img, d_ref = (torch.where(out, torch.nan, t) for t in (tgt, d_img, d_ref))
+        x, r, cen, (tgt, d_img, d_ref) = crop_frames(x, r, cen, (tgt, d_img, d_ref), x0, y0,
+                                                      (cw, ch))
         h, w = ch, cw
     n = x.shape[0]
     f = net._g(torch.cat([r, x, x]), torch.cat([torch.zeros_like(r), x - r, torch.zeros_like(x)]))

@@ -48,11 +48,14 @@ def speed_methods() -> dict[str, dict[str, str]]:
     out[SUPPRESS] = {"method": "flow", "preset": "balanced", "suppress_imprint": True}
     out["outward rule"] = {"method": "outward"}
     out["mechanics rule"] = {"method": "mechanics"}
+    out["ensemble (auto's choice here)"] = {"method": "ensemble"}
     out["model"] = {"method": "model"}
-    # Without a reference (predict_motion's default then is the mechanics rule).
+    # Without a reference (predict_motion's default then is the ensemble).
     for name, meth in (("mechanics", "mechanics"), ("outward", "outward"), ("model", "model")):
         out[f"{name} rule, single frame" if name != "model" else "model, single frame"] = {
             "method": meth, SINGLE: "1"}
+    out["model single, single frame"] = {"method": "model", "model": "single", SINGLE: "1"}
+    out["ensemble, single frame (default)"] = {"method": "ensemble", SINGLE: "1"}
     return out
 
 

@@ -15,10 +15,15 @@ motion from rest. Three data, the first two with a real measurement as the truth
    of their recorded contact, ``tacswitch.motion.proxy.make_contact_proxy``; every 2nd press):
    the truth is the simulator's press law, the mechanics rule's own physics.
 
-Methods: zero; the outward rule; the mechanics rule at its default gain (the default of
-``predict_motion`` without ``ref``); the shipped single-frame model (``model="single"``) at its
-recorded scale, at scale 1, and at the scale fitted here on the even presses; the shipped
-consistent model's single-frame output; and any ``--model NAME=PATH``.
+Methods: zero; the outward rule; the mechanics rule at its default gain; the ensemble (the mean
+of the rule and the single-frame model at its recorded scale: the default of ``predict_motion``
+without ``ref``, ``tacswitch.motion.ensemble``); the shipped single-frame model
+(``model="single"``) at its recorded scale, at scale 1, and at the scale fitted here on the
+even presses; the shipped consistent model's single-frame output; and any ``--model
+NAME=PATH``. On the real GelSight presses the rule, the ensemble and flow also run against the
+no-contact frame (what ``predict_motion`` does with that reference), and the real GelSight Mini
+presses (whose gel barely moves) show each method's false motion at the default gain and at the
+Mini's.
 
     python benches/bench_motion_model_real.py [--model NAME=PATH ...] [--update]
 """
@@ -50,10 +55,13 @@ def main() -> int:
     import bench_motion_single as single
 
     from tacswitch import remove_markers
+    from tacswitch.motion.ensemble import ensemble_motion
     from tacswitch.motion.evaluate import motion_metrics
+    from tacswitch.motion.flow import flow_motion
     from tacswitch.motion.heuristic import outward_motion
     from tacswitch.motion.infer import MotionModel
-    from tacswitch.motion.mechanics import mechanics_motion
+    from tacswitch.motion.mechanics import MECHANICS_GAIN, mechanics_motion
+    from tacswitch.sim.presets import MECHANICS_GAINS
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--model", action="append", default=[], metavar="NAME=PATH",
@@ -82,8 +90,8 @@ def main() -> int:
         out: dict[str, Fn] = {
             "zero": lambda im, c: np.zeros((len(c), 2), np.float32),
             "outward rule": lambda im, c: outward_motion(im, None, c),
-            "mechanics rule (predict_motion default)": lambda im, c: mechanics_motion(im, None,
-                                                                                       c)}
+            "mechanics rule": lambda im, c: mechanics_motion(im, None, c),
+            "ensemble (predict_motion default)": lambda im, c: ensemble_motion(im, None, c)}
         for name, m in models.items():
             rec = m.single_frame_gain
             out[f"model {name}, recorded scale {rec:g}"] = \
@@ -103,6 +111,30 @@ def main() -> int:
         rows.append(motion_row("real GelSight presses, grain-matched gel motion (odd presses)",
                                meth, motion_metrics(pred, true, min_px=0.5), 0.5, len(odd),
                                float("nan")))
+    f0 = press.proxy.load_real_presses("gelsight").f0
+    ref_fns: dict[str, Fn] = {
+        "zero": lambda im, c: np.zeros((len(c), 2), np.float32),
+        "mechanics rule": lambda im, c: mechanics_motion(im, f0, c),
+        "ensemble (predict_motion default)": lambda im, c: ensemble_motion(im, f0, c),
+        "flow": lambda im, c: flow_motion(im, f0, c)}
+    for meth, fn in ref_fns.items():
+        pred = np.concatenate([fn(g["img"][j], g["rest"][j])[g["ok"][j]] for j in odd])
+        rows.append(motion_row("the same, from the no-contact frame", meth,
+                               motion_metrics(pred, true, min_px=0.5), 0.5, len(odd),
+                               float("nan")))
+    mini = press.proxy.load_real_presses("gelsight_mini")
+    mrest, _ = press.proxy.marker_grid("gelsight_mini")
+    for gain in (MECHANICS_GAIN, MECHANICS_GAINS["gelsight_mini"]):
+        mini_fns: dict[str, Fn] = {
+            "mechanics rule": lambda im, c, g=gain: mechanics_motion(im, None, c, gain=g),
+            "ensemble (predict_motion default)":
+                lambda im, c, g=gain: ensemble_motion(im, None, c, gain=g)}
+        for meth, fn in mini_fns.items():
+            # The truth is ~0 (grain-matched: 0.15 px), so the error is the motion predicted.
+            mag = np.concatenate([np.linalg.norm(fn(im, mrest), axis=1) for im in mini.imgs])
+            rows.append([f"real GelSight Mini presses, gel does not move (truth 0), gain "
+                         f"{gain:g}", meth, f"{mag.mean():.3f}", "", "", "", "", "",
+                         f"{len(mini.imgs)} / 0", ""])
     frames = fots.load(args.fots)
     if len(frames) == 2:
         for (name, im, rest, d) in frames:

@@ -1,4 +1,5 @@
-"""Markerless motion from a reference frame: flow, the mechanics rule, and ``method="auto"``,
+"""Markerless motion from a reference frame: flow, the mechanics rule, the ensemble, and
+``method="auto"``,
 which picks one by the reference (:mod:`tacswitch.motion.reference`: does ``ref`` lack ``img``'s
 contact?).
 
@@ -68,6 +69,8 @@ def methods() -> dict[str, Predict]:
         "mechanics rule, default gain": lambda i, r, c, s: mechanics_motion(i, r, c),
         "mechanics rule, sensor gain": lambda i, r, c, s: mechanics_motion(
             i, r, c, gain=MECHANICS_GAINS[s]),
+        "ensemble (rule + learned model)": lambda i, r, c, s: predict_motion(
+            i, r, c, method="ensemble"),
         "auto (shipped default)": lambda i, r, c, s: predict_motion(i, r, c),
         "auto, sensor gain": lambda i, r, c, s: predict_motion(i, r, c, gain=s),
     }
@@ -147,7 +150,7 @@ def _timings(img: np.ndarray, f0: np.ndarray, same: np.ndarray, grid: np.ndarray
     """Median ms per call of ``predict_motion`` with ``method="flow"`` and ``"auto"`` (the same
     validation), with a no-contact and a same-contact reference, and of the test alone."""
     fns = {"method='flow', no-contact ref": lambda: predict_motion(img, f0, grid, method="flow"),
-           "auto, no-contact ref (runs mechanics)": lambda: predict_motion(img, f0, grid),
+           "auto, no-contact ref (runs the ensemble)": lambda: predict_motion(img, f0, grid),
            "method='flow', same-contact ref": lambda: predict_motion(same, img, grid,
                                                                     method="flow"),
            "auto, same-contact ref (runs flow)": lambda: predict_motion(same, img, grid),
@@ -203,10 +206,12 @@ def main() -> int:
     speed_rows = speed(args.rounds)
     notes = [
         f"{machine()}; OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}.", "",
-        "`predict_motion(img, ref)` (method `auto`) runs the contact-mechanics rule when `ref` "
+        "`predict_motion(img, ref)` (method `auto`) runs the ensemble (the mean of the "
+        "contact-mechanics rule against `ref` and the learned single-frame model; before "
+        "this release the rule alone) when `ref` "
         "lacks the contact `img` shows (a no-contact reference: the imprint appears, and optical "
         "flow turns its shading into false motion) and DIS flow otherwise (a reference of the "
-        "same contact, or no contact in either frame); without `ref` the mechanics rule on the "
+        "same contact, or no contact in either frame); without `ref` the ensemble on the "
         "single frame. The test (`tacswitch.motion.reference`): shading-gradient energy of `ref` "
         f"over `img` where the frames differ, new contact below {NEW_CONTACT_RATIO:g}. "
         "Threshold set in the gap between taxim's real no-contact and same-contact pairs (part "

@@ -211,14 +211,14 @@ def test_cli_slip_markerless_flags_a_growing_shear_after_the_grasp_start(mini, t
                                                "--markerless only")
 
 
-def test_default_method_is_flow_with_a_reference_and_mechanics_without(mini, grid) -> None:
-    # (A no-contact reference makes "auto" run the mechanics rule: test_motion_reference.py.)
+def test_default_method_is_flow_with_a_reference_and_the_ensemble_without(mini, grid) -> None:
+    # (A no-contact reference makes "auto" run the ensemble: test_motion_reference.py.)
     img, ref = mini.imgs[4], mini.imgs[4][:, ::-1].copy()
     np.testing.assert_array_equal(predict_motion(img, ref, grid),
                                   predict_motion(img, ref, grid, method="flow"))
     ref = mini.f0
     np.testing.assert_array_equal(predict_motion(img, None, grid),
-                                  predict_motion(img, None, grid, method="mechanics"))
+                                  predict_motion(img, None, grid, method="ensemble"))
     assert np.abs(predict_motion(ref, ref.copy(), grid)).max() < 0.05
 
 

@@ -1,6 +1,7 @@
-"""``predict_motion``'s ``method="auto"`` with a reference: the mechanics rule against a frame that
-lacks the contact (the no-contact frame), flow against a frame of the same contact; the test
-that tells them apart (:mod:`tacswitch.motion.reference`) on taxim's real presses."""
+"""``predict_motion``'s ``method="auto"`` with a reference: the ensemble (its rule against the
+reference) against a frame that lacks the contact (the no-contact frame), flow against a frame of
+the same contact; the test that tells them apart (:mod:`tacswitch.motion.reference`) on taxim's
+real presses."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tacswitch import predict_motion
-from tacswitch.motion import flow, mechanics, proxy, reference
+from tacswitch.motion import ensemble, flow, proxy, reference
 from tacswitch.motion.infer import resolve_method
 
 
@@ -36,21 +37,21 @@ def test_real_gelsight_presses_against_the_no_contact_frame() -> None:
     assert reference.contact_energy_ratio(_sheared(gs, 5), gs.imgs[5]) > 0.8
 
 
-def test_auto_runs_mechanics_against_the_no_contact_frame_and_flow_otherwise(mini, grid) -> None:
+def test_auto_runs_the_ensemble_against_the_no_contact_frame_and_flow_otherwise(mini, grid) -> None:
     img = mini.imgs[6]
     np.testing.assert_array_equal(predict_motion(img, mini.f0, grid),
-                                  mechanics.mechanics_motion(img, mini.f0, grid))
+                                  ensemble.ensemble_motion(img, mini.f0, grid))
     np.testing.assert_array_equal(predict_motion(img, mini.f0, grid, gain="gelsight"),
-                                  mechanics.mechanics_motion(img, mini.f0, grid, gain=0.25))
+                                  ensemble.ensemble_motion(img, mini.f0, grid, gain=0.25))
     same = _sheared(mini, 6)
     np.testing.assert_array_equal(predict_motion(same, img, grid), flow.flow_motion(same, img,
                                                                                     grid))
     # The gain is the rule's; flow ignores it.
     np.testing.assert_array_equal(predict_motion(same, img, grid, gain=3.0),
                                   flow.flow_motion(same, img, grid))
-    assert resolve_method("auto", img, mini.f0) == "mechanics"
+    assert resolve_method("auto", img, mini.f0) == "ensemble"
     assert resolve_method("auto", same, img) == "flow"
-    assert resolve_method("auto", img, None) == "mechanics"
+    assert resolve_method("auto", img, None) == "ensemble"
     assert resolve_method("flow", img, mini.f0) == "flow"
 
 
@@ -76,7 +77,7 @@ def test_ratio_is_finite_on_any_frame(h: int, w: int, level: int, noise: float) 
 
 
 def test_auto_rejects_flow_only_options_and_bad_gains(mini, grid) -> None:
-    # Flow's options are checked even when "auto" runs the mechanics rule (which ignores them).
+    # Flow's options are checked even when "auto" runs the ensemble (which ignores them).
     with pytest.raises(ValueError, match=r"^preset: unknown 'slow'"):
         predict_motion(mini.imgs[2], mini.f0, grid, preset="slow")
     np.testing.assert_array_equal(predict_motion(mini.imgs[2], mini.f0, grid, preset="medium"),

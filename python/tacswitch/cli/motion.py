@@ -7,6 +7,9 @@ import csv
 import io
 from pathlib import Path
 
+#: Methods whose learned part --model names (elsewhere it gives only the default centres).
+LEARNED_PART = ("ensemble",)
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("motion", help="predict marker motion from markerless images",
@@ -21,17 +24,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="CSV with x,y columns (e.g. from `tacswitch markers`); default: the "
                         "model's grid scaled to the frame")
     p.add_argument("--model", default=None, help="ONNX model (default: the shipped one)")
-    p.add_argument("--method", choices=("auto", "model", "flow", "outward", "mechanics"),
+    p.add_argument("--method", choices=("auto", "ensemble", "model", "flow", "outward",
+                                        "mechanics"),
                    default="auto",
-                   help="auto (default): mechanics without --ref or when --ref lacks the "
+                   help="auto (default): ensemble without --ref or when --ref lacks the "
                         "frame's contact (the no-contact frame), flow with a --ref of the same "
-                        "contact; model: the ONNX "
+                        "contact; ensemble: the mean of the mechanics rule and the learned "
+                        "single-frame model (--model: its learned part, default the shipped "
+                        "'single'); model: the ONNX "
                         "model; flow: dense optical flow from --ref (training-free, needs "
                         "--ref); outward: the no-learning baseline (markers move outward from "
                         "the contact); mechanics: the simulator's elastic press law applied to "
                         "the imprint (no learning; with or without --ref)")
     p.add_argument("--gain", default=None, metavar="SENSOR|G",
-                   help="mechanics / outward / auto (when it runs mechanics): how far a "
+                   help="mechanics / ensemble / outward / auto (when it runs the ensemble): "
+                        "how far a "
                         "press moves your gel: a sensor "
                         "name (gelsight, gelsight_mini: fitted on real presses) or a number "
                         ">= 0, e.g. from tacswitch.motion.calibration.calibrate_press_gain "
@@ -101,9 +108,9 @@ def run(args: argparse.Namespace) -> int:
                          f"at the contact, flow from it); drop --method {args.method}")
     model = load_model_option(load_model, args.model)
     ref = read_image(input_file(args.ref, "--ref"), "--ref", quiet=True) if args.ref else None
-    # "auto" runs the mechanics rule without --ref or against a no-contact --ref, flow
-    # otherwise (which ignores the gain): check --gain as the rule's.
-    gain = _gain_option(args.gain, "mechanics" if args.method == "auto" else args.method)
+    # "auto" runs the ensemble without --ref or against a no-contact --ref, flow otherwise
+    # (which ignores the gain): check --gain as the ensemble's.
+    gain = _gain_option(args.gain, "ensemble" if args.method == "auto" else args.method)
     centres = _read_centres(str(input_file(args.centres, "--centres"))) if args.centres else None
     files = collect_images(args.inputs)
     out = output_dir(args.out, "--out")
@@ -127,7 +134,9 @@ def run(args: argparse.Namespace) -> int:
             else:
                 pts = model.centres_for(*img.shape[:2]) if centres is None else centres
                 motion = (model(img, ref=ref, centres=pts) if args.method == "model" else
-                          predict_motion(img, ref, pts, method=args.method, gain=gain))
+                          predict_motion(img, ref, pts, method=args.method, gain=gain,
+                                         model=args.model if args.method in LEARNED_PART
+                                         else None))
             buf = io.StringIO()
             w = csv.writer(buf)
             w.writerow(["x", "y", "dx", "dy"])

@@ -182,7 +182,7 @@ def load_model(path: str | os.PathLike[str] | None = None) -> MotionModel:
 MIN_IMAGE_SIDE_PX = 8
 
 #: Methods of :func:`predict_motion`.
-METHODS = ("auto", "model", "flow", "outward", "mechanics")
+METHODS = ("auto", "ensemble", "model", "flow", "outward", "mechanics")
 
 
 def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: str = "auto",
@@ -202,13 +202,15 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             training grid (the GelSight Mini preset's 9 x 11 grid, pitch 28.5 px at 320 x 240)
             scaled to the frame, for every method; pass your sensor's own centres (e.g.
             ``tacswitch.extract_markers(ref_with_markers).centres``) otherwise.
-        method: ``"auto"`` (default): without ``ref``, ``"mechanics"``; with ``ref``,
+        method: ``"auto"`` (default): without ``ref``, ``"ensemble"``; with ``ref``,
             ``"flow"`` when ``ref`` shows the same contact as ``img`` (or none), and
-            ``"mechanics"`` (with ``ref``) when ``ref`` lacks ``img``'s contact, e.g. the
-            no-contact frame (:mod:`tacswitch.motion.reference`: against it the imprint
-            appears, and flow turns its shading into false motion) — the choice that scored
-            best on real frames, see the README;
-            ``"model"`` (the ONNX model), ``"flow"`` (training-free dense optical flow
+            ``"ensemble"`` (its rule against ``ref``) when ``ref`` lacks ``img``'s contact,
+            e.g. the no-contact frame (:mod:`tacswitch.motion.reference`: against it the
+            imprint appears, and flow turns its shading into false motion) — the choices that
+            scored best on real frames, see the README;
+            ``"ensemble"`` (the mean of the mechanics rule and the learned single-frame model,
+            :mod:`tacswitch.motion.ensemble`; with or without ``ref``, which only the rule
+            uses), ``"model"`` (the ONNX model), ``"flow"`` (training-free dense optical flow
             ``ref -> img`` read at the centres, :mod:`tacswitch.motion.flow`; exactly zero for
             identical frames, insensitive to a global brightness change), ``"outward"`` (the
             no-learning baseline: outward from the contact by the local image change,
@@ -216,8 +218,10 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             ``"mechanics"`` (no learning: the simulator's elastic law for a press applied to
             the imprint the frame shows, :mod:`tacswitch.motion.mechanics`; outward motion
             that fades over a gel thickness outside the contact; with or without ``ref``).
-        model: ONNX model path (default: the shipped model); sessions are cached per path.
-            Other methods use it only for the default centres.
+        model: ONNX model path or shipped name (default: the shipped model); sessions are
+            cached per path. ``method="ensemble"``: its learned part (default ``"single"``; a
+            single-frame capable model). Other methods, ``"auto"`` included, use it only for
+            the default centres.
         algorithm: ``method="flow"`` (or ``"auto"`` when it runs flow): ``"dis"`` (default),
             ``"farneback"``, ``"deepflow"``, ``"pcaflow"`` or ``"rlof"`` (the last three from
             opencv-contrib, 10-100x slower).
@@ -230,8 +234,8 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             appeared (its shading is not motion) and filled from the gel around it
             (:func:`tacswitch.motion.flow.flow_motion`); default ``False`` (a reference of the
             same contact).
-        gain: ``method="mechanics"``, ``"outward"`` or ``"auto"`` (used when it runs the
-            mechanics rule, ignored when it runs flow): how far a press moves this sensor's
+        gain: ``method="mechanics"``, ``"ensemble"``, ``"outward"`` or ``"auto"`` (used when
+            it runs the ensemble, ignored when it runs flow): how far a press moves this sensor's
             gel, which one image does not show. A sensor name, ``"gelsight"`` or
             ``"gelsight_mini"`` (gains fitted on that sensor's real presses:
             :data:`tacswitch.sim.presets.MECHANICS_GAINS` / ``OUTWARD_GAINS``; the real Mini's
@@ -242,7 +246,9 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             (mechanics: :data:`tacswitch.motion.mechanics.MECHANICS_GAIN`, the least-squares
             gain pooled over real GelSight and GelSight Mini presses, the best single gain on
             real data across both; outward: ``OUTWARD_GAIN``, 0.03 of the pitch, fitted on
-            simulated presses). The direction does not depend on it. ``method="model"``: a
+            simulated presses). The direction does not depend on it. The ensemble scales its
+            learned part by the same gain (relative to the GelSight's, where both were
+            fitted). ``method="model"``: a
             number >= 0 that replaces the model's recorded single-frame scale
             (``MotionModel.single_frame_gain``, measured on real GelSight presses; 0.48 for the
             shipped model); single frame only.
@@ -256,17 +262,18 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
         raise ValueError(f"method: unknown {method!r}; choose from {list(METHODS)}")
     auto = method == "auto"
     if auto and ref is None:
-        # Without a reference the mechanics rule at its real-fitted gain is the only method
-        # below zero motion on the real GelSight's grain-matched press motion (held-out presses
-        # 1.62 vs 2.22 px, cosine 0.64 vs the outward rule's 0.49).
-        method = "mechanics"
+        # Without a reference: the mean of the mechanics rule and the learned single-frame
+        # model, better than either on the real measurements (held-out real GelSight presses
+        # 1.53 px / cosine 0.66 vs the rule's 1.62 / 0.64, zero 2.22; FOTS press cosine 0.93
+        # vs 0.87); see motion/ensemble.py.
+        method = "ensemble"
     if method not in ("flow", "auto"):
         for name, value in (("algorithm", algorithm), ("preset", preset),
                             ("suppress_imprint", suppress_imprint)):
             if value is not None:
                 raise ValueError(f"{name}: applies to method='flow' only; got method={method!r}")
     rule_gain = (None if gain is None or method == "model"
-                 else _rule_gain("mechanics" if auto else method, gain))
+                 else _rule_gain("ensemble" if auto else method, gain))
     if auto:
         from tacswitch.motion.flow import check_flow_options
 
@@ -296,7 +303,8 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
         # With a reference: flow follows a contact present in both frames (real warp proxy,
         # same-contact reference: 2.7 vs 10.2 px for zero motion), but turns an imprint that
         # appears into false motion (real frames + calibrated press field, no-contact
-        # reference: flow 4.45, mechanics 1.64, zero 2.74 px); see motion/reference.py.
+        # reference: flow 4.45, mechanics 1.64, zero 2.74 px; the ensemble with the rule
+        # against the reference is better still on real presses); see motion/reference.py.
         method = resolve_method(method, frame, ref_arr)
     if method == "flow":
         from tacswitch.motion.flow import DEFAULT_PRESET, flow_motion
@@ -305,6 +313,12 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
         return flow_motion(frame, ref_arr, pts, algorithm=algorithm or "dis",
                            preset=preset or DEFAULT_PRESET,
                            suppress_imprint=False if suppress_imprint is None else suppress_imprint)
+    if method == "ensemble":
+        from tacswitch.motion.ensemble import ensemble_motion
+
+        # "auto" keeps the shipped learned part: its `model` names the default centres only.
+        return ensemble_motion(frame, ref_arr, pts, gain=rule_gain,
+                               model=None if auto else model)
     if method == "mechanics":
         from tacswitch.motion.mechanics import mechanics_motion
 
@@ -320,29 +334,29 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
 
 def resolve_method(method: str, img: Any = None, ref: Any = None) -> str:
     """The method :func:`predict_motion` runs for ``method`` on ``img`` (validated BGR uint8)
-    and ``ref`` (None: single frame): ``"auto"`` stands for ``"mechanics"`` without a
+    and ``ref`` (None: single frame): ``"auto"`` stands for ``"ensemble"`` without a
     reference or with one that lacks ``img``'s contact
     (:func:`tacswitch.motion.reference.is_new_contact`), else ``"flow"``; any other name is
     returned as is."""
     if method != "auto":
         return method
     if ref is None:
-        return "mechanics"
+        return "ensemble"
     from tacswitch.motion.reference import is_new_contact
 
     # Identical frames are no new contact (nothing changed): flow, which returns zero.
-    return "mechanics" if is_new_contact(img, ref) else "flow"
+    return "ensemble" if is_new_contact(img, ref) else "flow"
 
 
 def _rule_gain(method: str, gain: Any) -> float:
     """``gain`` of :func:`predict_motion` as a number for ``method`` (validated)."""
     from tacswitch.sim.presets import MECHANICS_GAINS, OUTWARD_GAINS
 
-    if method not in ("mechanics", "outward"):
-        raise ValueError(f"gain: applies to method='mechanics' or 'outward' only; got "
-                         f"method={method!r}")
+    if method not in ("mechanics", "ensemble", "outward"):
+        raise ValueError(f"gain: applies to method='mechanics', 'ensemble' or 'outward' only; "
+                         f"got method={method!r}")
     if isinstance(gain, str):
-        table = MECHANICS_GAINS if method == "mechanics" else OUTWARD_GAINS
+        table = OUTWARD_GAINS if method == "outward" else MECHANICS_GAINS
         if gain not in table:
             raise ValueError(f"gain: unknown sensor {gain!r}; choose from {sorted(table)} or "
                              "pass a number >= 0")

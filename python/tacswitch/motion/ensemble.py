@@ -1,0 +1,107 @@
+"""Single-frame ensemble: the mechanics rule and the learned single-frame model, averaged.
+
+Two single-frame estimators of the gel's motion under a contact, with different errors:
+
+- the mechanics rule (:mod:`tacswitch.motion.mechanics`): the elastic law of a press applied
+  to the imprint's *shape*, blind to anything but a symmetric press;
+- the learned single-frame model (``motion_single.onnx``, :class:`~.infer.MotionModel`):
+  trained on the calibrated simulator with the real sensors' optics; reads shading asymmetry
+  too (an off-axis press, a partial shear) but carries the simulator's appearance gap.
+
+Their mean, with equal weights (no weight fitted), is better than either on every real
+measurement at hand (``benches/bench_motion_model_real.py``; e_rmse px / cosine / share within
+30°, single frame):
+
+- real GelSight presses, the gel's grain-matched motion, held-out (odd) presses: ensemble
+  1.53 / 0.66 / 60 % against the rule 1.62 / 0.64 / 51 % and the model 1.56 / 0.62 / 61 %;
+- real FOTS GelSight Mini press (hand-tracked markers): 1.56 / 0.93 / 89 % against
+  1.55 / 0.87 / 59 % and 1.64 / 0.93 / 85 %.
+
+It is behind the rule where the truth is the rule's own physics (real frames with the
+simulator's press field: 1.10 / 0.89 against 0.88 / 0.96), which is why the choice was made on
+the real measurements.
+
+Scale: both parts follow the sensor's press gain. The rule's GelSight gain
+(:data:`tacswitch.sim.presets.MECHANICS_GAINS` ``["gelsight"]``) and the model's recorded
+scale (:attr:`~.infer.MotionModel.single_frame_gain`) were fitted on the same real GelSight
+presses, so a gain ``g`` scales the model by ``g / MECHANICS_GAINS["gelsight"]`` as well.
+
+Speed: the model runs on onnxruntime's threads while the rule runs on this one (onnxruntime
+releases the GIL), so the pair costs little more than the slower of the two.
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import Future, ThreadPoolExecutor
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from tacswitch.motion.infer import MotionModel
+
+__all__ = ["ENSEMBLE_MODEL", "ensemble_motion", "learned_part"]
+
+#: The shipped model whose single-frame output the ensemble uses by default.
+ENSEMBLE_MODEL = "single"
+
+_POOL: ThreadPoolExecutor | None = None
+
+
+def _pool() -> ThreadPoolExecutor:
+    global _POOL
+    if _POOL is None:
+        _POOL = ThreadPoolExecutor(max_workers=1, thread_name_prefix="tacswitch-ensemble")
+    return _POOL
+
+
+def _learned_model(model: str | os.PathLike[str] | None) -> MotionModel:
+    from tacswitch.motion.infer import load_model
+
+    net = load_model(ENSEMBLE_MODEL if model is None else model)
+    if net.use_ref:
+        raise ValueError(f"model: {net.path.name} predicts motion since a reference frame; the "
+                         "ensemble needs a single-frame model (e.g. the shipped 'single')")
+    return net
+
+
+def _learned(net: MotionModel, img: NDArray[np.uint8], centres: NDArray[np.float32],
+             gain: float) -> NDArray[np.float32]:
+    from tacswitch.sim.presets import MECHANICS_GAINS
+
+    return net(img, centres=centres, gain=net.single_frame_gain * gain
+               / MECHANICS_GAINS["gelsight"])
+
+
+def learned_part(img: NDArray[np.uint8], centres: NDArray[np.float32], gain: float,
+                 model: str | os.PathLike[str] | None = None) -> NDArray[np.float32]:
+    """The learned model's single-frame motion ``N x 2`` float32 px at ``centres``, scaled for
+    the rule's press ``gain`` (module doc). ``model``: any single-frame capable motion model
+    (default :data:`ENSEMBLE_MODEL`); one that needs a reference is refused, naming ``model``."""
+    return _learned(_learned_model(model), img, centres, gain)
+
+
+def ensemble_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None,
+                    centres: NDArray[np.float32], *, gain: float | None = None,
+                    model: str | os.PathLike[str] | None = None) -> NDArray[np.float32]:
+    """Motion ``N x 2`` float32 ``(dx, dy)`` px of markers at rest ``centres`` (``(x, y)`` px)
+    in the markerless BGR frame ``img``: the mean of the mechanics rule (against ``ref``, the
+    no-contact frame, when given; else single-frame) and the learned model on ``img`` alone.
+
+    ``gain``: the sensor's press gain (number >= 0; None: the rule's default,
+    :data:`tacswitch.motion.mechanics.MECHANICS_GAIN`), scaling both parts (module doc).
+    ``model``: the learned part (default :data:`ENSEMBLE_MODEL`). Identical ``img`` and ``ref``
+    give exactly zero. Frames are validated by the caller (:func:`tacswitch.predict_motion`).
+    """
+    from tacswitch.motion.mechanics import MECHANICS_GAIN, check_gain, mechanics_motion
+
+    g = MECHANICS_GAIN if gain is None else check_gain(gain)
+    net = _learned_model(model)
+    if len(centres) == 0 or (ref is not None and np.array_equal(img, ref)):
+        return np.zeros((len(centres), 2), np.float32)
+    learned: Future[NDArray[np.float32]] = _pool().submit(_learned, net, img, centres, g)
+    rule = mechanics_motion(img, ref, centres, gain=g)
+    part = learned.result()
+    return ((rule + part) * np.float32(0.5)).astype(np.float32)

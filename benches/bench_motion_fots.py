@@ -61,8 +61,9 @@ def methods() -> dict[str, Callable[[np.ndarray, np.ndarray], np.ndarray]]:
     return {
         "zero": lambda im, c: np.zeros((len(c), 2), np.float32),
         "outward rule": lambda im, c: outward_motion(im, None, c),
-        "predict_motion default (mechanics rule, gain 0.25)": lambda im, c: predict_motion(im,
-                                                                                          None, c),
+        "predict_motion default (ensemble: rule + learned single-frame model)":
+            lambda im, c: predict_motion(im, None, c),
+        "mechanics rule, default gain 0.25": lambda im, c: mechanics_motion(im, None, c),
         f"mechanics rule, gain=\"gelsight_mini\" ({MECHANICS_GAINS['gelsight_mini']:g})":
             lambda im, c: mechanics_motion(im, None, c, gain=MECHANICS_GAINS["gelsight_mini"]),
         "learned regressor (shipped motion model)": lambda im, c: predict_motion(

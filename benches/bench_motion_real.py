@@ -51,6 +51,10 @@ def _mechanics(img: np.ndarray, ref: Any, rest: np.ndarray) -> np.ndarray:
     return predict_motion(img, ref, rest, method="mechanics")
 
 
+def _ensemble(img: np.ndarray, ref: Any, rest: np.ndarray) -> np.ndarray:
+    return predict_motion(img, ref, rest, method="ensemble")
+
+
 def _outward_unit(img: np.ndarray, ref: Any, rest: np.ndarray) -> np.ndarray:
     from tacswitch.motion.heuristic import outward_motion
 
@@ -86,6 +90,7 @@ def methods(models: dict[str, str | None], slow: bool, sensor: str
         "outward from contact (no learning)": (_outward, proxy.SETTINGS),
         ORACLE: (_outward_unit, proxy.SETTINGS),
         "contact-mechanics rule (no learning)": (_mechanics, proxy.SETTINGS),
+        "ensemble (rule + learned single-frame model)": (_ensemble, ("single", "no_contact")),
         **{_dis_label(p): (_flow("dis", p), refs) for p in DIS_PRESETS},
         "flow Farneback": (_flow("farneback"), refs),
     }

@@ -85,3 +85,16 @@ def test_bad_inputs_name_the_argument(mini, grid) -> None:
 
     with pytest.raises(ValueError, match=r"^model: "):  # a TacDiff model, not a motion one
         predict_motion(img, None, grid, method="ensemble", model=tacdiff_model("fast"))
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="needs os.fork")
+def test_works_in_a_child_forked_after_use(mini, grid) -> None:
+    """A forked child inherits the parent's thread pool without its thread; the ensemble must
+    make its own there instead of waiting forever."""
+    import multiprocessing as mp
+
+    img = mini.imgs[5]
+    want = predict_motion(img, None, grid)  # the parent's pool now exists
+    with mp.get_context("fork").Pool(1) as pool:
+        got = pool.apply_async(predict_motion, (img, None, grid)).get(timeout=120)
+    np.testing.assert_allclose(got, want, atol=1e-5)

@@ -47,14 +47,18 @@ __all__ = ["ENSEMBLE_MODEL", "ensemble_motion", "learned_part"]
 #: The shipped model whose single-frame output the ensemble uses by default.
 ENSEMBLE_MODEL = "single"
 
-_POOL: ThreadPoolExecutor | None = None
+_POOL: tuple[int, ThreadPoolExecutor] | None = None
 
 
 def _pool() -> ThreadPoolExecutor:
+    """The one-thread pool the learned half runs on, made per process: a child forked after
+    the parent used it inherits a pool whose thread does not exist there (work would wait
+    forever), so a new pid gets a new pool."""
     global _POOL
-    if _POOL is None:
-        _POOL = ThreadPoolExecutor(max_workers=1, thread_name_prefix="tacswitch-ensemble")
-    return _POOL
+    pid = os.getpid()
+    if _POOL is None or _POOL[0] != pid:
+        _POOL = (pid, ThreadPoolExecutor(max_workers=1, thread_name_prefix="tacswitch-ensemble"))
+    return _POOL[1]
 
 
 def _learned_model(model: str | os.PathLike[str] | None) -> MotionModel:

@@ -98,3 +98,16 @@ def test_works_in_a_child_forked_after_use(mini, grid) -> None:
     with mp.get_context("fork").Pool(1) as pool:
         got = pool.apply_async(predict_motion, (img, None, grid)).get(timeout=120)
     np.testing.assert_allclose(got, want, atol=1e-5)
+
+
+def test_concurrent_calls_from_threads_match_serial_ones(mini, grid) -> None:
+    """Callers on several threads share the one-thread pool of the learned half: every call
+    gets its own frame's answer."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    frames = [mini.imgs[i] for i in range(0, 16, 2)]
+    want = [predict_motion(f, None, grid) for f in frames]
+    with ThreadPoolExecutor(4) as ex:
+        got = list(ex.map(lambda f: predict_motion(f, None, grid), frames))
+    for g, w in zip(got, want, strict=True):
+        np.testing.assert_allclose(g, w, atol=1e-5)

@@ -8,16 +8,18 @@ Two single-frame estimators of the gel's motion under a contact, with different 
   trained on the calibrated simulator with the real sensors' optics; reads shading asymmetry
   too (an off-axis press, a partial shear) but carries the simulator's appearance gap.
 
-Their mean, with equal weights (no weight fitted), is better than either on every real
-measurement at hand (``benches/bench_motion_model_real.py``; e_rmse px / cosine / share within
-30°, single frame):
+Their mean, with equal weights (not tuned), matches or beats the better of the two in error and
+cosine on each real press measurement at hand (``benches/bench_motion_model_real.py``; e_rmse
+px / cosine / share within 30°, single frame):
 
 - real GelSight presses, the gel's grain-matched motion, held-out (odd) presses: ensemble
   1.53 / 0.66 / 60 % against the rule 1.62 / 0.64 / 51 % and the model 1.56 / 0.62 / 61 %;
 - real FOTS GelSight Mini press (hand-tracked markers): 1.56 / 0.93 / 89 % against
   1.55 / 0.87 / 59 % and 1.64 / 0.93 / 85 %.
 
-It is behind the rule where the truth is the rule's own physics (real frames with the
+On the sheared FOTS frame (no single-frame cue to a shear) it lies between the two (3.69 / 0.17
+against 3.78 / 0.03 and 3.64 / 0.23). It is behind the rule where the truth is the rule's own
+physics (real frames with the
 simulator's press field: 1.10 / 0.89 against 0.88 / 0.96), which is why the choice was made on
 the real measurements.
 

@@ -15,8 +15,9 @@ Data:
    motion from rest, per phase (measured only in simulation).
 
 Methods, each given only the no-contact frame as reference: zero, the outward rule, flow from
-the no-contact frame, ``predict_motion(frame, no_contact)`` (auto: the mechanics rule against
-the no-contact frame) and the tracker (which also sees the earlier frames).
+the no-contact frame, ``predict_motion(frame, no_contact)`` (auto: the ensemble, its mechanics
+rule against the no-contact frame), the mechanics rule alone against it, and the tracker (which
+also sees the earlier frames).
 
     python benches/bench_motion_sequence.py [--every N] [--grasps N] [--update]
 """
@@ -40,6 +41,7 @@ from tacswitch.motion.evaluate import motion_metrics
 from tacswitch.motion.flow import flow_motion
 from tacswitch.motion.heuristic import outward_motion
 from tacswitch.motion.infer import predict_motion
+from tacswitch.motion.mechanics import mechanics_motion
 from tacswitch.motion.sequence import MarkerlessTracker
 
 SECTION = "## Markerless motion over a sequence (from the no-contact frame)"
@@ -62,8 +64,9 @@ METHODS: dict[str, Method] = {
     "zero": lambda frames, f0, c, s: [np.zeros((len(c), 2), np.float32) for _ in frames],
     "outward rule": _per_frame(outward_motion),
     "flow from the no-contact frame": _per_frame(flow_motion),
-    "predict_motion pair (auto: mechanics)": _per_frame(
+    "predict_motion pair (auto: ensemble)": _per_frame(
         lambda f, f0, c: predict_motion(f, f0, c)),
+    "mechanics rule pair": _per_frame(lambda f, f0, c: mechanics_motion(f, f0, c)),
     "MarkerlessTracker": _tracker(False),
     "MarkerlessTracker, sensor gain": _tracker(True),
 }

@@ -263,13 +263,14 @@ def test_motion_command_matches_predict_motion(tmp_path: Path, motion_pair: dict
     _, motion = _read_motion_csv(tmp_path / "k" / "img.csv")
     np.testing.assert_allclose(motion, ts.predict_motion(img, None, rest, method="mechanics"),
                                atol=1e-3)
-    # --method ensemble: --model names its learned part.
+    # --method ensemble: --model names its learned part (here not the default one).
     assert main(["motion", str(tmp_path / "img.png"), "--centres", str(centres),
-                 "--method", "ensemble", "--model", "single", "-o", str(tmp_path / "e"),
+                 "--method", "ensemble", "--model", "default", "-o", str(tmp_path / "e"),
                  "-q"]) == 0
     _, motion = _read_motion_csv(tmp_path / "e" / "img.csv")
-    np.testing.assert_allclose(motion, ts.predict_motion(img, None, rest, method="ensemble",
-                                                         model="single"), atol=1e-3)
+    other = ts.predict_motion(img, None, rest, method="ensemble", model="default")
+    np.testing.assert_allclose(motion, other, atol=1e-3)
+    assert np.abs(other - ts.predict_motion(img, None, rest, method="ensemble")).max() > 0.01
     # --gain: a sensor name or a number, as predict_motion takes it.
     for gain, value in (("gelsight_mini", "gelsight_mini"), ("0.5", 0.5)):
         assert main(["motion", str(tmp_path / "img.png"), "--centres", str(centres),

@@ -209,3 +209,26 @@ def test_motion_gain_errors_name_the_option(tmp_path: Path, image: Path, args: l
     assert run.returncode == 2, run.stderr
     one_line(run, says)
     assert not (tmp_path / "o").exists()
+
+
+def test_motion_ensemble_refuses_a_model_that_needs_a_reference(tmp_path: Path,
+                                                                image: Path) -> None:
+    """The ensemble's learned half must predict from one frame: a model recorded as needing a
+    reference is refused up front, naming --model (exit 2, nothing written)."""
+    onnx = pytest.importorskip("onnx")
+    from tacswitch.motion.infer import model_path
+
+    m = onnx.load(str(model_path("single")))
+    for prop in m.metadata_props:
+        if prop.key == "tacswitch.use_ref":
+            prop.value = "true"
+            break
+    else:
+        m.metadata_props.add(key="tacswitch.use_ref", value="true")
+    path = tmp_path / "needs_ref.onnx"
+    onnx.save(m, str(path))
+    run = cli("motion", str(image), "--method", "ensemble", "--model", str(path), "-o",
+              str(tmp_path / "o"))
+    assert run.returncode == 2, run.stderr
+    one_line(run, "--model: needs_ref.onnx predicts motion since a reference frame")
+    assert not (tmp_path / "o").exists()

@@ -107,6 +107,12 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--sequence: the tracker chooses its own methods (the mechanics rule "
                          f"at the contact, flow from it); drop --method {args.method}")
     model = load_model_option(load_model, args.model)
+    if args.method in LEARNED_PART:
+        from tacswitch.motion.ensemble import learned_model
+
+        # Refused before any image is read (a model that needs a reference cannot be the
+        # ensemble's single-frame half).
+        load_model_option(learned_model, args.model)
     ref = read_image(input_file(args.ref, "--ref"), "--ref", quiet=True) if args.ref else None
     # "auto" runs the ensemble without --ref or against a no-contact --ref, flow otherwise
     # (which ignores the gain): check --gain as the ensemble's.

@@ -263,7 +263,7 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
     auto = method == "auto"
     if auto and ref is None:
         # Without a reference: the mean of the mechanics rule and the learned single-frame
-        # model, as good as the better of the two or better on the real press measurements
+        # model, as good as the better of the two or better on the real GelSight / FOTS presses
         # (held-out real GelSight presses 1.53 px / cosine 0.66 vs the rule's 1.62 / 0.64,
         # zero 2.22; FOTS press cosine 0.93 vs 0.87); see motion/ensemble.py.
         method = "ensemble"

@@ -16,11 +16,12 @@ no-contact frame, which for a frame without contact is texture motion only (exac
 identical frame). Measured in ``benches/bench_motion_sequence.py`` (BENCHMARKS.md "Markerless
 motion over a sequence").
 
-A video that starts in contact has no no-contact frame (``no_contact=None``): the first frame is
-the anchor and the rule runs on it alone (single frame, as ``predict_motion(img)``); the contact
-cannot be seen to end, so the anchor stays until :meth:`~MarkerlessTracker.reset`. Checked on
-real marker motion: the two FOTS GelSight Mini frames (a press, then the same contact sheared),
-markers removed, ``benches/bench_motion_fots.py``.
+A video that starts in contact has no no-contact frame (``no_contact=None``): the first frame
+is the anchor and the mechanics rule runs on it alone (single frame; ``predict_motion(img)``
+runs the ensemble, rule + learned model, instead); the contact cannot be seen to end, so the
+anchor stays until :meth:`~MarkerlessTracker.reset`. Checked on real marker motion: the two
+FOTS GelSight Mini frames (a press, then the same contact sheared), markers removed,
+``benches/bench_motion_fots.py``.
 
 Units and conventions: frames ``H x W x 3`` uint8 BGR of one size, centres and motion ``(x, y)``
 px with pixel centres at integers.

@@ -39,6 +39,18 @@ def test_self_calibration_recovers_the_shipped_gelsight_gain(gelsight: tuple) ->
     assert abs(r.gain - ship) < 0.35 * ship, (r, ship)
     assert r.n_frames == len(imgs) and r.n_patches > 1000
     assert r.explained > 0.3 and 0.1 < r.peak < 0.6 and 0 < r.stderr < 0.05
+    assert r.method == "ensemble"  # the default: what predict_motion runs
+
+
+def test_the_rule_alone_gets_its_own_gain_and_explains_less(gelsight: tuple) -> None:
+    """The ensemble and the rule were scaled on the same real presses, so their gains agree;
+    on held-out presses the ensemble explains more of the grain's real motion."""
+    f0, imgs = gelsight
+    ens = calibrate_press_gain(f0, imgs)
+    rule = calibrate_press_gain(f0, imgs, method="mechanics")
+    assert rule.method == "mechanics"
+    assert abs(ens.gain - rule.gain) < 0.1 * rule.gain, (ens, rule)
+    assert ens.explained > rule.explained, (ens, rule)
 
 
 def test_self_calibration_scales_with_a_known_outward_field(gelsight: tuple) -> None:
@@ -59,8 +71,9 @@ def test_self_calibration_scales_with_a_known_outward_field(gelsight: tuple) -> 
         dense = cv2.resize(fld, (fld.shape[1] * st, fld.shape[0] * st),
                            interpolation=cv2.INTER_LINEAR)[:h, :w]
         warped.append(warp_dense(im, (k * dense).astype(np.float32)))
-    base = calibrate_press_gain(f0, imgs).gain
-    up = calibrate_press_gain(f0, np.stack(warped)).gain
+    # The field added is the rule's own, so the rule's gain must rise by exactly k.
+    base = calibrate_press_gain(f0, imgs, method="mechanics").gain
+    up = calibrate_press_gain(f0, np.stack(warped), method="mechanics").gain
     assert abs((up - base) - k) < 0.08, (base, up)
 
 
@@ -113,6 +126,8 @@ def test_calibration_rejects_bad_inputs(gelsight: tuple) -> None:
         calibrate_press_gain(f0, imgs[:1], patch=4)
     with pytest.raises(ValueError, match=r"^step"):
         calibrate_press_gain(f0, imgs[:1], step=0)
+    with pytest.raises(ValueError, match=r"^method: unknown 'flow'"):
+        calibrate_press_gain(f0, imgs[:1], method="flow")
     with pytest.raises(ValueError, match=r"^min_peak"):
         calibrate_press_gain(f0, imgs[:1], min_peak=1.5)
     with pytest.raises(ValueError, match=r"^centres"):

@@ -1,4 +1,4 @@
-"""Self-calibration of the mechanics rule's press gain on the user's own sensor, without markers.
+"""Self-calibration of the press gain on the user's own sensor, without markers.
 
 How far a press moves the gel is a property of the gel (the real GelSight's gel moves outward
 ~2.5-3 px around a press, the real GelSight Mini's not measurably), not something one image
@@ -11,10 +11,11 @@ between the captures, about the image centre)::
 
     d_j(X) = s_j(X) + g * p_j(X)
 
-``p_j``: the rule's single-frame prediction at unit gain (``mechanics_motion(frame, None, X,
-gain=1)``). Robust least squares (Huber weights, as :func:`~tacswitch.motion.grainmatch.
-press_profile`), ``g`` clamped at 0 (a gel that does not move, or moves inward, gets 0: the
-rule then predicts zero, which is right for it).
+``p_j``: the single-frame prediction at unit gain of the method the gain is for: the ensemble
+(default, what ``predict_motion`` runs: ``ensemble_motion(frame, None, X, gain=1)``) or the
+rule alone (``mechanics_motion(frame, None, X, gain=1)``). Robust least squares (Huber weights,
+as :func:`~tacswitch.motion.grainmatch.press_profile`), ``g`` clamped at 0 (a gel that does
+not move, or moves inward, gets 0: the rule then predicts zero, which is right for it).
 
 Patches: every ``step`` px on the frame (``patch`` px squares, NCC peak >= ``min_peak``),
 except where the imprint (the frame's change against the no-contact frame,
@@ -24,10 +25,13 @@ shading change, not the grain, drives the match.
 Units and conventions: frames ``H x W x 3`` uint8 BGR of one sensor at one size (any size: the
 gain is dimensionless, the rule's output and the motion both scale with the frame width),
 points ``(x, y)`` px with pixel centres at integers. Measured on taxim's real presses (even /
-odd halves, 640 x 480): GelSight 0.284 / 0.300, Mini 0.036 / 0.036; area-downsampled to 320 x
-240 (even half): GelSight 0.246 (``patch=48``) / 0.265 (``patch=24``), Mini 0.033 / 0.033 —
-the shipped gains (:data:`tacswitch.sim.presets.MECHANICS_GAINS`, fitted at the marker grid
->= 2 contact radii away by ``benches/bench_press_calibration.py``) are 0.25 and 0.04.
+odd halves, 640 x 480), the rule: GelSight 0.284 / 0.300, Mini 0.036 / 0.036; the ensemble:
+GelSight 0.288 / 0.303, Mini 0.039 / 0.037, explaining more of the grain's motion (0.64 / 0.64
+vs 0.61 / 0.63 of it on GelSight, 0.16 / 0.15 vs 0.08 / 0.09 on the Mini). The rule,
+area-downsampled to 320 x 240 (even half): GelSight 0.246 (``patch=48``) / 0.265
+(``patch=24``), Mini 0.033 / 0.033 — the shipped gains
+(:data:`tacswitch.sim.presets.MECHANICS_GAINS`, fitted at the marker grid >= 2 contact radii
+away by ``benches/bench_press_calibration.py``) are 0.25 and 0.04.
 """
 
 from __future__ import annotations
@@ -49,8 +53,8 @@ class PressGain:
     """Result of :func:`calibrate_press_gain`.
 
     Attributes:
-        gain: the gain to pass as ``predict_motion(..., method="mechanics", gain=gain)``
-            (>= 0).
+        gain: the gain to pass as ``predict_motion(..., gain=gain)`` (>= 0; for the method it
+            was fitted for, :attr:`method`).
         raw_gain: the unclamped least-squares value (negative: the gel moved inward on
             average, or nothing measurable).
         stderr: its standard error (robust residual scale; patches treated as independent,
@@ -70,6 +74,7 @@ class PressGain:
     n_patches: int
     explained: float
     peak: float
+    method: str = "ensemble"
 
 
 def _frame(img: Any, name: str) -> NDArray[np.uint8]:
@@ -81,10 +86,21 @@ def _frame(img: Any, name: str) -> NDArray[np.uint8]:
     return arr
 
 
+def _unit_prediction(method: str) -> Any:
+    """``fn(frame, points)``: the single-frame motion of ``method`` at gain 1."""
+    if method == "mechanics":
+        from tacswitch.motion.mechanics import mechanics_motion
+
+        return lambda im, pts: mechanics_motion(im, None, pts, gain=1.0)
+    from tacswitch.motion.ensemble import ensemble_motion
+
+    return lambda im, pts: ensemble_motion(im, None, pts, gain=1.0)
+
+
 def calibrate_press_gain(no_contact: Any, frames: Any, centres: Any = None, *,
-                         patch: int = 48, step: int = 16, min_peak: float = 0.08
-                         ) -> PressGain:
-    """The mechanics rule's press gain for this sensor, from a no-contact frame and press frames.
+                         patch: int = 48, step: int = 16, min_peak: float = 0.08,
+                         method: str = "ensemble") -> PressGain:
+    """The press gain for this sensor, from a no-contact frame and press frames.
 
     Args:
         no_contact: the sensor's markerless no-contact frame, ``H x W x 3`` uint8 BGR.
@@ -98,6 +114,10 @@ def calibrate_press_gain(no_contact: Any, frames: Any, centres: Any = None, *,
         patch: block-matching patch side, px (>= 8; 48 at 640 x 480, the measurement's).
         step: default grid spacing, px (>= 1).
         min_peak: smallest NCC peak accepted, in [-1, 1).
+        method: whose gain: ``"ensemble"`` (default: what ``predict_motion`` runs on a single
+            frame or against the no-contact frame, :mod:`tacswitch.motion.ensemble`; its
+            unit-gain prediction is the mean of the rule's and the learned model's, both scaled
+            as ``gain=1`` scales them) or ``"mechanics"`` (the rule alone).
 
     Returns:
         :class:`PressGain`.
@@ -107,8 +127,11 @@ def calibrate_press_gain(no_contact: Any, frames: Any, centres: Any = None, *,
     """
     from tacswitch._checks import as_points
     from tacswitch.motion import grainmatch as gm
-    from tacswitch.motion.mechanics import imprint, mechanics_motion
+    from tacswitch.motion.mechanics import imprint
 
+    if method not in ("ensemble", "mechanics"):
+        raise ValueError(f"method: unknown {method!r}; choose 'ensemble' or 'mechanics'")
+    predict = _unit_prediction(method)
     f0 = _frame(no_contact, "no_contact")
     if isinstance(frames, np.ndarray) and frames.ndim == 3:
         raise ValueError(f"frames: expected a sequence of H x W x 3 frames; got one array of "
@@ -155,7 +178,7 @@ def calibrate_press_gain(no_contact: Any, frames: Any, centres: Any = None, *,
         ok = inside & np.isfinite(d).all(1) & (pk >= min_peak) & (share <= MAX_IMPRINT_SHARE)
         if not ok.any():
             continue
-        p = mechanics_motion(im, None, pts[ok], gain=1.0).astype(np.float64)
+        p = predict(im, pts[ok]).astype(np.float64)
         rel = pts[ok].astype(np.float64) - about
         for ax in (0, 1):
             a = gm.similarity_rows(rel, j, ax, 4 * n_f + 1)
@@ -186,4 +209,4 @@ def calibrate_press_gain(no_contact: Any, frames: Any, centres: Any = None, *,
     sigma2 = float((wt * res ** 2).sum()) / max(float(wt.sum()) - a.shape[1], 1.0)
     return PressGain(gain=max(0.0, g), raw_gain=g, stderr=float(np.sqrt(sigma2 * var)),
                      n_frames=n_f, n_patches=n_patches, explained=explained,
-                     peak=float(np.median(np.concatenate(peaks))))
+                     peak=float(np.median(np.concatenate(peaks))), method=method)

@@ -106,22 +106,20 @@ def main() -> int:
     rows: list[list[str]] = []
     odd = [j for j, o in enumerate(g["odd"]) if o]
     true = np.concatenate([g["true"][j][g["ok"][j]] for j in odd])
-    for meth, fn in fns().items():
-        pred = np.concatenate([fn(g["img"][j], g["rest"][j])[g["ok"][j]] for j in odd])
-        rows.append(motion_row("real GelSight presses, grain-matched gel motion (odd presses)",
-                               meth, motion_metrics(pred, true, min_px=0.5), 0.5, len(odd),
-                               float("nan")))
+
+    def score_odd(title: str, methods: dict[str, Fn]) -> None:
+        for meth, fn in methods.items():
+            pred = np.concatenate([fn(g["img"][j], g["rest"][j])[g["ok"][j]] for j in odd])
+            rows.append(motion_row(title, meth, motion_metrics(pred, true, min_px=0.5), 0.5,
+                                   len(odd), float("nan")))
+
+    score_odd("real GelSight presses, grain-matched gel motion (odd presses)", fns())
     f0 = press.proxy.load_real_presses("gelsight").f0
-    ref_fns: dict[str, Fn] = {
+    score_odd("the same, from the no-contact frame", {
         "zero": lambda im, c: np.zeros((len(c), 2), np.float32),
         "mechanics rule": lambda im, c: mechanics_motion(im, f0, c),
         "ensemble (predict_motion default)": lambda im, c: ensemble_motion(im, f0, c),
-        "flow": lambda im, c: flow_motion(im, f0, c)}
-    for meth, fn in ref_fns.items():
-        pred = np.concatenate([fn(g["img"][j], g["rest"][j])[g["ok"][j]] for j in odd])
-        rows.append(motion_row("the same, from the no-contact frame", meth,
-                               motion_metrics(pred, true, min_px=0.5), 0.5, len(odd),
-                               float("nan")))
+        "flow": lambda im, c: flow_motion(im, f0, c)})
     mini = press.proxy.load_real_presses("gelsight_mini")
     mrest, _ = press.proxy.marker_grid("gelsight_mini")
     for gain in (MECHANICS_GAIN, MECHANICS_GAINS["gelsight_mini"]):

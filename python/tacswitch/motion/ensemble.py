@@ -53,32 +53,30 @@ __all__ = ["ENSEMBLE_MODEL", "ensemble_motion", "learned_model", "learned_part"]
 #: The shipped model whose single-frame output the ensemble uses by default.
 ENSEMBLE_MODEL = "single"
 
-_POOL: tuple[int, ThreadPoolExecutor] | None = None
+_POOL: ThreadPoolExecutor | None = None
 _POOL_LOCK = threading.Lock()
 
 
 def _reset_after_fork() -> None:
-    # A child may be forked while another thread holds the lock: it gets fresh ones.
+    # A forked child inherits the pool without its thread (work would wait forever) and maybe
+    # a lock another thread held: it starts with neither.
     global _POOL, _POOL_LOCK
     _POOL, _POOL_LOCK = None, threading.Lock()
 
 
-if hasattr(os, "register_at_fork"):
+if hasattr(os, "register_at_fork"):  # POSIX: the only platforms that fork
     os.register_at_fork(after_in_child=_reset_after_fork)
 
 
 def _pool() -> ThreadPoolExecutor:
-    """The one-thread pool the learned half runs on, made per process: a child forked after
-    the parent used it inherits a pool whose thread does not exist there (work would wait
-    forever), so a new pid gets a new pool. Callers on several threads share it: their learned
-    halves run one at a time (3-5 ms each), their rules in parallel."""
+    """The one-thread pool the learned half runs on (one per process, see
+    :func:`_reset_after_fork`). Callers on several threads share it: their learned halves run
+    one at a time (3-5 ms each), their rules in parallel."""
     global _POOL
-    pid = os.getpid()
     with _POOL_LOCK:
-        if _POOL is None or _POOL[0] != pid:
-            _POOL = (pid, ThreadPoolExecutor(max_workers=1,
-                                             thread_name_prefix="tacswitch-ensemble"))
-        return _POOL[1]
+        if _POOL is None:
+            _POOL = ThreadPoolExecutor(max_workers=1, thread_name_prefix="tacswitch-ensemble")
+        return _POOL
 
 
 def learned_model(model: str | os.PathLike[str] | None) -> MotionModel:

@@ -262,3 +262,49 @@ def test_suppress_imprint_bad_inputs(mini, grid) -> None:
         predict_motion(img, mini.f0, grid, suppress_imprint="yes")
     with pytest.raises(ValueError, match=r"^suppress_imprint: applies to method='flow'"):
         predict_motion(img, mini.f0, grid, method="outward", suppress_imprint=True)
+
+
+def test_cli_slip_markerless_ignores_texture_drifting_far_from_the_contact(mini, tmp_path,
+                                                                          capsys) -> None:
+    """A compressed video's texture can drift far from the contact (real H.264 does); slip is
+    judged near the contact only, unless --all-markers."""
+    import csv
+
+    import cv2
+
+    from tacswitch.cli import main
+
+    i = 6
+    cx, cy = mini.centres[i]
+    h, w = mini.f0.shape[:2]
+    # The corner block (a quarter of the width and height) farthest from the contact.
+    bw, bh = w // 4, h // 4
+    x0 = 0 if cx > w / 2 else w - bw
+    y0 = 0 if cy > h / 2 else h - bh
+    folder = tmp_path / "rec"
+    folder.mkdir()
+    cv2.imwrite(str(tmp_path / "f0.png"), mini.f0)
+    frames = [mini.f0] * 3 + [mini.imgs[i]] * 3
+    for k in range(1, 7):
+        f = mini.imgs[i].copy()
+        block = np.ascontiguousarray(f[y0:y0 + bh, x0:x0 + bw])
+        shift = np.float32([[1, 0, float(k)], [0, 1, 0]])
+        f[y0:y0 + bh, x0:x0 + bw] = cv2.warpAffine(block, shift, block.shape[1::-1],
+                                                   borderMode=cv2.BORDER_REFLECT)
+        frames.append(f)
+    for t, f in enumerate(frames):
+        cv2.imwrite(str(folder / f"{t:03d}.png"), f)
+    log = tmp_path / "log.csv"
+    flagged = {}
+    for extra in ([], ["--all-markers"]):
+        assert main(["slip", str(folder), "--markerless", "--ref", str(tmp_path / "f0.png"),
+                     "--start", "3", "--log", str(log), "-q", *extra]) == 0
+        rows = list(csv.DictReader(open(log)))
+        flagged[bool(extra)] = [int(r["frame"]) for r in rows if r["slip"] == "1"]
+        valid = {int(r["valid_markers"]) for r in rows if int(r["frame"]) >= 3}
+        assert valid == {99} if extra else (len(valid) == 1 and min(valid) < 99)
+    assert flagged[False] == [] and flagged[True]
+    capsys.readouterr()
+    assert main(["slip", str(folder), "--all-markers", "--log", str(log), "-q"]) != 0
+    assert capsys.readouterr().err.strip() == ("tacswitch slip: error: --all-markers: applies "
+                                               "to --markerless only")

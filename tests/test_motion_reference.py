@@ -88,3 +88,19 @@ def test_auto_rejects_flow_only_options_and_bad_gains(mini, grid) -> None:
         predict_motion(mini.imgs[2], mini.f0, grid, gain=-1.0)
     with pytest.raises(ValueError, match=r"^gain: unknown sensor 'digit'"):
         predict_motion(mini.imgs[2], mini.f0, grid, gain="digit")
+
+
+def test_near_contact_keeps_the_markers_around_the_contact(mini, grid) -> None:
+    w = mini.f0.shape[1]
+    for i in (2, 10, 20):
+        near = reference.near_contact(mini.imgs[i], mini.f0, grid)
+        d = np.hypot(*(grid - mini.centres[i]).T)
+        # Every marker on the contact counts, none far beyond the reach does.
+        assert near[d <= mini.radii[i]].all()
+        assert not near[d > mini.radii[i] + 2.5 * reference.CONTACT_REACH * w].any()
+        assert 0 < near.sum() < len(grid)
+    # Nothing changed (identical frames, a brightness change): no contact to place, all count.
+    assert reference.near_contact(mini.f0, mini.f0.copy(), grid).all()
+    brighter = np.clip(mini.f0.astype(np.float32) * 1.1, 0, 255).astype(np.uint8)
+    assert reference.near_contact(brighter, mini.f0, grid).all()
+    assert reference.near_contact(mini.imgs[2], mini.f0, grid[:0]).shape == (0,)

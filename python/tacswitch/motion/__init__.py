@@ -6,12 +6,14 @@
   the networks, training and ONNX export (need torch, ``pip install "tacswitch[train]"``);
 - :mod:`tacswitch.motion.sequence`: :class:`MarkerlessTracker`, motion from rest over a video
   that starts at the no-contact frame;
-- :mod:`tacswitch.motion.reference`: does a reference lack the frame's contact;
+- :mod:`tacswitch.motion.reference`: does a reference lack the frame's contact, which markers
+  lie near it;
 - :mod:`tacswitch.motion.flow` (dense optical flow from a reference),
   :mod:`~tacswitch.motion.heuristic` (the outward-from-contact rule) and
   :mod:`~tacswitch.motion.mechanics` (an elastic press law on the imprint): the training-free
   methods of :func:`predict_motion`;
 - :mod:`tacswitch.motion.proxy`: real-texture proxies (real frames warped by known fields);
+  :mod:`~tacswitch.motion.slip_proxy`: grasp videos of real texture for markerless slip;
 - :mod:`tacswitch.motion.evaluate`: the paper's metrics, the baselines and slip on markerless
   streams.
 

@@ -22,7 +22,7 @@ vibration sequences, detection delay in frames after the slip onset.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any, Literal
 
 import numpy as np
@@ -145,7 +145,8 @@ def slip_on_grasps(sources: dict[str, Callable[..., NDArray[np.float32]]], *,
                    preset: str = "gelsight_mini", n_per_kind: int = 6, n_frames: int = 30,
                    seed: int = 100, ref_frame: str = "grasp_start",
                    criteria: dict[str, dict[str, Any]] | None = None,
-                   smooth_frames: int = 1) -> dict[tuple[str, str], dict[str, Any]]:
+                   smooth_frames: int = 1, near_contact_only: bool = False
+                   ) -> dict[tuple[str, str], dict[str, Any]]:
     """Slip detection on rendered grasps (hold / slip / vibration) from markerless motion.
 
     Every source ``predict(img, ref, rest)`` gets each markerless frame from the grasp start on
@@ -158,14 +159,16 @@ def slip_on_grasps(sources: dict[str, Callable[..., NDArray[np.float32]]], *,
     :class:`tacswitch.SlipDetector`) applies to the predicted sources; with ``smooth_frames > 1``
     the same motion is also judged without it (``"NAME unsmoothed"``) and tracking with it
     (``"tracked smoothed"``), so each row differs from another by one thing.
+    ``near_contact_only``: the predicted sources' rule sees only the markers near the
+    grasp-start frame's contact (:func:`tacswitch.motion.reference.near_contact` against the
+    no-contact frame), as ``tacswitch slip --markerless`` does.
 
     Returns per ``(source, criterion)``: ``correct``, ``n``, ``accuracy``, ``slips_found`` /
     ``n_slip``, false alarms on ``hold`` / ``vibration`` (and their counts), the delays (frames
     after the slip onset) of the detections and ``ms`` per predicted frame.
     """
-    import time
-
     import tacswitch as ts
+    from tacswitch.motion.reference import near_contact
     from tacswitch.sim.grasp import render_grasp
 
     if ref_frame not in ("grasp_start", "no_contact", "none"):
@@ -181,10 +184,7 @@ def slip_on_grasps(sources: dict[str, Callable[..., NDArray[np.float32]]], *,
         rows += [(f"{n} unsmoothed", n, 1) for n in sources]
         rows += [("tracked smoothed", "tracked", smooth)]
     names = [r[0] for r in rows]
-    res: dict[tuple[str, str], dict[str, Any]] = {
-        (s, c): {"correct": 0, "n": 0, "n_slip": 0, "slips_found": 0, "fa_hold": 0,
-                 "n_hold": 0, "fa_vibration": 0, "n_vibration": 0, "delays": [], "t": 0.0,
-                 "frames": 0} for s in names for c in crit}
+    res = {(s, c): _new_tally() for s in names for c in crit}
     kinds: tuple[Literal["slip", "hold", "vibration"], ...] = ("slip", "hold", "vibration")
     for kind in kinds:
         for k in range(n_per_kind):
@@ -193,15 +193,18 @@ def slip_on_grasps(sources: dict[str, Callable[..., NDArray[np.float32]]], *,
             rest = seq.scene.rest
             w = seq.reference.shape[1]
             g0 = seq.grasp_start
+            no_contact = (seq.scene.render(np.random.default_rng([seed, 1, k]), depth=0.0).image
+                          if ref_frame == "no_contact" or near_contact_only else None)
             ref = (seq.frames[g0].image if ref_frame == "grasp_start" else None
-                   if ref_frame == "none"
-                   else seq.scene.render(np.random.default_rng([seed, 1, k]), depth=0.0).image)
+                   if ref_frame == "none" else no_contact)
+            valid = (near_contact(seq.frames[g0].image, no_contact, rest)
+                     if no_contact is not None and near_contact_only else None)
             onset = int(seq.params["onset"])
             motions: dict[str, list[tuple[NDArray[np.float32], Any]]] = {}
             times: dict[str, float] = {}
             for name, predict in sources.items():
                 t0 = time.perf_counter()
-                motions[name] = [(predict(seq.frames[t].image, ref, rest), None)
+                motions[name] = [(predict(seq.frames[t].image, ref, rest), valid)
                                  for t in range(g0, len(seq))]
                 times[name] = time.perf_counter() - t0
             tracker = ts.MarkerTracker(seq.reference)
@@ -216,26 +219,84 @@ def slip_on_grasps(sources: dict[str, Callable[..., NDArray[np.float32]]], *,
                 for cname, opts in crit.items():
                     det = ts.SlipDetector(image_width=w, points=pts if src == "tracked" else rest,
                                           smooth_frames=n_smooth, **opts)
-                    first = None
-                    for j, (m, v) in enumerate(motions[src]):
-                        if det.update(m, v).slip and first is None:
-                            first = g0 + j
-                    r = res[(name, cname)]
-                    r["n"] += 1
-                    if src in times:
-                        r["t"] += times[src]
-                        r["frames"] += len(motions[src])
-                    if kind == "slip":
-                        r["n_slip"] += 1
-                        r["slips_found"] += int(first is not None)
-                        r["correct"] += int(first is not None)
-                        if first is not None:
-                            r["delays"].append(first - onset)
-                    else:
-                        r[f"n_{kind}"] += 1
-                        r[f"fa_{kind}"] += int(first is not None)
-                        r["correct"] += int(first is None)
+                    _tally(res[(name, cname)], kind, onset, _first_slip(det, motions[src], g0),
+                           times.get(src), len(motions[src]))
+    return _finish(res)
+
+
+def _new_tally() -> dict[str, Any]:
+    return {"correct": 0, "n": 0, "n_slip": 0, "slips_found": 0, "fa_hold": 0, "n_hold": 0,
+            "fa_vibration": 0, "n_vibration": 0, "delays": [], "t": 0.0, "frames": 0}
+
+
+def _first_slip(det: Any, motions: list[tuple[NDArray[np.float32], Any]], g0: int
+                ) -> int | None:
+    """The first frame (index from the sequence start; motions start at frame ``g0``) where the
+    detector reports slip, or None."""
+    for j, (m, v) in enumerate(motions):
+        if det.update(m, v).slip:
+            return g0 + j
+    return None
+
+
+def _tally(r: dict[str, Any], kind: str, onset: int, first: int | None, seconds: float | None,
+           frames: int) -> None:
+    """Counts one grasp of ``kind`` whose first detection is ``first`` into ``r``."""
+    r["n"] += 1
+    if seconds is not None:
+        r["t"] += seconds
+        r["frames"] += frames
+    if kind == "slip":
+        r["n_slip"] += 1
+        r["slips_found"] += int(first is not None)
+        r["correct"] += int(first is not None)
+        if first is not None:
+            r["delays"].append(first - onset)
+    else:
+        r[f"n_{kind}"] += 1
+        r[f"fa_{kind}"] += int(first is not None)
+        r["correct"] += int(first is None)
+
+
+def _finish(res: dict[tuple[str, str], dict[str, Any]]) -> dict[tuple[str, str], dict[str, Any]]:
     for r in res.values():
         r["accuracy"] = r["correct"] / max(r["n"], 1)
         r["ms"] = 1e3 * r["t"] / r["frames"] if r["frames"] else float("nan")
     return res
+
+
+def slip_on_videos(sources: dict[str, Callable[..., NDArray[np.float32]]], grasps: Iterable[Any],
+                   *, criteria: dict[str, dict[str, Any]] | None = None,
+                   smooth_frames: int = 1, near_contact_only: bool = False
+                   ) -> dict[tuple[str, str], dict[str, Any]]:
+    """Slip detection on grasp videos without marker truth (e.g.
+    :func:`tacswitch.motion.slip_proxy.real_grasps`: objects with ``frames``, ``rest``,
+    ``kind``, ``grasp_start`` and ``onset``): every source ``predict(img, ref, rest)`` gets each
+    frame from the grasp start on with ``ref`` = the grasp-start frame; each criterion
+    (:data:`SLIP_CRITERIA`) decides on the mean motion of the last ``smooth_frames`` frames.
+    ``near_contact_only``: the rule sees only the markers near the grasp-start frame's contact
+    (:func:`tacswitch.motion.reference.near_contact`, against frame 0 as the no-contact frame:
+    the videos must start before the touch), as ``tacswitch slip --markerless`` does.
+    Returns per ``(source, criterion)`` what :func:`slip_on_grasps` returns."""
+    import tacswitch as ts
+    from tacswitch._checks import as_count
+    from tacswitch.motion.reference import near_contact
+
+    smooth = as_count(smooth_frames, "smooth_frames", 1, 1000)
+    crit = SLIP_CRITERIA if criteria is None else criteria
+    res = {(s, c): _new_tally() for s in sources for c in crit}
+    for g in grasps:
+        g0 = int(g.grasp_start)
+        ref = g.frames[g0]
+        valid = near_contact(ref, g.frames[0], g.rest) if near_contact_only else None
+        for name, predict in sources.items():
+            t0 = time.perf_counter()
+            motions = [(predict(g.frames[t], ref, g.rest), valid)
+                       for t in range(g0, len(g.frames))]
+            sec = time.perf_counter() - t0
+            for cname, opts in crit.items():
+                det = ts.SlipDetector(image_width=g.frames.shape[2], points=g.rest,
+                                      smooth_frames=smooth, **opts)
+                _tally(res[(name, cname)], g.kind, int(g.onset), _first_slip(det, motions, g0),
+                       sec, len(motions))
+    return _finish(res)

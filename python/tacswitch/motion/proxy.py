@@ -57,8 +57,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ["CONTACT_KINDS", "FIELD_KINDS", "SENSORS", "SETTINGS", "ContactSample", "Field",
-           "ProxySample", "backward_map", "contact_fields", "load_real_presses",
-           "make_contact_proxy", "make_proxy", "marker_grid", "random_field", "warp", "warp_dense"]
+           "ProxySample", "backward_map", "contact_fields", "dense_backward_map",
+           "load_real_presses", "make_contact_proxy", "make_proxy", "marker_grid", "random_field",
+           "warp", "warp_dense"]
 
 FIELD_KINDS = ("press", "shear", "twist", "mix")
 SETTINGS = ("no_contact", "press", "single")
@@ -406,7 +407,19 @@ def warp_dense(src: NDArray[np.uint8], v: NDArray[np.float32], max_iterations: i
     ``ValueError`` if the fixed point ``X <- y - v(X)`` does not converge (too steep a field)."""
     import cv2
 
-    h, w = src.shape[:2]
+    px, py = dense_backward_map(v, max_iterations, tol)
+    return np.asarray(cv2.remap(src, px, py, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT),
+                      np.uint8)
+
+
+def dense_backward_map(v: NDArray[np.float32], max_iterations: int = 200, tol: float = 1e-3
+                       ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """The ``cv2.remap`` maps ``(map_x, map_y)`` (``H x W`` float32) that move content by the
+    dense field ``v`` (as :func:`warp_dense`): the rest point ``X`` with ``X + v(X) = x`` for
+    every pixel ``x``, by fixed-point iteration. ``ValueError`` if it does not converge."""
+    import cv2
+
+    h, w = v.shape[:2]
     ys, xs = np.mgrid[0:h, 0:w].astype(np.float32)
     vx = np.ascontiguousarray(v[..., 0], np.float32)
     vy = np.ascontiguousarray(v[..., 1], np.float32)
@@ -421,8 +434,7 @@ def warp_dense(src: NDArray[np.uint8], v: NDArray[np.float32], max_iterations: i
         px, py = xs - ux, ys - uy
     if res > 1e-2:
         raise ValueError(f"v: the backward map did not converge (residual {res:.3g} px)")
-    return np.asarray(cv2.remap(src, px, py, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT),
-                      np.uint8)
+    return px, py
 
 
 def contact_fields(sensor: str, centre: tuple[float, float], radius_px: float, kind: str,

@@ -35,7 +35,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["CHANGE", "NEW_CONTACT_RATIO", "WORK_WIDTH", "contact_energy_ratio", "is_new_contact"]
+__all__ = ["CHANGE", "CONTACT_REACH", "NEW_CONTACT_RATIO", "WORK_WIDTH", "contact_energy_ratio",
+           "is_new_contact", "near_contact"]
 
 #: Width (px) the frames are area-downsampled to before the test (a coarse, cheap statistic).
 WORK_WIDTH = 160
@@ -45,6 +46,13 @@ CHANGE = 0.04
 MIN_CHANGED_FRAC = 0.002
 #: :func:`contact_energy_ratio` below this: ``ref`` lacks ``img``'s contact.
 NEW_CONTACT_RATIO = 0.6
+#: :func:`near_contact`: how far from the changed region a marker still counts, a fraction of
+#: the frame width (16 px at 320 wide: about half a GelSight Mini pitch, so some marker always
+#: counts). Chosen among 0.05-0.25 on development grasps (real-texture videos of
+#: ``benches/bench_slip_real_texture.py`` at seed 1, every 6th press from the 3rd, H.264 CRF
+#: 23 / 28 and MJPEG; simulated grasps of seed 200): the fewest false alarms on H.264, every
+#: slip still found by the displacement rule.
+CONTACT_REACH = 0.05
 
 
 def _grey_small(img: NDArray[np.uint8], k: int) -> NDArray[np.float32]:
@@ -68,11 +76,10 @@ def _gradient_energy(b: NDArray[np.float32], region: NDArray[np.float32]) -> flo
     return float(np.vdot(gx * gx + gy * gy, region))
 
 
-def contact_energy_ratio(img: NDArray[np.uint8], ref: NDArray[np.uint8]) -> float:
-    """Shading-gradient energy of ``ref`` over that of ``img`` where the two frames differ
-    (validated uint8 frames of one shape, BGR or grey); 1.0 when nothing changed (identical
-    frames, a pure brightness change). Small: ``ref`` shows flat gel where ``img`` has a
-    contact (see the module doc)."""
+def _changed(img: NDArray[np.uint8], ref: NDArray[np.uint8]
+             ) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32], int]:
+    """``(img, ref)`` grey, area-downsampled by ``k`` to about :data:`WORK_WIDTH`, blurred and
+    gain-matched, the region where they differ (0 / 1 float mask at that size), and ``k``."""
     import cv2
 
     k = max(1, round(img.shape[1] / WORK_WIDTH))
@@ -85,6 +92,35 @@ def contact_energy_ratio(img: NDArray[np.uint8], ref: NDArray[np.uint8]) -> floa
     gain = float(np.median(bi[::4, ::4])) / max(float(np.median(br[::4, ::4])), 1.0)
     bi *= np.float32(1.0 / max(gain, 1e-3))
     region = (np.abs(bi - br) > np.float32(CHANGE) * np.maximum(br, 4.0)).astype(np.float32)
+    return bi, br, region, k
+
+
+def near_contact(img: NDArray[np.uint8], no_contact: NDArray[np.uint8],
+                 centres: NDArray[np.float32], reach: float = CONTACT_REACH) -> NDArray[np.bool_]:
+    """Which markers (rest ``centres`` ``N x 2``, ``(x, y)`` px) lie within ``reach`` x the
+    frame width of where ``img`` differs from the no-contact frame (the region
+    :func:`contact_energy_ratio` uses): the gel moves only there, so only those markers can
+    show slip. Every marker when nothing changed (no contact to place)."""
+    import cv2
+
+    _, _, region, k = _changed(img, no_contact)
+    n = len(centres)
+    if n == 0 or float(region.sum()) < max(4.0, MIN_CHANGED_FRAC * region.size):
+        return np.ones(n, bool)
+    # Distance (px at the small size) from every pixel to the changed region.
+    dist = cv2.distanceTransform((region == 0).astype(np.uint8), cv2.DIST_L2, 5)
+    pts = ((np.asarray(centres, np.float64) + 0.5) / k - 0.5).round().astype(int)
+    h, w = dist.shape
+    d = dist[np.clip(pts[:, 1], 0, h - 1), np.clip(pts[:, 0], 0, w - 1)]
+    return np.asarray(d <= reach * w, bool)
+
+
+def contact_energy_ratio(img: NDArray[np.uint8], ref: NDArray[np.uint8]) -> float:
+    """Shading-gradient energy of ``ref`` over that of ``img`` where the two frames differ
+    (validated uint8 frames of one shape, BGR or grey); 1.0 when nothing changed (identical
+    frames, a pure brightness change). Small: ``ref`` shows flat gel where ``img`` has a
+    contact (see the module doc)."""
+    bi, br, region, _ = _changed(img, ref)
     if float(region.sum()) < max(4.0, MIN_CHANGED_FRAC * region.size):
         return 1.0
     e_img = _gradient_energy(bi, region)

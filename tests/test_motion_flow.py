@@ -308,3 +308,36 @@ def test_cli_slip_markerless_ignores_texture_drifting_far_from_the_contact(mini,
     assert main(["slip", str(folder), "--all-markers", "--log", str(log), "-q"]) != 0
     assert capsys.readouterr().err.strip() == ("tacswitch slip: error: --all-markers: applies "
                                                "to --markerless only")
+
+
+def _write_video(path, frames, codec: str) -> None:
+    av = pytest.importorskip("av")
+    out = av.open(str(path), "w")
+    st = out.add_stream(codec, rate=25)
+    st.height, st.width = frames[0].shape[:2]
+    st.pix_fmt = "yuv420p" if codec == "libx264" else "yuvj420p"
+    for f in frames:
+        for pk in st.encode(av.VideoFrame.from_ndarray(f[..., ::-1].copy(), format="rgb24")):
+            out.mux(pk)
+    for pk in st.encode():
+        out.mux(pk)
+    out.close()
+
+
+def test_cli_slip_markerless_warns_about_inter_frame_codecs(mini, tmp_path, capsys) -> None:
+    from tacswitch.cli import main
+    from tacswitch.cli.sources import video_codec
+
+    frames = [mini.f0] * 3 + [mini.imgs[6]] * 3
+    log = tmp_path / "log.csv"
+    for codec, name, warned in (("libx264", "v.mp4", True), ("mjpeg", "v.avi", False)):
+        _write_video(tmp_path / name, frames, codec)
+        capsys.readouterr()
+        assert main(["slip", str(tmp_path / name), "--markerless", "--log", str(log), "-q"]) == 0
+        err = capsys.readouterr().err
+        assert ("warning: source: 'h264' video" in err) is warned, err
+    # Without --markerless (markers tracked, not predicted) nothing is said of the codec (this
+    # video has no markers, so the run stops with its own error).
+    assert main(["slip", str(tmp_path / "v.mp4"), "--log", str(log), "-q"]) != 0
+    assert "warning" not in capsys.readouterr().err
+    assert video_codec(tmp_path / "log.csv") is None

@@ -113,6 +113,8 @@ def run(args: argparse.Namespace) -> int:
     from tacswitch.cli.progress import progress
 
     _check(args)
+    if args.markerless:
+        _warn_inter_frame_codec(args.source)
     show = args.show and (sys.platform == "win32" or bool(os.environ.get("DISPLAY")))
     tracker: ts.MarkerTracker | MarkerlessMotion | None = None
     detector: ts.SlipDetector | None = None
@@ -247,6 +249,23 @@ class MarkerlessMotion:
         motion = predict_motion(frame, self.grasp_ref, self.reference, method=self.method,
                                 model=self.model)
         return motion, self.grasp_valid.copy()
+
+
+def _warn_inter_frame_codec(source: str) -> None:
+    """One line on stderr when a markerless slip run reads a video whose codec predicts frames
+    from earlier ones (H.264 and the like): flow reads its drifting texture as motion."""
+    from pathlib import Path
+
+    from tacswitch.cli.sources import INTER_FRAME_CODECS, video_codec
+
+    if source.isdigit() or not Path(source).is_file():
+        return
+    codec = video_codec(source)
+    if codec in INTER_FRAME_CODECS:
+        print(f"tacswitch slip: warning: source: {codec!r} video; on inter-frame codecs the "
+              "gel's texture drifts between frames and raises false slip alarms (real-texture "
+              "H.264 grasps: GelSight 24-29 of 36 right, 36 lossless or MJPEG); record "
+              "lossless or MJPEG for --markerless", file=sys.stderr)
 
 
 def _smooth_frames(args: argparse.Namespace) -> int:

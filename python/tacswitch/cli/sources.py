@@ -136,6 +136,32 @@ def video_info(path: str | Path, name: str = "source") -> tuple[float, int | Non
     return (fps if np.isfinite(fps) and fps > 0 else 0.0), (count if count > 0 else None)
 
 
+#: FOURCCs (lower case) of codecs that predict frames from earlier ones (H.264, HEVC, MPEG-4
+#: part 2, VP8 / VP9, AV1): their decoded gel texture drifts and refreshes from frame to frame.
+INTER_FRAME_CODECS = frozenset({"avc1", "h264", "x264", "davc", "hev1", "hvc1", "hevc", "h265",
+                                "mp4v", "xvid", "divx", "fmp4", "vp80", "vp08", "vp90", "vp09",
+                                "av01"})
+
+
+def video_codec(path: str | Path) -> str | None:
+    """The FOURCC of a video file's codec, lower case (e.g. ``"avc1"`` for H.264, ``"mjpg"``),
+    or None when it cannot be told (not a video, no codec tag)."""
+    import cv2
+
+    _quiet_decoder()
+    cap = cv2.VideoCapture(str(path))
+    try:
+        if not cap.isOpened():
+            return None
+        code = int(cap.get(cv2.CAP_PROP_FOURCC))
+    finally:
+        cap.release()
+    if code <= 0:
+        return None
+    text = "".join(chr((code >> (8 * i)) & 0xFF) for i in range(4))
+    return text.strip().lower() if text.isprintable() and text.strip() else None
+
+
 def video_frames(path: str | Path, name: str = "source") -> Iterator[np.ndarray | None]:
     """Yields the frames of a video file, None for each frame that does not decode.
 

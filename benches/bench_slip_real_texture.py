@@ -59,8 +59,10 @@ def main() -> int:
         for spec in args.codecs:
             codec, q = _codec(spec)
             grasps = list(real_grasps(data, codec=codec, quality=q, seed=args.seed))
-            for smooth, gate in ((args.smooth_frames, True), (args.smooth_frames, False),
-                                 (1, False)):
+            runs = [(args.smooth_frames, True), (args.smooth_frames, False)]
+            if args.smooth_frames > 1:
+                runs.append((1, False))
+            for smooth, gate in runs:
                 res = slip_on_videos(sources, grasps, smooth_frames=smooth,
                                      near_contact_only=gate)
                 for name in sources:
@@ -70,7 +72,7 @@ def main() -> int:
                         delay = (f"{np.median(d):+.0f} [{min(d):+d}, {max(d):+d}]" if d
                                  else "-")
                         label = (f"{name}, markers near the contact (default)" if gate else
-                                 f"{name}, all markers" if smooth > 1 else
+                                 f"{name}, all markers" if smooth == args.smooth_frames else
                                  f"{name}, all markers, unsmoothed")
                         rows.append([sensor, spec, label, c,
                                      f"{r['correct']}/{r['n']} ({100 * r['accuracy']:.1f} %)",
@@ -92,8 +94,9 @@ def main() -> int:
              "frame's contact (`near_contact` against the video's first, no-contact frame; what "
              "`tacswitch slip --markerless` does) or over all markers (before). Delay: frames "
              "from the slip onset to the first detection (median [min, max]). Nothing was "
-             "chosen on these videos (the development videos: seed 1, every 6th press from the "
-             "3rd)."]
+             "chosen on these videos (the development videos: seed 1, presses 2, 8, 14, ... of "
+             "taxim's recordings; presses 8, 20, 32 and 44 are in both sets, with other "
+             "draws)."]
     header = ["sensor", "capture", "motion source", "criterion", "grasps right", "slips found",
               "false alarms hold", "false alarms vibration", "delay (frames)", "ms/frame"]
     cmd = ("python benches/bench_slip_real_texture.py --every "

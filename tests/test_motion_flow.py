@@ -326,7 +326,7 @@ def _write_video(path, frames, codec: str) -> None:
 
 def test_cli_slip_markerless_warns_about_inter_frame_codecs(mini, tmp_path, capsys) -> None:
     from tacswitch.cli import main
-    from tacswitch.cli.sources import video_codec
+    from tacswitch.cli.sources import INTER_FRAME_CODECS, video_codec
 
     frames = [mini.f0] * 3 + [mini.imgs[6]] * 3
     log = tmp_path / "log.csv"
@@ -335,9 +335,33 @@ def test_cli_slip_markerless_warns_about_inter_frame_codecs(mini, tmp_path, caps
         capsys.readouterr()
         assert main(["slip", str(tmp_path / name), "--markerless", "--log", str(log), "-q"]) == 0
         err = capsys.readouterr().err
-        assert ("warning: source: 'h264' video" in err) is warned, err
+        # (OpenCV's backends name H.264 'h264' or 'avc1'.)
+        assert ("warning: source: " in err) is warned, err
+        assert (video_codec(tmp_path / name) in INTER_FRAME_CODECS) is warned
     # Without --markerless (markers tracked, not predicted) nothing is said of the codec (this
     # video has no markers, so the run stops with its own error).
     assert main(["slip", str(tmp_path / "v.mp4"), "--log", str(log), "-q"]) != 0
     assert "warning" not in capsys.readouterr().err
     assert video_codec(tmp_path / "log.csv") is None
+
+
+def test_cli_slip_markerless_says_when_the_start_frame_shows_no_contact(mini, tmp_path,
+                                                                      capsys) -> None:
+    """A video that starts in contact, without --ref: the first frame is the reference, the
+    grasp-start frame shows no new contact against it, and every marker is judged (said)."""
+    import cv2
+
+    from tacswitch.cli import main
+
+    folder = tmp_path / "rec"
+    folder.mkdir()
+    for t in range(6):
+        cv2.imwrite(str(folder / f"{t:03d}.png"), mini.imgs[6])
+    log = tmp_path / "log.csv"
+    assert main(["slip", str(folder), "--markerless", "--start", "0", "--log", str(log),
+                 "-q"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("warning: --ref: the grasp-start frame shows no contact") == 1
+    assert main(["slip", str(folder), "--markerless", "--start", "0", "--all-markers", "--log",
+                 str(log), "-q"]) == 0
+    assert "warning" not in capsys.readouterr().err

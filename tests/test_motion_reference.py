@@ -104,3 +104,22 @@ def test_near_contact_keeps_the_markers_around_the_contact(mini, grid) -> None:
     brighter = np.clip(mini.f0.astype(np.float32) * 1.1, 0, 255).astype(np.uint8)
     assert reference.near_contact(brighter, mini.f0, grid).all()
     assert reference.near_contact(mini.imgs[2], mini.f0, grid[:0]).shape == (0,)
+
+
+def test_near_contact_keeps_a_few_markers_and_checks_its_arguments(mini) -> None:
+    # A small contact in the middle of a coarse grid's cell: no marker within the reach, the
+    # nearest MIN_NEAR_MARKERS still count (the rigid criterion needs 3).
+    img = mini.f0.copy()
+    img[100:110, 150:160] = 255
+    coarse = np.array([[x, y] for x in (95.0, 215.0) for y in (45.0, 165.0)], np.float32)
+    near = reference.near_contact(img, mini.f0, coarse)
+    assert near.sum() == reference.MIN_NEAR_MARKERS
+    assert reference.near_contact(mini.f0, mini.f0.copy(), coarse, fallback=False) is None
+    with pytest.raises(ValueError, match=r"^no_contact: shape"):
+        reference.near_contact(img, mini.f0[:100], coarse)
+    with pytest.raises(ValueError, match=r"^reach: "):
+        reference.near_contact(img, mini.f0, coarse, reach=-0.1)
+    with pytest.raises(ValueError, match=r"^centres: "):
+        reference.near_contact(img, mini.f0, coarse[:, :1])
+    with pytest.raises(TypeError, match=r"^img: "):
+        reference.near_contact(img.astype(np.float32), mini.f0, coarse)

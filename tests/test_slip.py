@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 import tacswitch as ts
 from tacswitch import sim
+from tacswitch.motion.evaluate import slip_on_videos
 from tacswitch.slip import scaled_threshold
 
 
@@ -180,3 +183,66 @@ def test_markerless_slip_evaluation_checks_smooth_frames_first() -> None:
         slip_on_grasps({}, smooth_frames=0)
     with pytest.raises(TypeError, match=r"^smooth_frames: "):
         evaluate_slip(lambda i, r, c: np.zeros_like(c), smooth_frames=2.0)  # type: ignore[arg-type]
+
+
+def _video(kind: str) -> SimpleNamespace:
+    frames = np.zeros((12, 16, 20, 3), np.uint8)
+    return SimpleNamespace(frames=frames, rest=np.array([[5.0, 5.0], [12.0, 9.0]], np.float32),
+                           kind=kind, grasp_start=6, onset=8)
+
+
+def test_slip_on_videos_counts_detections_and_delays() -> None:
+    grasps = [_video("slip"), _video("hold"), _video("vibration")]
+
+    def still(img: np.ndarray, ref: np.ndarray, rest: np.ndarray) -> np.ndarray:
+        return np.zeros((len(rest), 2), np.float32)
+
+    calls = {"n": 0}
+
+    def sliding(img: np.ndarray, ref: np.ndarray, rest: np.ndarray) -> np.ndarray:
+        # 7 px to the right from the 4th frame the detector sees (index 9 of the video) on.
+        calls["n"] += 1
+        k = (calls["n"] - 1) % 6
+        return np.full((len(rest), 2), [7.0 if k >= 3 else 0.0, 0.0], np.float32)
+
+    res = slip_on_videos({"still": still, "sliding": sliding}, grasps,
+                         criteria={"displacement": {}}, smooth_frames=1)
+    s = res[("still", "displacement")]
+    assert (s["correct"], s["n"], s["slips_found"], s["fa_hold"], s["fa_vibration"]) == \
+        (2, 3, 0, 0, 0)
+    m = res[("sliding", "displacement")]
+    assert (m["slips_found"], m["fa_hold"], m["fa_vibration"], m["correct"]) == (1, 1, 1, 1)
+    assert m["delays"] == [9 - 8]
+    with pytest.raises(ValueError, match="smooth_frames"):
+        slip_on_videos({"still": still}, grasps, smooth_frames=0)
+
+
+def test_slip_on_videos_judges_only_the_markers_near_the_contact() -> None:
+    """Motion far from the contact (a compressed video's drifting texture) raises no alarm when
+    ``near_contact_only``; over all markers it does."""
+    frames = np.full((10, 120, 160, 3), 120, np.uint8)
+    frames[3:, 40:80, 20:60] = 200  # the contact, from frame 3 on; frame 0 has none
+    rest = np.array([[30, 50], [40, 60], [50, 70], [130, 20], [140, 100], [120, 60]], np.float32)
+    hold = SimpleNamespace(frames=frames, rest=rest, kind="hold", grasp_start=4, onset=6)
+
+    calls = [0]
+
+    def drifting(img: np.ndarray, ref: np.ndarray, pts: np.ndarray) -> np.ndarray:
+        # The far markers drift 2 px more every frame after the grasp start.
+        m = np.zeros((len(pts), 2), np.float32)
+        m[3:] = (2.0 * calls[0], 0.0)
+        calls[0] += 1
+        return m
+
+    crit = {"displacement": {}}
+    gated = slip_on_videos({"d": drifting}, [hold], criteria=crit, near_contact_only=True)
+    calls[0] = 0
+    every = slip_on_videos({"d": drifting}, [hold], criteria=crit)
+    assert gated[("d", "displacement")]["fa_hold"] == 0
+    assert every[("d", "displacement")]["fa_hold"] == 1
+    bad = SimpleNamespace(frames=frames, rest=rest, kind="drop", grasp_start=4, onset=6)
+    with pytest.raises(ValueError, match="kind"):
+        slip_on_videos({"d": drifting}, [bad])
+    late = SimpleNamespace(frames=frames, rest=rest, kind="hold", grasp_start=10, onset=6)
+    with pytest.raises(ValueError, match="grasp_start"):
+        slip_on_videos({"d": drifting}, [late])

@@ -196,10 +196,10 @@ class MarkerlessMotion:
     appears, which optical flow cannot follow (on simulated grasps its error is 2-3 px there,
     0.4 px from the grasp start). Unless ``--all-markers``, only the markers near the
     grasp-start frame's contact are valid during a grasp
-    (:func:`tacswitch.motion.reference.near_contact` against the reference): the gel moves only
-    there, while far from it the texture of a compressed video drifts (real-texture H.264 grasp
-    videos of a GelSight Mini, CRF 23: 6 of 18 grasps right over all markers, 17 near the
-    contact; ``benches/bench_slip_real_texture.py``)."""
+    (:func:`tacswitch.motion.reference.near_contact` against the reference): the gel moves
+    most near the contact, while the texture of a compressed video drifts all over the gel
+    (real-texture H.264 grasp videos of a GelSight Mini, CRF 23: 6 of 18 grasps right over all
+    markers, 17 near the contact; ``benches/bench_slip_real_texture.py``)."""
 
     def __init__(self, first: np.ndarray, args: argparse.Namespace) -> None:
         from tacswitch._io import read_image
@@ -221,7 +221,9 @@ class MarkerlessMotion:
         self.positions = self.reference.copy()
         self.grasp_ref: np.ndarray | None = None
         self.all_markers = bool(args.all_markers)
-        self.grasp_valid = np.ones(len(self.reference), bool)
+        # The markers near the grasp-start frame's contact (None: all of them are judged).
+        self.grasp_near: np.ndarray | None = None
+        self.warned = False
 
     def __len__(self) -> int:
         return len(self.reference)
@@ -238,17 +240,26 @@ class MarkerlessMotion:
     def since_grasp(self, frame: np.ndarray, restart: bool) -> tuple[np.ndarray, np.ndarray]:
         """``(motion, valid)`` of this frame since the grasp start (``restart``: this frame is
         the start; its motion is exactly zero); valid: the markers near the grasp-start
-        frame's contact (every marker with ``--all-markers``)."""
+        frame's contact (every marker with ``--all-markers`` or when the start frame shows no
+        contact against ``--ref``)."""
         from tacswitch.motion.infer import predict_motion
         from tacswitch.motion.reference import near_contact
 
         if restart or self.grasp_ref is None:
             self.grasp_ref = frame.copy()
-            self.grasp_valid = (np.ones(len(self.reference), bool) if self.all_markers else
-                                near_contact(frame, self.ref, self.reference))
+            near = None if self.all_markers else near_contact(frame, self.ref, self.reference,
+                                                              fallback=False)
+            if near is None and not self.all_markers and not self.warned:
+                print("tacswitch slip: warning: --ref: the grasp-start frame shows no contact "
+                      "against the reference frame, so every marker is judged; pass --ref "
+                      "NO_CONTACT.png when the video starts in contact", file=sys.stderr)
+                self.warned = True
+            self.grasp_near = near
         motion = predict_motion(frame, self.grasp_ref, self.reference, method=self.method,
                                 model=self.model)
-        return motion, self.grasp_valid.copy()
+        if self.grasp_near is None:
+            return motion, np.ones(len(motion), bool)
+        return motion, self.grasp_near.copy()
 
 
 def _warn_inter_frame_codec(source: str) -> None:

@@ -136,11 +136,13 @@ def video_info(path: str | Path, name: str = "source") -> tuple[float, int | Non
     return (fps if np.isfinite(fps) and fps > 0 else 0.0), (count if count > 0 else None)
 
 
-#: FOURCCs (lower case) of codecs that predict frames from earlier ones (H.264, HEVC, MPEG-4
-#: part 2, VP8 / VP9, AV1): their decoded gel texture drifts and refreshes from frame to frame.
+#: FOURCCs (lower case) of codecs that predict frames from earlier ones (H.264, HEVC, MPEG-1 /
+#: 2 / 4 part 2, H.263, WMV, Theora, VP8 / VP9, AV1): their decoded gel texture drifts and
+#: refreshes from frame to frame.
 INTER_FRAME_CODECS = frozenset({"avc1", "h264", "x264", "davc", "hev1", "hvc1", "hevc", "h265",
-                                "mp4v", "xvid", "divx", "fmp4", "vp80", "vp08", "vp90", "vp09",
-                                "av01"})
+                                "mpg1", "mpg2", "mpeg", "pim1", "mp4v", "xvid", "divx", "fmp4",
+                                "dx50", "h263", "s263", "wmv1", "wmv2", "wmv3", "wvc1", "theo",
+                                "vp80", "vp08", "vp90", "vp09", "av01"})
 
 
 def video_codec(path: str | Path) -> str | None:

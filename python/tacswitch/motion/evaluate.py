@@ -285,14 +285,21 @@ def slip_on_videos(sources: dict[str, Callable[..., NDArray[np.float32]]], grasp
     smooth = as_count(smooth_frames, "smooth_frames", 1, 1000)
     crit = SLIP_CRITERIA if criteria is None else criteria
     res = {(s, c): _new_tally() for s in sources for c in crit}
-    for g in grasps:
+    for i, g in enumerate(grasps):
+        n = len(g.frames)
+        if g.kind not in ("slip", "hold", "vibration"):
+            raise ValueError(f"grasps: item {i}: kind must be 'slip', 'hold' or 'vibration'; "
+                             f"got {g.kind!r}")
         g0 = int(g.grasp_start)
+        if not 0 <= g0 < n or not 0 <= int(g.onset) < n:
+            raise ValueError(f"grasps: item {i}: grasp_start {g0} and onset {g.onset} must be "
+                             f"frame indices (0..{n - 1})")
         ref = g.frames[g0]
         valid = near_contact(ref, g.frames[0], g.rest) if near_contact_only else None
         for name, predict in sources.items():
             t0 = time.perf_counter()
             motions = [(predict(g.frames[t], ref, g.rest), valid)
-                       for t in range(g0, len(g.frames))]
+                       for t in range(g0, n)]
             sec = time.perf_counter() - t0
             for cname, opts in crit.items():
                 det = ts.SlipDetector(image_width=g.frames.shape[2], points=g.rest,

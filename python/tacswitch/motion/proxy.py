@@ -407,6 +407,8 @@ def warp_dense(src: NDArray[np.uint8], v: NDArray[np.float32], max_iterations: i
     ``ValueError`` if the fixed point ``X <- y - v(X)`` does not converge (too steep a field)."""
     import cv2
 
+    if v.shape != (*src.shape[:2], 2):
+        raise ValueError(f"v: expected shape {(*src.shape[:2], 2)} to match src; got {v.shape}")
     px, py = dense_backward_map(v, max_iterations, tol)
     return np.asarray(cv2.remap(src, px, py, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT),
                       np.uint8)
@@ -419,6 +421,8 @@ def dense_backward_map(v: NDArray[np.float32], max_iterations: int = 200, tol: f
     every pixel ``x``, by fixed-point iteration. ``ValueError`` if it does not converge."""
     import cv2
 
+    if v.ndim != 3 or v.shape[2] != 2:
+        raise ValueError(f"v: expected an H x W x 2 field; got shape {v.shape}")
     h, w = v.shape[:2]
     ys, xs = np.mgrid[0:h, 0:w].astype(np.float32)
     vx = np.ascontiguousarray(v[..., 0], np.float32)

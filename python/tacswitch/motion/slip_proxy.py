@@ -104,6 +104,7 @@ def real_grasp(presses: RealPresses, index: int, kind: str, *, n_frames: int = 3
     from tacswitch.motion.proxy import MAX_GRADIENT, contact_fields, marker_grid
     from tacswitch.sim import capture
     from tacswitch.sim.grain import dense_field
+    from tacswitch.sim.presets import get_preset
     from tacswitch.sim.sequences import SLIP_ONSET_FRAMES
 
     if kind not in KINDS:
@@ -135,14 +136,15 @@ def real_grasp(presses: RealPresses, index: int, kind: str, *, n_frames: int = 3
     shear_max = pitch * float(rng.uniform(0.1, 0.25))
     slip_speed = pitch * float(rng.uniform(0.03, 0.08))
     vib_amp, vib_hz = pitch * float(rng.uniform(0.03, 0.06)), float(rng.uniform(8, 15))
-    fps = 25.0 if presses.sensor == "gelsight_mini" else 30.0
+    fps = float(get_preset(presses.sensor).fps)
     mag = float(np.hypot(drawn["shear_x"], drawn["shear_y"]))
     e = np.array([drawn["shear_x"], drawn["shear_y"]]) / max(mag, 1e-6)
     v = dense_field(other, step, h, w) * np.float32(shear_max / max(mag, 1e-6))
     # The largest field of the grasp (vibration peaks) must keep the backward map a contraction.
     top = (shear_max + vib_amp) / shear_max
     grad = float(np.abs(np.gradient(v * np.float32(top), axis=(0, 1))).max()) * 2
-    if grad > MAX_GRADIENT:
+    capped = grad > MAX_GRADIENT
+    if capped:
         v = v * np.float32(MAX_GRADIENT / grad)
     q1, q2 = n_frames // 4, n_frames // 2
     onset = q2 + SLIP_ONSET_FRAMES
@@ -164,7 +166,10 @@ def real_grasp(presses: RealPresses, index: int, kind: str, *, n_frames: int = 3
                                   quality=q)
     video = capture.apply_sequence(frames, prof, np.random.default_rng([seed, index, 7]),
                                    gain_drift=GAIN_DRIFT)
-    params = {"shear_px": shear_max, "direction": (float(e[0]), float(e[1])),
+    # The field's own peak: the draw, unless the gradient cap scaled the field down.
+    params = {"shear_px": float(np.hypot(v[..., 0], v[..., 1]).max()),
+              "shear_drawn_px": shear_max, "capped": bool(capped),
+              "direction": (float(e[0]), float(e[1])),
               "slip_px_per_frame": slip_speed, "vibration_px": vib_amp,
               "vibration_hz": vib_hz, "fps": fps, "codec": codec, "quality": q,
               "read_noise": noise}

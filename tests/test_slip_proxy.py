@@ -9,7 +9,7 @@ pytest.importorskip("taxim")
 
 from tacswitch.motion import proxy
 from tacswitch.motion.infer import predict_motion
-from tacswitch.motion.slip_proxy import real_grasp
+from tacswitch.motion.slip_proxy import TEMPORAL_NOISE, real_grasp
 from tacswitch.sim.sequences import SLIP_ONSET_FRAMES
 
 
@@ -58,7 +58,7 @@ def test_h264_is_one_stream(mini: proxy.RealPresses) -> None:
 def test_drawn_shear_is_reported_as_applied(mini: proxy.RealPresses) -> None:
     g = real_grasp(mini, 2, "hold", codec="none", seed=1)
     p = g.params
-    assert p["fps"] == 25.0 and p["read_noise"] == pytest.approx(0.75)
+    assert p["fps"] == 25.0 and p["read_noise"] == TEMPORAL_NOISE["gelsight_mini"]
     assert p["shear_px"] == pytest.approx(p["shear_drawn_px"], rel=0.3) or p["capped"]
 
 
@@ -71,3 +71,20 @@ def test_errors_name_the_argument(mini: proxy.RealPresses) -> None:
         real_grasp(mini, 0, "hold", n_frames=4)
     with pytest.raises(ValueError, match="index"):
         real_grasp(mini, 99, "hold")
+
+
+def test_temporal_noise_is_what_the_real_recordings_show() -> None:
+    """The fresh noise per frame is the temporal noise measured on taxim's recordings (the
+    constant's recipe, recomputed)."""
+    import cv2
+
+    for sensor in ("gelsight", "gelsight_mini"):
+        d = proxy.load_real_presses(sensor)
+        h, w = d.f0.shape[:2]
+        per_pair = []
+        for i in range(0, len(d.imgs) - 1, 2):
+            diff = d.imgs[i].astype(np.float32) - d.imgs[i + 1].astype(np.float32)
+            hp = diff - cv2.GaussianBlur(diff, (0, 0), 3)
+            per_pair.append(hp[:h // 5, :w // 5].reshape(-1, 3).std(0) / np.sqrt(2))
+        measured = float(np.median(per_pair, axis=0).mean())
+        assert measured == pytest.approx(TEMPORAL_NOISE[sensor], abs=0.02), sensor

@@ -21,9 +21,9 @@ draws of :func:`tacswitch.sim.grasp.render_grasp` (pitch from the sensor's marke
   gel) moves on with the object, by ``v`` plus the slid offset.
 
 Then the capture, as a recorder makes a video (:func:`tacswitch.sim.capture.apply_sequence`):
-fresh noise per frame (:data:`READ_NOISE_640`), a slowly hunting exposure, and one codec over
-the sequence (``"none"``, ``"mjpeg"`` per frame, or ``"h264"``: one stream, so inter-frame
-coding is real).
+fresh noise per frame (:data:`TEMPORAL_NOISE`, measured on taxim's recordings), a slowly
+hunting exposure, and one codec over the sequence (``"none"``, ``"mjpeg"`` per frame, or
+``"h264"``: one stream, so inter-frame coding is real).
 Real texture and imprint, modelled motion; the slip label is exact by construction.
 
 Units and conventions: frames ``H x W x 3`` uint8 BGR; fields and centres ``(x, y)`` px.
@@ -40,7 +40,7 @@ from numpy.typing import NDArray
 
 from tacswitch.motion.proxy import RealPresses
 
-__all__ = ["CODECS", "DEFAULT_QUALITY", "KINDS", "READ_NOISE_640", "RealGrasp", "real_grasp",
+__all__ = ["CODECS", "DEFAULT_QUALITY", "KINDS", "TEMPORAL_NOISE", "RealGrasp", "real_grasp",
            "real_grasps"]
 
 #: Grasp endings, as :func:`tacswitch.sim.grasp.render_grasp`.
@@ -49,11 +49,13 @@ KINDS = ("hold", "slip", "vibration")
 CODECS = ("none", "mjpeg", "h264")
 #: Default quality per codec: JPEG quality (mjpeg), x264 CRF (h264; x264's own default).
 DEFAULT_QUALITY = {"none": 90, "mjpeg": 85, "h264": 23}
-#: Fresh noise per frame at 640 px wide, grey levels (sigma): the temporal noise of real
-#: GelSight frames, 1.3-2.1 per channel. The real frame's own noise is frozen in it (a fixed
-#: pattern, like grain); a video has new noise every frame. Narrower frames are area-averaged
-#: from such a capture (taxim's Mini: 2 x 2), which divides it by the factor.
-READ_NOISE_640 = 1.5
+#: Fresh noise per frame, grey levels (sigma), per sensor at its working size: the temporal
+#: noise of taxim's real recordings, measured as the high-passed (Gaussian sigma 3 px)
+#: difference of consecutive pairs of its presses in the frame's top-left fifth (no contact
+#: there), over sqrt(2), median over pairs, mean over B, G, R (GelSight 0.78 / 0.59 / 0.74,
+#: GelSight Mini at 320 x 240 1.21 / 0.69 / 1.05). The real frame's own noise is frozen in it
+#: (a fixed pattern, like grain); a video has new noise every frame.
+TEMPORAL_NOISE = {"gelsight": 0.70, "gelsight_mini": 0.98}
 #: Per-frame random-walk step of the exposure gain (a hunting auto-exposure).
 GAIN_DRIFT = 0.002
 #: The imprint that slides with the object: the press's change from the no-contact frame, in
@@ -99,7 +101,7 @@ def real_grasp(presses: RealPresses, index: int, kind: str, *, n_frames: int = 3
     Deterministic given ``seed``; the grasp's draws (direction, shear, speeds) do not depend on
     ``codec`` or ``quality``, so one grasp can be compared across captures. ``quality``: JPEG
     quality (mjpeg) or x264 CRF (h264); default :data:`DEFAULT_QUALITY`. ``read_noise``: fresh
-    noise per frame, grey levels (sigma); default :data:`READ_NOISE_640` scaled to the width.
+    noise per frame, grey levels (sigma); default the sensor's :data:`TEMPORAL_NOISE`.
     """
     from tacswitch.motion.proxy import MAX_GRADIENT, contact_fields, marker_grid
     from tacswitch.sim import capture
@@ -116,8 +118,7 @@ def real_grasp(presses: RealPresses, index: int, kind: str, *, n_frames: int = 3
     if not 0 <= index < len(presses.imgs):
         raise ValueError(f"index: must be 0..{len(presses.imgs) - 1}; got {index!r}")
     q = DEFAULT_QUALITY[codec] if quality is None else int(quality)
-    noise = (READ_NOISE_640 * presses.f0.shape[1] / 640.0 if read_noise is None
-             else float(read_noise))
+    noise = TEMPORAL_NOISE[presses.sensor] if read_noise is None else float(read_noise)
     rng = np.random.default_rng([seed, index, KINDS.index(kind)])
     rest, pitch = marker_grid(presses.sensor)
     f0 = presses.f0.astype(np.float32)

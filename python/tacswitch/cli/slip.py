@@ -198,8 +198,8 @@ class MarkerlessMotion:
     grasp-start frame's contact are valid during a grasp
     (:func:`tacswitch.motion.reference.near_contact` against the reference): the gel moves
     most near the contact, while the texture of a compressed video drifts all over the gel
-    (real-texture H.264 grasp videos of a GelSight Mini, CRF 23: 6 of 18 grasps right over all
-    markers, 17 near the contact; ``benches/bench_slip_real_texture.py``)."""
+    (real-texture H.264 grasp videos of a GelSight Mini, CRF 23: 8 of 18 grasps right over all
+    markers, 16 near the contact; ``benches/bench_slip_real_texture.py``)."""
 
     def __init__(self, first: np.ndarray, args: argparse.Namespace) -> None:
         from tacswitch._io import read_image
@@ -275,8 +275,8 @@ def _warn_inter_frame_codec(source: str) -> None:
     if codec in INTER_FRAME_CODECS:
         print(f"tacswitch slip: warning: source: {codec!r} video; on inter-frame codecs the "
               "gel's texture drifts between frames and raises false slip alarms (real-texture "
-              "H.264 grasps: GelSight 24-29 of 36 right, 36 lossless or MJPEG); record "
-              "lossless or MJPEG for --markerless", file=sys.stderr)
+              "H.264 grasps with noisy frames: GelSight 24-29 of 36 right, 36 lossless or "
+              "MJPEG); record lossless or MJPEG for --markerless", file=sys.stderr)
 
 
 def _smooth_frames(args: argparse.Namespace) -> int:

@@ -62,7 +62,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     m.add_argument("--model", default=None, help="ONNX motion model for --method model")
     m.add_argument("--all-markers", action="store_true",
                    help="judge slip on every marker (default: only the markers near the "
-                        "grasp-start frame's contact, where the gel can move; far from it a "
+                        "grasp-start frame's contact, where the gel moves most; far from it a "
                         "compressed video's drifting texture reads as motion)")
     p.add_argument("--show", action="store_true", help="show an overlay window (needs a display)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")

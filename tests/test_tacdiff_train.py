@@ -234,7 +234,7 @@ def test_x0_l1_loss_is_the_absolute_error_of_the_x0_estimate(marker_frames):
     torch = pytest.importorskip("torch")
     from tacswitch.tacdiff.model import RESIDUAL_SCALE
     from tacswitch.tacdiff.schedule import alpha_sigma
-    from tacswitch.tacdiff.train import masked_v_loss
+    from tacswitch.tacdiff.train import draw_noise, masked_v_loss
 
     pairs = tdata.marker_offset_pairs(marker_frames, offset=(14, 14))
     batch = tdata.CropSampler([pairs], 64, hole_share=1.0).batch(3, np.random.default_rng(0))
@@ -245,7 +245,7 @@ def test_x0_l1_loss_is_the_absolute_error_of_the_x0_estimate(marker_frames):
 
     t = np.array([1.0, 0.5, 0.1], np.float32)
     r0 = RESIDUAL_SCALE * (batch["target"] - batch["prior"]) * batch["mask"]
-    eps = np.random.default_rng(7).standard_normal(r0.shape).astype(np.float32)
+    eps = draw_noise(batch, np.random.default_rng(7))  # what masked_v_loss draws
     a, s = (u.astype(np.float32)[:, None, None, None] for u in alpha_sigma(t))
     x0_hat = a * (a * r0 + s * eps) - s * pred  # the sampler's x0 estimate from v
     v = a * eps - s * r0

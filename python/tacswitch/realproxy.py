@@ -126,6 +126,33 @@ def load_presses(sensor: str, n: int | None = None
     return prep(pack["f0"]), presses
 
 
+#: Presses of the proxy's principal benches (``load_presses(sensor, 4)``, which ``n`` = 1 and 2
+#: also pick from) and their neighbours in the recording: never used for training.
+HELD_OUT_PRESSES = 4
+HELD_OUT_REACH = 1
+
+
+def held_out_indices(sensor: str) -> frozenset[int]:
+    """Indices (into Taxim's presses of ``sensor``) kept out of training: the presses
+    ``load_presses(sensor, HELD_OUT_PRESSES)`` scores, each with :data:`HELD_OUT_REACH`
+    neighbours on either side (consecutive presses of a recording can be near-repeats)."""
+    n = len(_taxim_pack(sensor)["imgs"])
+    picks = np.linspace(0, n - 1, HELD_OUT_PRESSES).round().astype(int)
+    return frozenset(int(i + d) for i in picks for d in range(-HELD_OUT_REACH, HELD_OUT_REACH + 1)
+                     if 0 <= i + d < n)
+
+
+def training_presses(sensor: str
+                     ) -> list[tuple[int, NDArray[np.uint8], NDArray[np.bool_]]]:
+    """Taxim's presses of ``sensor`` outside :func:`held_out_indices`, as
+    ``(index, frame, contact)`` at the proxy's size (real markerless frames to paint markers on
+    for training, :mod:`tacswitch.tacdiff.painted`). Model scores on the proxy with more than
+    ``HELD_OUT_PRESSES`` presses include training presses."""
+    _, presses = load_presses(sensor)
+    held = held_out_indices(sensor)
+    return [(i, f, c) for i, (f, c) in enumerate(presses) if i not in held]
+
+
 def styles_for(sensor: str) -> dict[str, MarkerStyle]:
     """The marker looks at ``sensor``'s scale: ``"painted"`` (the style fitted to real Mini
     frames), ``"pasted"`` (black dots, the same rim, a fainter halo) and ``"crisp"`` (black

@@ -5,20 +5,55 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import Any
 
 
 def add_train_parser(what: argparse._SubParsersAction) -> None:
     """``tacswitch train tacdiff``: simulated pairs -> trained denoiser -> ONNX."""
     m = what.add_parser(
         "tacdiff", help="TacDiff diffusion inpainter (marker -> markerless)",
-        description="Trains the TacDiff denoiser on simulated marker/markerless pairs (rendered "
-        "into --data first with --simulate N; resumable), then exports OUT/model.onnx and "
-        "OUT/model.safetensors. For your own marker sensor use `tacswitch finetune`.")
-    m.add_argument("--out", required=True, help="run folder (checkpoint, log.jsonl, model.onnx)")
+        description="Trains the TacDiff denoiser on marker/markerless pairs in --data: simulated "
+        "ones (rendered first with --simulate N) and real markerless frames with markers painted "
+        "on (--paint DIR; rendered first, resumable), then exports OUT/model.onnx and "
+        "OUT/model.safetensors. For your own sensor with markers use `tacswitch finetune`.")
+    m.add_argument("--out", default=None,
+                   help="run folder (checkpoint, log.jsonl, model.onnx); required unless "
+                        "--render-only")
     m.add_argument("--data", required=True, help="folder of pair shards (pairs_*.npz)")
     m.add_argument("--simulate", type=int, default=0, metavar="N",
                    help="render N simulated pairs into --data first (mixed presets; resumable)")
+    m.add_argument("--paint", action="append", default=[], metavar="DIR",
+                   help="a folder of real MARKERLESS frames of one sensor (PNG/JPEG, one size; "
+                        "optional contact masks NAME.contact.png): --paint-pairs pairs are "
+                        "rendered from it into --data with realistic markers painted on and a "
+                        "random camera/recorder capture (repeatable, one folder per sensor). "
+                        "Marker pitch and diameter (px) come from DIR/markers.json "
+                        '({"pitch": P, "diameter": D}) or --pitch/--diameter')
+    m.add_argument("--paint-pairs", type=int, default=200, metavar="N",
+                   help="pairs rendered per --paint folder (default: %(default)s)")
+    m.add_argument("--pitch", type=float, default=None,
+                   help="marker pitch (px) for --paint folders without markers.json")
+    m.add_argument("--diameter", type=float, default=None,
+                   help="marker dot diameter (px) for --paint folders without markers.json")
+    m.add_argument("--render-only", action="store_true",
+                   help="render the --simulate / --paint pairs (and their classical fills) into "
+                        "--data, then stop")
+    m.add_argument("--device", default="auto",
+                   help="torch device: auto (a CUDA GPU when torch sees one), cpu, cuda, "
+                        "cuda:N (default: %(default)s)")
+    m.add_argument("--workers", type=int, default=1,
+                   help="processes rendering pairs, and threads preparing training batches "
+                        "ahead of the GPU (1: none ahead; default: %(default)s)")
+    m.add_argument("--snapshot-every", type=int, default=0, metavar="N",
+                   help="also write the EMA weights every N steps as "
+                        "OUT/ema_stepNNNNNN.safetensors, to pick a step by validation "
+                        "(default 0: only the final model)")
     m.add_argument("--steps", type=int, default=3000, help="training steps (default: 3000)")
+    m.add_argument("--time-budget", type=float, default=0.0, metavar="SECONDS",
+                   help="also end training after this many seconds, the learning-rate decay "
+                        "following whichever of --steps or the time runs out first (for a "
+                        "fixed share of a GPU; the run is then not reproducible step for step; "
+                        "default 0: off)")
     m.add_argument("--batch", type=int, default=12)
     m.add_argument("--crop", type=int, default=96, help="crop side, multiple of 16")
     m.add_argument("--base", type=int, default=None,
@@ -80,7 +115,7 @@ def run_train(args: argparse.Namespace) -> int:
         check_radius,
         input_channels,
     )
-    from tacswitch.tacdiff.train import TrainConfig, train
+    from tacswitch.tacdiff.train import TrainConfig, config_dict, pick_device, save_weights, train
 
     if args.crop % MULTIPLE or args.crop < MULTIPLE:
         raise ValueError(f"--crop: must be a positive multiple of {MULTIPLE}; got {args.crop}")
@@ -88,6 +123,13 @@ def run_train(args: argparse.Namespace) -> int:
         raise ValueError("--steps and --batch must be >= 1, --base >= 4")
     if args.warmup < 0 or args.save_every < 1 or args.threads < 0:
         raise ValueError("--warmup and --threads must be >= 0, --save-every >= 1")
+    if not args.time_budget >= 0 or args.time_budget == float("inf"):
+        raise ValueError(f"--time-budget: must be seconds >= 0; got {args.time_budget}")
+    if args.workers < 1 or args.snapshot_every < 0 or args.paint_pairs < 1:
+        raise ValueError("--workers and --paint-pairs must be >= 1, --snapshot-every >= 0")
+    if args.out is None and not args.render_only:
+        raise ValueError("--out: required unless --render-only")
+    paint = [paint_source(d, args.pitch, args.diameter) for d in args.paint]
     for name in ("contact_share", "hole_share", "terminal_fraction"):
         if not 0 <= getattr(args, name) <= 1:
             raise ValueError(f"--{name.replace('_', '-')}: must be in [0, 1]; got "
@@ -116,7 +158,18 @@ def run_train(args: argparse.Namespace) -> int:
                           "--prior-radius")
     if args.simulate:
         render_pairs(args.data, args.simulate, seed=args.seed, progress=not args.quiet,
-                     realism=args.realism)
+                     realism=args.realism, workers=args.workers, prior=prior,
+                     prior_radius=radius)
+    for k, (name, frames, contacts, pitch, diameter) in enumerate(paint):
+        from tacswitch.tacdiff.painted import render_painted_pairs
+
+        render_painted_pairs(args.data, frames, args.paint_pairs, pitch=pitch,
+                             diameter=diameter, contacts=contacts, seed=args.seed + 1000 * k,
+                             name=f"painted{k}_{name}", workers=args.workers, prior=prior,
+                             prior_radius=radius, progress=not args.quiet)
+    if args.render_only:
+        return 0
+    device = pick_device(args.device)
     shards = load_pairs(args.data)
     shape = {} if arch is None else {"mults": arch.mults, "attention": arch.attention}
     cfg = TrainConfig(base=args.base or (arch.base if arch else 24), **shape, prior=prior,
@@ -126,9 +179,17 @@ def run_train(args: argparse.Namespace) -> int:
                       threads=args.threads,
                       seed=args.seed, contact_share=args.contact_share,
                       hole_share=args.hole_share, terminal_fraction=args.terminal_fraction,
-                      loss=args.loss,
+                      loss=args.loss, time_budget=args.time_budget,
                       extra={"init": str(init)} if init is not None else {})
-    net = train(shards, args.out, cfg, progress=not args.quiet, init=init)
+    out = Path(args.out)
+
+    def snapshot(step: int, ema: object) -> None:
+        if args.snapshot_every and step % args.snapshot_every == 0:
+            save_weights(ema, out / f"ema_step{step:06d}.safetensors", config_dict(cfg))
+
+    net = train(shards, out, cfg, progress=not args.quiet, init=init, device=device,
+                workers=args.workers - 1, callback=snapshot,
+                callback_every=args.snapshot_every)
     path = export_onnx(net, Path(args.out) / "model.onnx",
                        metadata={"steps": args.steps, "seed": args.seed,
                                  "frames": sum(len(s["cond"]) for s in shards),
@@ -137,6 +198,58 @@ def run_train(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(f"exported {path}")
     return 0
+
+
+def paint_source(folder: str, pitch: float | None, diameter: float | None
+                 ) -> tuple[str, list[Any], list[Any], float, float]:
+    """A ``--paint`` folder: ``(name, frames, contacts, pitch, diameter)`` (frames uint8 BGR,
+    contact masks or None; pitch and diameter from ``markers.json`` or the flags)."""
+    import cv2
+    import numpy as np
+
+    root = Path(folder)
+    if not root.is_dir():
+        raise ValueError(f"--paint: no folder at {folder!r}")
+    files = sorted(p for p in root.iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg",
+                   ".bmp") and not p.name.lower().endswith(".contact.png"))
+    if not files:
+        raise ValueError(f"--paint: no PNG/JPEG frames in {folder!r}")
+    frames: list[Any] = []
+    contacts: list[Any] = []
+    for f in files:
+        img = cv2.imread(str(f), cv2.IMREAD_COLOR)
+        if img is None:
+            raise ValueError(f"--paint: cannot read {str(f)!r} as an image")
+        if frames and img.shape != frames[0].shape:
+            raise ValueError(f"--paint: {f.name} is {img.shape[1]}x{img.shape[0]}, the first "
+                             f"frame {frames[0].shape[1]}x{frames[0].shape[0]}; one size per "
+                             "folder")
+        frames.append(img)
+        cpath = f.with_name(f.stem + ".contact.png")
+        c = cv2.imread(str(cpath), cv2.IMREAD_GRAYSCALE) if cpath.is_file() else None
+        if c is not None and c.shape != img.shape[:2]:
+            raise ValueError(f"--paint: {cpath.name} is not the size of its frame")
+        contacts.append(None if c is None else c > 0)
+    spec: dict[str, Any] = {}
+    if (root / "markers.json").is_file():
+        try:
+            spec = json.loads((root / "markers.json").read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            raise ValueError(f"--paint: unreadable {str(root / 'markers.json')!r}: {exc}"
+                             ) from None
+    p = spec.get("pitch", pitch)
+    d = spec.get("diameter", diameter)
+    if p is None or d is None:
+        raise ValueError(f"--paint: {folder!r} has no markers.json; give --pitch and --diameter")
+    try:
+        p, d = float(p), float(d)
+    except (TypeError, ValueError):
+        raise ValueError(f"--paint: pitch and diameter of {folder!r} must be numbers") from None
+    if not (np.isfinite(p) and np.isfinite(d) and 0 < d < p):
+        raise ValueError(f"--pitch, --diameter: need 0 < diameter < pitch; got {p}, {d} for "
+                         f"{folder!r}")
+    name = "".join(c if c.isalnum() or c in "_-" else "_" for c in root.resolve().name)
+    return name or "frames", frames, contacts, p, d
 
 
 def add_evaluate_parser(what: argparse._SubParsersAction) -> None:

@@ -87,7 +87,8 @@ def _groups(ch: int) -> int:
 def noise_embedding(sigma: torch.Tensor, dim: int) -> torch.Tensor:
     """Sinusoidal features of ``sigma`` in [0, 1] (``B``) -> ``B x dim``."""
     half = dim // 2
-    freqs = torch.exp(-math.log(1000.0) * torch.arange(half, dtype=torch.float32) / half)
+    steps = torch.arange(half, dtype=torch.float32, device=sigma.device)
+    freqs = torch.exp(-math.log(1000.0) * steps / half)
     arg = (sigma.float() * 1000.0)[:, None] * freqs[None]
     return torch.cat([torch.sin(arg), torch.cos(arg)], dim=1)
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 import json
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -63,6 +63,10 @@ class TrainConfig:
     threads: int = 0  # 0: os.cpu_count()
     save_every: int = 250
     log_every: int = 50
+    # Seconds of training after which the run ends (0: none). The cosine decay then follows
+    # whichever of steps or seconds runs out first, so such a run is not reproducible step
+    # for step (the time a step takes varies); for a fixed share of a rented GPU.
+    time_budget: float = 0.0
     extra: dict[str, Any] = field(default_factory=dict)
 
 
@@ -90,15 +94,20 @@ def masked_v_loss(net: Any, batch: dict[str, NDArray[Any]], t: NDArray[np.float3
 
     from tacswitch.tacdiff.model import RESIDUAL_SCALE, network_input
 
-    cond, target = torch.from_numpy(batch["cond"]), torch.from_numpy(batch["target"])
-    prior = torch.from_numpy(batch["prior"])
-    mask, lmask = torch.from_numpy(batch["mask"]), torch.from_numpy(batch["loss_mask"])
-    a, s = (torch.from_numpy(u.astype(np.float32))[:, None, None, None] for u in alpha_sigma(t))
+    # The network's device (a module's first parameter); plain callables run on the CPU.
+    params = getattr(net, "parameters", None)
+    dev = next(iter(params())).device if params is not None else torch.device("cpu")
+    to = lambda a: torch.from_numpy(a).to(dev, non_blocking=True)  # noqa: E731
+    cond, target, prior = to(batch["cond"]), to(batch["target"]), to(batch["prior"])
+    mask, lmask = to(batch["mask"]), to(batch["loss_mask"])
+    a, s = (to(u.astype(np.float32))[:, None, None, None] for u in alpha_sigma(t))
     r0 = RESIDUAL_SCALE * (target - prior) * mask
-    eps = torch.from_numpy(rng.standard_normal(target.shape).astype(np.float32))
+    # The noise is drawn here unless the batch carries it (drawn from rng at the same point).
+    noise = batch["eps"] if "eps" in batch else draw_noise(batch, rng)
+    eps = to(noise)
     x_t = a * r0 + s * eps
     v = a * eps - s * r0
-    spread = torch.from_numpy(batch["spread"]) if "spread" in batch else None
+    spread = to(batch["spread"]) if "spread" in batch else None
     pred = net(network_input(cond, mask, x_t, eps, prior, spread), s.flatten())
     denom = lmask.sum() * 3
     if float(denom) == 0:
@@ -109,9 +118,66 @@ def masked_v_loss(net: Any, batch: dict[str, NDArray[Any]], t: NDArray[np.float3
     return (((pred - v) ** 2) * lmask).sum() / denom
 
 
+def draw_noise(batch: dict[str, NDArray[Any]], rng: np.random.Generator) -> NDArray[np.float32]:
+    """The diffusion noise of ``batch`` (standard normal, shaped like its ``target``)."""
+    return rng.standard_normal(batch["target"].shape, dtype=np.float32)
+
+
+def step_batches(sampler: Any, cfg: TrainConfig, start: int, workers: int = 0
+                 ) -> Iterator[tuple[dict[str, NDArray[Any]], NDArray[np.float32],
+                                     np.random.Generator]]:
+    """``(batch, t, rng)`` of every step from ``start`` on: the crops, times and noise
+    (``batch["eps"]``) drawn from ``default_rng([seed, step])`` in a fixed order, so a resumed
+    or prefetched run draws what a plain one would. ``workers`` > 0 threads prepare batches
+    ahead of the training step (NumPy releases the GIL in its array loops)."""
+    def make(step: int) -> tuple[dict[str, NDArray[Any]], NDArray[np.float32],
+                                 np.random.Generator]:
+        rng = np.random.default_rng([cfg.seed, step])
+        batch = sampler.batch(cfg.batch, rng)
+        t = sample_times(cfg.batch, rng, cfg.terminal_fraction)
+        batch["eps"] = draw_noise(batch, rng)
+        return batch, t, rng
+
+    if workers <= 0:
+        yield from (make(step) for step in range(start, cfg.steps))
+        return
+    from collections import deque
+    from concurrent.futures import Future, ThreadPoolExecutor
+
+    with ThreadPoolExecutor(workers) as pool:
+        pending: deque[Future[Any]] = deque()
+        step = start
+        try:
+            while step < cfg.steps or pending:
+                while step < cfg.steps and len(pending) < 2 * workers:
+                    pending.append(pool.submit(make, step))
+                    step += 1
+                yield pending.popleft().result()
+        finally:
+            for f in pending:
+                f.cancel()
+
+
+def pick_device(device: str) -> str:
+    """``"cpu"``, ``"cuda"`` (``"cuda:N"``) or ``"auto"`` (CUDA when torch sees a GPU) ->
+    a torch device name; ``ValueError`` naming ``device`` if it is unknown or absent."""
+    import torch
+
+    if device == "auto":
+        return "cuda" if torch.cuda.is_available() else "cpu"
+    if device == "cpu":
+        return device
+    if device == "cuda" or device.startswith("cuda:"):
+        if not torch.cuda.is_available():
+            raise ValueError(f"device: {device!r} asked for, but torch sees no CUDA GPU")
+        return device
+    raise ValueError(f"device: expected 'cpu', 'cuda', 'cuda:N' or 'auto'; got {device!r}")
+
+
 def train(shards: list[dict[str, NDArray[Any]]], out: str | Path, cfg: TrainConfig,
           *, progress: bool = True, init: str | Path | None = None,
-          callback: Callable[[int, Any], None] | None = None, callback_every: int = 0) -> Any:
+          callback: Callable[[int, Any], None] | None = None, callback_every: int = 0,
+          device: str = "cpu", workers: int = 0) -> Any:
     """Trains (or resumes) a denoiser on ``shards`` and returns the EMA network (eval mode).
 
     Args:
@@ -124,6 +190,9 @@ def train(shards: list[dict[str, NDArray[Any]]], out: str | Path, cfg: TrainConf
         callback: called as ``callback(step, ema)`` every ``callback_every`` steps and after
             the last one, before that step's checkpoint is written (a validation: see
             :mod:`~tacswitch.tacdiff.finetune`); the EMA network is in eval mode, do not train it.
+        device: torch device of the training (:func:`pick_device`; the data stays in NumPy).
+            The result does not depend on it beyond floating-point rounding.
+        workers: threads preparing batches ahead (:func:`step_batches`; 0: none).
     """
     import torch
 
@@ -140,30 +209,34 @@ def train(shards: list[dict[str, NDArray[Any]]], out: str | Path, cfg: TrainConf
     torch.set_num_threads(cfg.threads or os.cpu_count() or 1)
     ucfg = UNetConfig(base=cfg.base, mults=tuple(cfg.mults), attention=cfg.attention,
                       prior=cfg.prior, prior_radius=radius)
-    net = DenoiserUNet(ucfg)
-    ema = DenoiserUNet(ucfg)
+    dev = pick_device(device)
+    net = DenoiserUNet(ucfg).to(dev)
+    ema = DenoiserUNet(ucfg).to(dev)
     sampler = CropSampler(shards, cfg.crop, prior=cfg.prior, prior_radius=radius,
                           contact_share=cfg.contact_share, hole_share=cfg.hole_share)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
 
-    def lr_at(step: int) -> float:
+    if not (np.isfinite(cfg.time_budget) and cfg.time_budget >= 0):
+        raise ValueError(f"time_budget: must be seconds >= 0; got {cfg.time_budget!r}")
+
+    def lr_at(step: int, time_frac: float = 0.0) -> float:
         if step < cfg.warmup:
             return cfg.lr * (step + 1) / cfg.warmup
-        frac = (step - cfg.warmup) / max(1, cfg.steps - cfg.warmup)
+        frac = max((step - cfg.warmup) / max(1, cfg.steps - cfg.warmup), time_frac)
         return cfg.lr * 0.5 * (1 + np.cos(np.pi * min(1.0, frac)))
 
     ckpt_path = out / "checkpoint.pt"
-    start, log = 0, []
+    start, log, elapsed = 0, [], 0.0
     if ckpt_path.is_file():
         ck = torch.load(ckpt_path, map_location="cpu", weights_only=False)
         # Checkpoints written before the loss was recorded trained v_mse.
-        if {"loss": "v_mse", **ck["config"]} != _cfg_dict(cfg):
+        if {"loss": "v_mse", "time_budget": 0.0, **ck["config"]} != _cfg_dict(cfg):
             raise ValueError(f"out: {str(out)!r} holds a run with another configuration; "
                              "use another folder")
         net.load_state_dict(ck["model"])
         ema.load_state_dict(ck["ema"])
         opt.load_state_dict(ck["optim"])
-        start, log = ck["step"], ck["log"]
+        start, log, elapsed = ck["step"], ck["log"], float(ck.get("elapsed", 0.0))
         if progress:
             print(f"resuming after step {start}", flush=True)
     else:
@@ -178,14 +251,17 @@ def train(shards: list[dict[str, NDArray[Any]]], out: str | Path, cfg: TrainConf
         p.requires_grad_(False)
     losses: list[float] = []
     t0 = time.perf_counter()
-    for step in range(start, cfg.steps):
+
+    def time_frac() -> float:
+        spent = elapsed + time.perf_counter() - t0
+        return spent / cfg.time_budget if cfg.time_budget > 0 else 0.0
+
+    # Randomness from (seed, step): a resumed run draws what an uninterrupted one would.
+    batches = step_batches(sampler, cfg, start, workers)
+    for step, (batch, t, rng) in zip(range(start, cfg.steps), batches, strict=True):
         net.train()
-        # Randomness from (seed, step): a resumed run draws what an uninterrupted one would.
-        rng = np.random.default_rng([cfg.seed, step])
-        batch = sampler.batch(cfg.batch, rng)
-        t = sample_times(cfg.batch, rng, cfg.terminal_fraction)
         for g in opt.param_groups:
-            g["lr"] = lr_at(step)
+            g["lr"] = lr = lr_at(step, time_frac())
         loss = masked_v_loss(net, batch, t, rng, cfg.loss)
         opt.zero_grad(set_to_none=True)
         loss.backward()
@@ -197,8 +273,9 @@ def train(shards: list[dict[str, NDArray[Any]]], out: str | Path, cfg: TrainConf
                 pe.lerp_(pn, 1 - decay)
         losses.append(float(loss.detach()))
         done = step + 1
-        if done % cfg.log_every == 0 or done == cfg.steps:
-            entry = {"step": done, "loss": float(np.mean(losses)), "lr": lr_at(step),
+        last = done == cfg.steps or time_frac() >= 1.0
+        if done % cfg.log_every == 0 or last:
+            entry = {"step": done, "loss": float(np.mean(losses)), "lr": lr,
                      "seconds": round(time.perf_counter() - t0, 2)}
             log.append(entry)
             losses = []
@@ -207,14 +284,22 @@ def train(shards: list[dict[str, NDArray[Any]]], out: str | Path, cfg: TrainConf
             if progress:
                 print(json.dumps(entry), flush=True)
         if callback is not None and ((callback_every and done % callback_every == 0)
-                                     or done == cfg.steps):
+                                     or last):
             callback(done, ema)
-        if done % cfg.save_every == 0 or done == cfg.steps:
+        if done % cfg.save_every == 0 or last:
             save_torch(ckpt_path, {"model": net.state_dict(), "ema": ema.state_dict(),
                               "optim": opt.state_dict(), "step": done, "log": log,
-                              "config": _cfg_dict(cfg)})
+                              "config": _cfg_dict(cfg),
+                              "elapsed": elapsed + time.perf_counter() - t0})
+        if last:
+            break
     save_weights(ema, out / "model.safetensors", _cfg_dict(cfg))
-    return ema
+    return ema.cpu()
+
+
+def config_dict(cfg: TrainConfig) -> dict[str, Any]:
+    """``cfg`` as the JSON-able dict recorded in checkpoints and weight files."""
+    return _cfg_dict(cfg)
 
 
 def _cfg_dict(cfg: TrainConfig) -> dict[str, Any]:
@@ -232,7 +317,7 @@ def save_weights(net: Any, path: str | Path, config: dict[str, Any], *,
 
     target = Path(path)
     tmp = target.with_name(f".{target.name}.tmp")
-    state = {k: (v.half() if half and v.is_floating_point() else v).contiguous()
+    state = {k: (v.half() if half and v.is_floating_point() else v).detach().cpu().contiguous()
              for k, v in net.state_dict().items()}
     save_file(state, str(tmp), metadata={"tacswitch.config": json.dumps(config)})
     # safetensors creates the file private (0600); give it the mode a plain open() would have.

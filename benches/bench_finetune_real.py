@@ -4,8 +4,10 @@ The real-frame proxy (issue 14, :mod:`tacswitch.realproxy`): taxim's real marker
 (640x480, 49 frames) or GelSight Mini (320x240, 25 frames) presses, one marker grid painted on
 all of them (the proxy's styles; the grid and the capture noise drawn from ``--seeds``) and each
 frame captured as the proxy does (lossless, MJPEG q75, H.264 CRF 26), so the clean real frame
-is the ground truth under every marker. All frames but the last ``--test`` are the "user's raw
-frames" (markers only, never their ground truth): :func:`tacswitch.tacdiff.finetune.finetune`
+is the ground truth under every marker. The presses :func:`tacswitch.realproxy.held_out_indices`
+names are scored (``--split last``: the last ``--test`` frames, the protocol before 0.6, whose
+test presses the 0.6 models trained on); all other frames are the "user's raw frames" (markers
+only, never their ground truth): :func:`tacswitch.tacdiff.finetune.finetune`
 runs on them exactly as ``tacswitch finetune`` does (transplanted real markers; its own
 ground-truth-free validation on held-out frames and gel; it returns the best checkpoint, or the
 starting model if none beats it beyond noise). Then the held-out frames are scored: masked MAE
@@ -60,6 +62,16 @@ def sensor_recording(sensor: str, style: str, codec: str, seed: int
     return np.stack(frames), clean, np.stack(footprints)
 
 
+def test_frames(sensor: str, n: int, args: argparse.Namespace) -> list[int]:
+    """Indices (into the recording: frame 0 is the no-contact frame, press ``i`` is frame
+    ``i + 1``) of the frames scored: the held-out presses, or the last ``args.test``."""
+    if args.split == "last":
+        return list(range(n - args.test, n))
+    from tacswitch.realproxy import held_out_indices
+
+    return sorted(i + 1 for i in held_out_indices(sensor))
+
+
 def score(out: np.ndarray, truth: np.ndarray, where: np.ndarray) -> tuple[float, float]:
     """Masked MAE and mean signed error (grey levels) of ``out`` against ``truth``."""
     d = out[where].astype(np.float64) - truth[where].astype(np.float64)
@@ -91,7 +103,12 @@ def main() -> None:
     ap.add_argument("--codecs", default="h264",
                     help="the proxy's captures (realproxy.CAPTURES), comma-separated")
     ap.add_argument("--seeds", default="0", help="marker grids / capture noise / training seeds")
-    ap.add_argument("--test", type=int, default=8, help="held-out frames scored (last ones)")
+    ap.add_argument("--test", type=int, default=8,
+                    help="with --split last: held-out frames scored (the last ones)")
+    ap.add_argument("--split", default="heldout", choices=("heldout", "last"),
+                    help="frames scored: heldout = the presses realproxy.held_out_indices "
+                         "names (never in the 0.6 models' training), the rest fine-tune; "
+                         "last = the last --test frames (the protocol before 0.6)")
     ap.add_argument("--steps", type=int, default=600)
     ap.add_argument("--batch", type=int, default=8)
     ap.add_argument("--crop", type=int, default=96)
@@ -116,9 +133,11 @@ def main() -> None:
         for codec in args.codecs.split(","):
             for seed in (int(v) for v in args.seeds.split(",")):
                 rec, clean, footprint = sensor_recording(sensor, args.style, codec, seed)
-                n_train = len(rec) - args.test
+                test = test_frames(sensor, len(rec), args)
+                train_idx = [i for i in range(len(rec)) if i not in test]
+                n_train = len(train_idx)
                 t0 = time.perf_counter()
-                res, last = finetune_case(rec[:n_train], work / f"{sensor}_{codec}_{seed}",
+                res, last = finetune_case(rec[train_idx], work / f"{sensor}_{codec}_{seed}",
                                           args, seed)
                 took = time.perf_counter() - t0
                 methods: dict[str, Any] = {"zero-shot": args.model, "last": last,
@@ -127,7 +146,7 @@ def main() -> None:
                                        "train": n_train, "seconds": round(took)}
                 for name, model in (("TELEA", None), *methods.items()):
                     vals = []
-                    for i in range(n_train, len(rec)):
+                    for i in test:
                         out = (ts.remove_markers(rec[i]) if model is None else
                                ts.remove_markers(rec[i], method="tacdiff", model=model))
                         vals.append(score(out, clean[i], footprint[i]))
@@ -143,8 +162,9 @@ def main() -> None:
     print(f"\nFine-tune from '{args.model}' ({args.steps} steps, batch {args.batch}, lr "
           f"{args.lr}, ring {args.ring}, loss {args.loss or own}, terminal fraction "
           f"{own if args.terminal_fraction is None else args.terminal_fraction}), "
-          f"{args.style} markers; masked MAE over the true footprint of the {args.test} "
-          "held-out frames (grey levels)\n")
+          f"{args.style} markers; masked MAE over the true footprint of the held-out frames "
+          f"({'the held-out presses' if args.split == 'heldout' else f'the last {args.test}'};"
+          " grey levels)\n")
     print("| sensor | capture | seed | TELEA default | zero-shot | fine-tuned (last) | "
           "chosen by validation | validation start -> chosen |\n|---|---|---|---|---|---|---|---|")
     for r in rows:

@@ -11,7 +11,8 @@
 #
 # Usage: bash benches/gpu_train_tacdiff.sh PAINT_DIR OUT_DIR [TOTAL_SECONDS]
 # Sizes and device can be overridden for a dry run on a CPU: SIM, PAINT_PAIRS, BATCH, DEVICE,
-# WORKERS (render processes), THREADS (batch threads per run), TACSWITCH (the command).
+# WORKERS (render processes), THREADS (batch threads per run), TACSWITCH (the command); RUNS
+# picks runs (default "default fast simonly"), FAST_LOSS the fast run's loss (default v_mse).
 set -euo pipefail
 PAINT=${1:?PAINT_DIR}
 OUTD=${2:?OUT_DIR}
@@ -23,6 +24,8 @@ DEVICE=${DEVICE:-cuda}
 WORKERS=${WORKERS:-15}
 THREADS=${THREADS:-5}
 TS=${TACSWITCH:-python3 -m tacswitch}
+RUNS=${RUNS:-default fast simonly}
+FAST_LOSS=${FAST_LOSS:-v_mse}
 WORK=${WORK:-/tmp/tacdiff_gpu}
 mkdir -p "$OUTD" "$WORK/simonly"
 
@@ -40,12 +43,15 @@ echo "training budget: $BUDGET s"
 common=(--terminal-fraction 0.9 --crop 96 --lr 2e-4 --warmup 200 --steps 1000000
         --time-budget "$BUDGET" --save-every 1000000 --snapshot-every 500 --device "$DEVICE" --threads 2
         --workers $((THREADS + 1)) --batch "$BATCH" --seed 6 -q)
+case " $RUNS " in *" default "*)
 $TS train tacdiff --data "$WORK/pairs" --init default --loss x0_l1 --out "$WORK/default" \
-    "${common[@]}" > "$WORK/default.txt" 2>&1 &
-$TS train tacdiff --data "$WORK/pairs" --init fast --out "$WORK/fast" \
-    "${common[@]}" > "$WORK/fast.txt" 2>&1 &
+    "${common[@]}" > "$WORK/default.txt" 2>&1 & ;; esac
+case " $RUNS " in *" fast "*)
+$TS train tacdiff --data "$WORK/pairs" --init fast --loss "$FAST_LOSS" --out "$WORK/fast" \
+    "${common[@]}" > "$WORK/fast.txt" 2>&1 & ;; esac
+case " $RUNS " in *" simonly "*)
 $TS train tacdiff --data "$WORK/simonly" --init default --loss x0_l1 --out "$WORK/simonly_run" \
-    "${common[@]}" > "$WORK/simonly.txt" 2>&1 &
+    "${common[@]}" > "$WORK/simonly.txt" 2>&1 & ;; esac
 status=0
 for job in $(jobs -p); do wait "$job" || status=1; done
 echo "trained in $SECONDS s (status $status)"
@@ -61,8 +67,10 @@ if [ "$n" -ge 2 ]; then
     cp "${snaps[$((3 * n / 4))]}" "$OUTD/default_$(basename "${snaps[$((3 * n / 4))]}")"
 fi
 mapfile -t fsnaps < <(ls "$WORK/fast"/ema_step*.safetensors 2>/dev/null || true)
-if [ "${#fsnaps[@]}" -ge 2 ]; then
-    cp "${fsnaps[$((${#fsnaps[@]} * 3 / 4))]}" "$OUTD/fast_$(basename "${fsnaps[$((${#fsnaps[@]} * 3 / 4))]}")"
+n=${#fsnaps[@]}
+if [ "$n" -ge 2 ]; then
+    cp "${fsnaps[$((n / 2))]}" "$OUTD/fast_$(basename "${fsnaps[$((n / 2))]}")"
+    cp "${fsnaps[$((3 * n / 4))]}" "$OUTD/fast_$(basename "${fsnaps[$((3 * n / 4))]}")"
 fi
 tail -n 3 "$WORK"/*.txt > "$OUTD/logs.txt" 2>&1 || true
 for r in default fast simonly_run; do

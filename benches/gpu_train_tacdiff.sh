@@ -40,6 +40,7 @@ done
 # Loading the shards and exporting take about a minute; the rest is training.
 BUDGET=$((TOTAL - SECONDS - 75))
 echo "training budget: $BUDGET s"
+if [ "$BUDGET" -lt 30 ]; then echo "TOTAL_SECONDS: rendering left under 30 s to train" >&2; exit 2; fi
 common=(--terminal-fraction 0.9 --crop 96 --lr 2e-4 --warmup 200 --steps 1000000
         --time-budget "$BUDGET" --save-every 1000000 --snapshot-every 500 --device "$DEVICE" --threads 2
         --workers $((THREADS + 1)) --batch "$BATCH" --seed 6 -q)

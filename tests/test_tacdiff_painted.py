@@ -148,10 +148,17 @@ def test_train_cli_paints_real_frames_and_renders_only(tmp_path: Path, mini_pres
     assert main(["train", "tacdiff", "--data", str(data), "--paint", str(folder),
                  "--paint-pairs", "3", "--render-only", "-q"]) == 0
     shards = sorted(p.name for p in data.iterdir())
-    assert shards == ["pairs_painted0_mini_000.npz"]
+    assert len(shards) == 1 and shards[0].startswith("pairs_painted_mini_")
     shard = dict(np.load(data / shards[0]))
     assert len(shard["cond"]) == 3 and shard["contact"].any()  # contact masks were read
     assert tdata.has_fills(shard, "telea+biharmonic-grown", 12)  # the default prior, cached
+    # The same folder again: nothing new. Another spec (or other frames) under the same folder
+    # name: new shards, not the stale ones.
+    again = ["train", "tacdiff", "--data", str(data), "--paint", str(folder), "--paint-pairs",
+             "3", "--render-only", "-q"]
+    assert main(again) == 0 and sorted(p.name for p in data.iterdir()) == shards
+    (folder / "markers.json").write_text(json.dumps({"pitch": 40, "diameter": 12}))
+    assert main(again) == 0 and len(list(data.iterdir())) == 2
 
 
 @pytest.mark.parametrize(("extra", "message"), [
@@ -161,6 +168,10 @@ def test_train_cli_paints_real_frames_and_renders_only(tmp_path: Path, mini_pres
     (["--paint", "NOSPEC", "--pitch", "10", "--diameter", "12"], "--pitch, --diameter"),
     (["--paint", "MIXED", "--pitch", "28", "--diameter", "11"], "one size per folder"),
     (["--time-budget", "-1"], "--time-budget"),
+    (["--paint", "LIST"], "must hold an object"),
+    (["--paint", "BADMASK", "--pitch", "28", "--diameter", "11"], "contact mask"),
+    (["--paint", "NOSPEC", "--pitch", "28", "--diameter", "11", "--device", "tpu"],
+     "--device"),
     (["--workers", "0"], "--workers"),
     ([], "--out"),
 ])
@@ -171,12 +182,31 @@ def test_train_cli_paint_and_gpu_options_are_checked(tmp_path: Path, mini_presse
     _paint_dir(tmp_path / "NOSPEC", mini_presses[:1], None)
     mixed = _paint_dir(tmp_path / "MIXED", mini_presses[:1], None)
     cv2.imwrite(str(mixed / "small.png"), np.zeros((10, 10, 3), np.uint8))
-    args = [a if a not in ("NOPE", "EMPTY", "NOSPEC", "MIXED") else str(tmp_path / a)
-            for a in extra]
+    _paint_dir(tmp_path / "LIST", mini_presses[:1], None)
+    (tmp_path / "LIST" / "markers.json").write_text("[28, 11]")
+    bad = _paint_dir(tmp_path / "BADMASK", mini_presses[:1], None)
+    next(bad.glob("*.contact.png")).write_bytes(b"not an image")
+    names = ("NOPE", "EMPTY", "NOSPEC", "MIXED", "LIST", "BADMASK")
+    args = [str(tmp_path / a) if a in names else a for a in extra]
     out = [] if not extra else ["--out", str(tmp_path / "run")]
     assert main(["train", "tacdiff", "--data", str(tmp_path / "d"), *out, *args, "-q"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0]
+    assert not (tmp_path / "d").exists()  # refused before rendering anything
+
+
+def test_paint_folder_contact_masks_of_any_format_are_not_frames(tmp_path: Path,
+                                                                 mini_presses) -> None:
+    from tacswitch.cli.tacdiff_cmds import paint_source
+
+    folder = tmp_path / "f"
+    folder.mkdir()
+    _, frame, contact = mini_presses[0]
+    cv2.imwrite(str(folder / "a.jpg"), frame)
+    cv2.imwrite(str(folder / "a.contact.jpg"), contact.astype(np.uint8) * 255)
+    name, frames, contacts, pitch, diameter = paint_source(str(folder), 28.5, 11.5)
+    assert name == "f" and len(frames) == 1 and contacts[0] is not None
+    assert (pitch, diameter) == (28.5, 11.5)
 
 
 def test_step_batches_prefetch_draws_what_a_plain_run_draws(mini_presses) -> None:
@@ -236,6 +266,13 @@ def test_time_budget_ends_training_and_snapshots_are_written(tmp_path: Path,
     # Out of time after the first step: it is logged, checkpointed and the callback sees it.
     assert [e["step"] for e in log] == [1] and seen == [1]
     assert (tmp_path / "run" / "model.safetensors").is_file()
+    # Run again: the budget is spent, so it is finished; nothing trains, nothing changes.
+    before = {p.name: p.read_bytes() for p in (tmp_path / "run").iterdir()}
+    train([shard], tmp_path / "run", cfg, progress=False)
+    after = {p.name: p.read_bytes() for p in (tmp_path / "run").iterdir()}
+    assert after["log.jsonl"] == before["log.jsonl"]
+    assert after["checkpoint.pt"] == before["checkpoint.pt"]
+    assert after["model.safetensors"] == before["model.safetensors"]
     with pytest.raises(ValueError, match="time_budget"):
         train([shard], tmp_path / "bad", TrainConfig(base=8, steps=1, time_budget=-1.0),
               progress=False)

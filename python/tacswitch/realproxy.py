@@ -146,8 +146,8 @@ def training_presses(sensor: str
                      ) -> list[tuple[int, NDArray[np.uint8], NDArray[np.bool_]]]:
     """Taxim's presses of ``sensor`` outside :func:`held_out_indices`, as
     ``(index, frame, contact)`` at the proxy's size (real markerless frames to paint markers on
-    for training, :mod:`tacswitch.tacdiff.painted`). Model scores on the proxy with more than
-    ``HELD_OUT_PRESSES`` presses include training presses."""
+    for training, :mod:`tacswitch.tacdiff.painted`). Model scores on the proxy with ``n`` other
+    than 1, 2 or 4 presses include training presses."""
     _, presses = load_presses(sensor)
     held = held_out_indices(sensor)
     return [(i, f, c) for i, (f, c) in enumerate(presses) if i not in held]

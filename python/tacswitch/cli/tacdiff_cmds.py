@@ -130,6 +130,7 @@ def run_train(args: argparse.Namespace) -> int:
     if args.out is None and not args.render_only:
         raise ValueError("--out: required unless --render-only")
     paint = [paint_source(d, args.pitch, args.diameter) for d in args.paint]
+    device = pick_device(args.device, "--device")  # before any rendering
     for name in ("contact_share", "hole_share", "terminal_fraction"):
         if not 0 <= getattr(args, name) <= 1:
             raise ValueError(f"--{name.replace('_', '-')}: must be in [0, 1]; got "
@@ -161,15 +162,18 @@ def run_train(args: argparse.Namespace) -> int:
                      realism=args.realism, workers=args.workers, prior=prior,
                      prior_radius=radius)
     for k, (name, frames, contacts, pitch, diameter) in enumerate(paint):
-        from tacswitch.tacdiff.painted import render_painted_pairs
+        from tacswitch.tacdiff.painted import render_painted_pairs, source_key
 
+        seed = args.seed + 1000 * k
+        # Shards are named by what they are drawn from, so a changed folder, spec or seed
+        # renders new ones instead of reusing stale shards.
+        key = source_key(frames, contacts, pitch=pitch, diameter=diameter, seed=seed)
         render_painted_pairs(args.data, frames, args.paint_pairs, pitch=pitch,
-                             diameter=diameter, contacts=contacts, seed=args.seed + 1000 * k,
-                             name=f"painted{k}_{name}", workers=args.workers, prior=prior,
+                             diameter=diameter, contacts=contacts, seed=seed,
+                             name=f"painted_{name}_{key}", workers=args.workers, prior=prior,
                              prior_radius=radius, progress=not args.quiet)
     if args.render_only:
         return 0
-    device = pick_device(args.device)
     shards = load_pairs(args.data)
     shape = {} if arch is None else {"mults": arch.mults, "attention": arch.attention}
     cfg = TrainConfig(base=args.base or (arch.base if arch else 24), **shape, prior=prior,
@@ -191,13 +195,23 @@ def run_train(args: argparse.Namespace) -> int:
                 workers=args.workers - 1, callback=snapshot,
                 callback_every=args.snapshot_every)
     path = export_onnx(net, Path(args.out) / "model.onnx",
-                       metadata={"steps": args.steps, "seed": args.seed,
+                       metadata={"steps": trained_steps(out, args.steps), "seed": args.seed,
                                  "frames": sum(len(s["cond"]) for s in shards),
                                  "loss": args.loss,
                                  "terminal_fraction": args.terminal_fraction})
     if not args.quiet:
         print(f"exported {path}")
     return 0
+
+
+def trained_steps(out: Path, default: int) -> int:
+    """The step a run in ``out`` ended at (the last ``log.jsonl`` entry; a time budget can end
+    it before ``--steps``), else ``default``."""
+    try:
+        lines = (out / "log.jsonl").read_text().splitlines()
+        return int(json.loads(lines[-1])["step"])
+    except (OSError, IndexError, KeyError, ValueError):
+        return default
 
 
 def paint_source(folder: str, pitch: float | None, diameter: float | None
@@ -210,8 +224,9 @@ def paint_source(folder: str, pitch: float | None, diameter: float | None
     root = Path(folder)
     if not root.is_dir():
         raise ValueError(f"--paint: no folder at {folder!r}")
-    files = sorted(p for p in root.iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg",
-                   ".bmp") and not p.name.lower().endswith(".contact.png"))
+    images = [p for p in root.iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg", ".bmp")]
+    files = sorted(p for p in images if not p.stem.lower().endswith(".contact"))
+    masks = {p.stem[: -len(".contact")]: p for p in images if p.stem.lower().endswith(".contact")}
     if not files:
         raise ValueError(f"--paint: no PNG/JPEG frames in {folder!r}")
     frames: list[Any] = []
@@ -225,8 +240,10 @@ def paint_source(folder: str, pitch: float | None, diameter: float | None
                              f"frame {frames[0].shape[1]}x{frames[0].shape[0]}; one size per "
                              "folder")
         frames.append(img)
-        cpath = f.with_name(f.stem + ".contact.png")
-        c = cv2.imread(str(cpath), cv2.IMREAD_GRAYSCALE) if cpath.is_file() else None
+        cpath = masks.get(f.stem)
+        c = None if cpath is None else cv2.imread(str(cpath), cv2.IMREAD_GRAYSCALE)
+        if cpath is not None and c is None:
+            raise ValueError(f"--paint: cannot read {str(cpath)!r} as a contact mask")
         if c is not None and c.shape != img.shape[:2]:
             raise ValueError(f"--paint: {cpath.name} is not the size of its frame")
         contacts.append(None if c is None else c > 0)
@@ -237,6 +254,9 @@ def paint_source(folder: str, pitch: float | None, diameter: float | None
         except (OSError, json.JSONDecodeError) as exc:
             raise ValueError(f"--paint: unreadable {str(root / 'markers.json')!r}: {exc}"
                              ) from None
+        if not isinstance(spec, dict):
+            raise ValueError(f"--paint: {str(root / 'markers.json')!r} must hold an object "
+                             '{"pitch": P, "diameter": D}')
     p = spec.get("pitch", pitch)
     d = spec.get("diameter", diameter)
     if p is None or d is None:

@@ -192,11 +192,15 @@ def render_pairs(out: str | Path, n: int, *, seed: int = 0,
     with ProcessPoolExecutor(min(workers, len(jobs)),
                              mp_context=mp.get_context("spawn")) as pool:
         futures = [pool.submit(_sim_shard, *job) for job in jobs]
-        for job, f in zip(jobs, futures, strict=True):
-            f.result()
-            if progress:
-                print(f"{job[0].name}: {job[4]}/{job[5]} pairs, "
-                      f"{time.perf_counter() - t0:.0f} s", flush=True)
+        try:
+            for job, f in zip(jobs, futures, strict=True):
+                f.result()
+                if progress:
+                    print(f"{job[0].name}: {job[4]}/{job[5]} pairs, "
+                          f"{time.perf_counter() - t0:.0f} s", flush=True)
+        except BaseException:
+            pool.shutdown(wait=True, cancel_futures=True)  # do not render the rest first
+            raise
     return paths
 
 

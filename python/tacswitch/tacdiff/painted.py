@@ -64,6 +64,20 @@ def check_frames(frames: Sequence[NDArray[np.uint8]],
     return out, [None if c is None else c.astype(bool) for c in cts]
 
 
+def source_key(frames: Sequence[NDArray[np.uint8]],
+               contacts: Sequence[NDArray[np.bool_] | None] | None, **spec: Any) -> str:
+    """An 8-hex-digit digest of the frames, contact masks and ``spec`` (pitch, diameter,
+    seed, ...): names painted shards after what they are drawn from."""
+    import hashlib
+
+    h = hashlib.sha1(repr(sorted(spec.items())).encode())
+    for i, f in enumerate(frames):
+        h.update(np.ascontiguousarray(f).tobytes())
+        c = None if contacts is None else contacts[i]
+        h.update(b"-" if c is None else np.packbits(np.asarray(c, bool)).tobytes())
+    return h.hexdigest()[:8]
+
+
 def covering_grid(height: int, width: int, pitch: float, diameter: float,
                   rng: np.random.Generator) -> NDArray[np.float32]:
     """Marker centres ``(x, y)`` covering a ``height x width`` frame at ``pitch`` px: a square
@@ -206,8 +220,12 @@ def render_painted_pairs(out: str | Path, frames: Sequence[NDArray[np.uint8]], n
                              initializer=_init, initargs=(fr, cts)) as pool:
         futures = [pool.submit(_shard, path, seeds, pitch, diameter, prior, radius)
                    for path, seeds in jobs]
-        for f in futures:
-            done = f.result()
-            if progress:
-                print(f"{done.name}: done, {time.perf_counter() - t0:.0f} s", flush=True)
+        try:
+            for f in futures:
+                done = f.result()
+                if progress:
+                    print(f"{done.name}: done, {time.perf_counter() - t0:.0f} s", flush=True)
+        except BaseException:
+            pool.shutdown(wait=True, cancel_futures=True)  # do not render the rest first
+            raise
     return paths

@@ -120,7 +120,9 @@ def masked_v_loss(net: Any, batch: dict[str, NDArray[Any]], t: NDArray[np.float3
 
 def draw_noise(batch: dict[str, NDArray[Any]], rng: np.random.Generator) -> NDArray[np.float32]:
     """The diffusion noise of ``batch`` (standard normal, shaped like its ``target``)."""
-    return rng.standard_normal(batch["target"].shape, dtype=np.float32)
+    # float64 draws cast down: the stream of every run before the GPU options, so their
+    # checkpoints resume on the same noise.
+    return rng.standard_normal(batch["target"].shape).astype(np.float32)
 
 
 def step_batches(sampler: Any, cfg: TrainConfig, start: int, workers: int = 0
@@ -158,9 +160,9 @@ def step_batches(sampler: Any, cfg: TrainConfig, start: int, workers: int = 0
                 f.cancel()
 
 
-def pick_device(device: str) -> str:
+def pick_device(device: str, name: str = "device") -> str:
     """``"cpu"``, ``"cuda"`` (``"cuda:N"``) or ``"auto"`` (CUDA when torch sees a GPU) ->
-    a torch device name; ``ValueError`` naming ``device`` if it is unknown or absent."""
+    a torch device name; ``ValueError`` naming ``name`` if it is unknown or absent."""
     import torch
 
     if device == "auto":
@@ -169,9 +171,13 @@ def pick_device(device: str) -> str:
         return device
     if device == "cuda" or device.startswith("cuda:"):
         if not torch.cuda.is_available():
-            raise ValueError(f"device: {device!r} asked for, but torch sees no CUDA GPU")
+            raise ValueError(f"{name}: {device!r} asked for, but torch sees no CUDA GPU")
+        index = device.partition(":")[2]
+        if index and not (index.isdigit() and int(index) < torch.cuda.device_count()):
+            raise ValueError(f"{name}: no GPU {index!r}; torch sees "
+                             f"{torch.cuda.device_count()} (cuda:0 ..)")
         return device
-    raise ValueError(f"device: expected 'cpu', 'cuda', 'cuda:N' or 'auto'; got {device!r}")
+    raise ValueError(f"{name}: expected 'cpu', 'cuda', 'cuda:N' or 'auto'; got {device!r}")
 
 
 def train(shards: list[dict[str, NDArray[Any]]], out: str | Path, cfg: TrainConfig,
@@ -201,6 +207,8 @@ def train(shards: list[dict[str, NDArray[Any]]], out: str | Path, cfg: TrainConf
 
     radius = check_radius(cfg.prior_radius)
     check_loss(cfg.loss)
+    if not (np.isfinite(cfg.time_budget) and cfg.time_budget >= 0):
+        raise ValueError(f"time_budget: must be seconds >= 0; got {cfg.time_budget!r}")
     if not 0 <= cfg.terminal_fraction <= 1:  # also refuses NaN
         raise ValueError(f"terminal_fraction: must be in [0, 1]; got {cfg.terminal_fraction!r}")
     out = Path(out)
@@ -215,9 +223,6 @@ def train(shards: list[dict[str, NDArray[Any]]], out: str | Path, cfg: TrainConf
     sampler = CropSampler(shards, cfg.crop, prior=cfg.prior, prior_radius=radius,
                           contact_share=cfg.contact_share, hole_share=cfg.hole_share)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
-
-    if not (np.isfinite(cfg.time_budget) and cfg.time_budget >= 0):
-        raise ValueError(f"time_budget: must be seconds >= 0; got {cfg.time_budget!r}")
 
     def lr_at(step: int, time_frac: float = 0.0) -> float:
         if step < cfg.warmup:
@@ -257,8 +262,10 @@ def train(shards: list[dict[str, NDArray[Any]]], out: str | Path, cfg: TrainConf
         return spent / cfg.time_budget if cfg.time_budget > 0 else 0.0
 
     # Randomness from (seed, step): a resumed run draws what an uninterrupted one would.
+    # A run that already spent its time budget is finished, like one at cfg.steps.
+    end = start if cfg.time_budget > 0 and elapsed >= cfg.time_budget else cfg.steps
     batches = step_batches(sampler, cfg, start, workers)
-    for step, (batch, t, rng) in zip(range(start, cfg.steps), batches, strict=True):
+    for step, (batch, t, rng) in zip(range(start, end), batches, strict=False):
         net.train()
         for g in opt.param_groups:
             g["lr"] = lr = lr_at(step, time_frac())

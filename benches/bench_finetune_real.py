@@ -89,7 +89,8 @@ def finetune_case(frames: np.ndarray, run: Path, args: argparse.Namespace, seed:
                    crop=args.crop, lr=args.lr, seed=seed, ring=args.ring,
                    val_every=args.val_every, threads=int(os.environ.get("BENCH_THREADS", "0")),
                    progress=bool(os.environ.get("BENCH_PROGRESS")), loss=args.loss,
-                   terminal_fraction=args.terminal_fraction, recompress=args.recompress)
+                   terminal_fraction=args.terminal_fraction, recompress=args.recompress,
+                   pseudo=args.pseudo)
     last = export_onnx(load_network(run / "model.safetensors"), run / "last.onnx")
     return res, last
 
@@ -124,6 +125,8 @@ def main() -> None:
     ap.add_argument("--recompress", default="auto",
                     help="the fine-tune's re-compression of its transplants (auto, none, "
                          "jpeg:Q, h264:CRF)")
+    ap.add_argument("--pseudo", default="model", choices=("model", "telea"),
+                    help="pseudo-markerless fill of the transplants (finetune(pseudo=...))")
     ap.add_argument("--fots", default=None, help="folder of real marker frames (FOTS) too")
     ap.add_argument("--json", default=None)
     args = ap.parse_args()

@@ -191,3 +191,38 @@ def test_cache_fills_is_reused_and_dropped_by_remask(tmp_path: Path, monkeypatch
     np.savez(path, **arrays)
     assert tdata.remask(tmp_path, progress=False) == 1
     assert not tdata.has_fills(tdata.load_pairs(tmp_path)[0], "telea")
+
+
+def test_transplants_are_built_on_the_given_pseudo_fill(marker_frames):
+    frame = marker_frames[0]
+    found = tdata.removal_markers(frame)
+    calls = []
+
+    def flat(img, holes):  # a fill anyone can recognise: the holes at grey 77
+        calls.append(holes.sum())
+        return np.where(holes[:, :, None], np.uint8(77), img)
+
+    app = tp.measure_appearance(frame, found.mask, ring=3, pseudo_fill=flat)
+    assert calls and (app.fill[app.footprint] == 77).all()
+    pairs = tdata.marker_offset_pairs([frame], pseudo_fill=flat)
+    cond, moved = pairs["cond"][0], pairs["mask"][0]
+    # The original markers' footprints (away from the moved ones) carry that fill.
+    away = app.footprint & ~ts.dilate_mask(moved, 6)
+    assert away.any() and (cond[away] == 77).all()
+
+
+def test_finetune_cli_pseudo_model_and_bad_choice(tmp_path: Path, marker_frame_dir: Path,
+                                                   capsys):
+    pytest.importorskip("torch")
+    pytest.importorskip("onnx")
+    common = ["finetune", "--images", str(marker_frame_dir), "--steps", "1", "--batch", "1",
+              "--crop", "64", "--init", "fast", "-q"]
+    assert main([*common, "--out", str(tmp_path / "m"), "--pseudo", "model"]) == 0
+    assert (tmp_path / "m" / "model.onnx").is_file()
+    with pytest.raises(SystemExit):
+        main([*common, "--out", str(tmp_path / "x"), "--pseudo", "ns"])
+    assert "--pseudo" in capsys.readouterr().err
+    from tacswitch.tacdiff.finetune import finetune
+
+    with pytest.raises(ValueError, match="pseudo"):
+        finetune([np.zeros((64, 64, 3), np.uint8)], tmp_path / "y", pseudo="ns")

@@ -66,6 +66,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "around a moved marker is quantised with it as around a real one "
                         "(default: auto, which recognises a JPEG/MJPEG source's quality; H.264 "
                         "recordings: pass h264:CRF, e.g. h264:23)")
+    p.add_argument("--pseudo", default="model", choices=("model", "telea"),
+                   help="the fill your markers are removed with where the transplants are "
+                        "built: model (the start model's own fill, closer to the gel) or telea "
+                        "(TELEA r=3, the choice before 0.6; default: %(default)s)")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(run=run)
 
@@ -99,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
                       transplant=args.transplant, ring=args.ring, val_every=args.val_every,
                       val_frames=args.val_frames, progress=not args.quiet, loss=args.loss,
                       terminal_fraction=args.terminal_fraction, recompress=args.recompress,
-                      extra={"finetune": [str(f) for f in files]})
+                      pseudo=args.pseudo, extra={"finetune": [str(f) for f in files]})
     # The choice is the result: printed even with -q.
     print(result.summary())
     return 0

@@ -245,7 +245,7 @@ def paint_source(folder: str, pitch: float | None, diameter: float | None
         if cpath is not None and c is None:
             raise ValueError(f"--paint: cannot read {str(cpath)!r} as a contact mask")
         if c is not None and c.shape != img.shape[:2]:
-            raise ValueError(f"--paint: {cpath.name} is not the size of its frame")
+            raise ValueError(f"--paint: {f.stem}.contact mask is not the size of its frame")
         contacts.append(None if c is None else c > 0)
     spec: dict[str, Any] = {}
     if (root / "markers.json").is_file():

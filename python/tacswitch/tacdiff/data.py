@@ -243,7 +243,10 @@ def marker_offset_pairs(frames: Sequence[NDArray[np.uint8]], *, offset: tuple[in
                         = None, radius: int = 3, transplant: bool = True,
                         ring: int = DEFAULT_RING,
                         recompress: Callable[[NDArray[np.uint8]], NDArray[np.uint8]] | None
-                        = None, **extract_opts: Any) -> dict[str, NDArray[Any]]:
+                        = None,
+                        pseudo_fill: Callable[[NDArray[np.uint8], NDArray[np.bool_]],
+                                              NDArray[np.uint8]] | None = None,
+                        **extract_opts: Any) -> dict[str, NDArray[Any]]:
     """Training pairs from a sensor with markers only (the paper's marker-offset strategy).
 
     Args:
@@ -258,6 +261,9 @@ def marker_offset_pairs(frames: Sequence[NDArray[np.uint8]], *, offset: tuple[in
             inference (default); False: the paper's clean shifted holes in the TELEA frame.
         ring: px beyond the removal mask over which a marker's darkening is measured
             (``transplant`` only).
+        pseudo_fill: the pseudo-markerless fill the transplants are measured against and
+            carried on (``transplant`` only; default: TELEA of ``radius``), e.g. the start
+            model's own fill (``tacswitch finetune --pseudo model``).
         recompress: applied to each transplanted input frame (``transplant`` only), so the gel
             around a moved marker is quantised with the marker as on the source recording
             (:mod:`~tacswitch.tacdiff.recompress`); the target stays the frame itself.
@@ -292,7 +298,8 @@ def marker_offset_pairs(frames: Sequence[NDArray[np.uint8]], *, offset: tuple[in
             half = round(pitch / 2)
             shift = default_offset(pitch) if transplant else (half, half)
         if transplant:
-            cond, moved, real, _ = move_markers(f, mask, shift, ring=ring, radius=radius)
+            cond, moved, real, _ = move_markers(f, mask, shift, ring=ring, radius=radius,
+                                                pseudo_fill=pseudo_fill)
             conds.append(cond if recompress is None else recompress(cond))
             targets.append(f)
             masks.append(moved)

@@ -46,6 +46,8 @@ from tacswitch.tacdiff.transplant import DEFAULT_RING
 MIN_FRAMES_TO_SPLIT = 5
 #: Standard errors of the per-marker improvement a checkpoint needs to replace the start model.
 NOISE_Z = 2.0
+#: Pseudo-markerless fills the transplants can be built on (``finetune(pseudo=...)``).
+PSEUDO_FILLS: tuple[str, ...] = ("telea", "model")
 
 
 @dataclass
@@ -185,7 +187,7 @@ class ValidationSet:
 
 def validation_set(frames: Sequence[NDArray[np.uint8]], offset: tuple[int, int], *,
                    ring: int = DEFAULT_RING, recompress: Recompress | None = None,
-                   **extract_opts: Any) -> ValidationSet:
+                   pseudo_fill: Any = None, **extract_opts: Any) -> ValidationSet:
     """The validation transplant of ``frames`` by ``offset`` (see the module docstring),
     re-compressed by ``recompress`` like the training pairs."""
     import cv2
@@ -193,7 +195,7 @@ def validation_set(frames: Sequence[NDArray[np.uint8]], offset: tuple[int, int],
     from tacswitch.tacdiff.data import marker_offset_pairs
 
     pairs = marker_offset_pairs(frames, offset=offset, transplant=True, ring=ring,
-                                recompress=recompress, **extract_opts)
+                                recompress=recompress, pseudo_fill=pseudo_fill, **extract_opts)
     labels = np.stack([cv2.connectedComponents(m.view(np.uint8), connectivity=8)[1]
                        for m in pairs["mask"]]).astype(np.int32)
     return ValidationSet(pairs, labels, offset)
@@ -285,7 +287,7 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
              ring: int = DEFAULT_RING, val_every: int = 100, val_share: float = 0.2,
              val_frames: int = 8, threads: int = 0, progress: bool = True,
              loss: str | None = None, terminal_fraction: float | None = None,
-             recompress: str = "auto",
+             recompress: str = "auto", pseudo: str = "model",
              extra: dict[str, Any] | None = None) -> FinetuneResult:
     """Fine-tunes TacDiff on ``frames`` (a sensor's marker frames, no ground truth) and keeps the
     best of the starting model and the validated checkpoints (module docstring).
@@ -302,6 +304,11 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
         val_share, val_frames: frames held out for validation (:func:`split_frames`).
         loss, terminal_fraction: training objective (:class:`~.train.TrainConfig`); None: the
             starting model's own (:func:`start_objective`).
+        pseudo: the pseudo-markerless fill the transplants are built on (training and
+            validation): ``"model"`` (the start model's own fill, closer to the gel around the
+            moved markers; the default since 0.6) or ``"telea"`` (TELEA r = 3, before:
+            its smooth fills next to the moved markers let validation and held-out frames
+            disagree on the dense Mini grid); :data:`PSEUDO_FILLS`.
         recompress: how the transplanted frames (training and validation) are re-compressed
             like the source: ``"auto"``, ``"none"``, ``"jpeg:Q"`` or ``"h264:CRF"``
             (:func:`~tacswitch.tacdiff.recompress.recompressor`).
@@ -321,6 +328,8 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
 
     if val_every < 1:
         raise ValueError(f"val_every: must be >= 1 step; got {val_every}")
+    if pseudo not in PSEUDO_FILLS:
+        raise ValueError(f"pseudo: expected one of {PSEUDO_FILLS}; got {pseudo!r}")
     run = Path(out)
     run.mkdir(parents=True, exist_ok=True)
     frames = list(frames)
@@ -336,15 +345,23 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
         offset = default_offset(pitch) if transplant else (round(pitch / 2),) * 2  # type: ignore[assignment]
     assert offset is not None
     offset = (int(offset[0]), int(offset[1]))
+    start = start_onnx(init, run)
+    fill = None
+    if pseudo == "model":
+        from tacswitch.tacdiff.infer import inpaint_tacdiff
+
+        def fill(img: NDArray[np.uint8], holes: NDArray[np.bool_]) -> NDArray[np.uint8]:
+            return inpaint_tacdiff(img, holes, model=start)
+
     pairs = marker_offset_pairs([frames[i] for i in tr], offset=offset, transplant=transplant,
-                                ring=ring, recompress=redo)
+                                ring=ring, recompress=redo, pseudo_fill=fill)
     if not pairs["loss_mask"].any():
         raise ValueError("frames: no shifted marker pixel lands on real gel; pass offset")
     val_offset, overlap = validation_offset(first.mask, offset, ring=ring)
-    val = validation_set([frames[i] for i in va], val_offset, ring=ring, recompress=redo)
+    val = validation_set([frames[i] for i in va], val_offset, ring=ring, recompress=redo,
+                         pseudo_fill=fill)
     if not val.pairs["loss_mask"].any():
         raise ValueError("frames: no validation marker lands on real gel; pass offset")
-    start = start_onnx(init, run)
     inherited = start_objective(start)
     loss = inherited[0] if loss is None else check_loss(loss)
     terminal_fraction = inherited[1] if terminal_fraction is None else float(terminal_fraction)

@@ -31,6 +31,7 @@ in px, positive right and down.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -41,6 +42,8 @@ from numpy.typing import NDArray
 DEFAULT_RING = 3
 #: Codec block side (px) offsets are rounded to by :func:`default_offset`.
 BLOCK = 8
+#: A pseudo-markerless fill: ``(frame, holes) -> frame`` with the holes filled (uint8 BGR).
+PseudoFill = Callable[[NDArray[np.uint8], NDArray[np.bool_]], NDArray[np.uint8]]
 
 
 @dataclass(frozen=True)
@@ -85,7 +88,8 @@ def default_offset(pitch: float, block: int = BLOCK) -> tuple[int, int]:
 
 
 def measure_appearance(frame: NDArray[np.uint8], mask: NDArray[np.bool_], *,
-                       ring: int = DEFAULT_RING, radius: int = 3) -> Appearance:
+                       ring: int = DEFAULT_RING, radius: int = 3,
+                       pseudo_fill: PseudoFill | None = None) -> Appearance:
     """Each marker's darkening relative to the gel under it (see the module docstring).
 
     Args:
@@ -93,6 +97,9 @@ def measure_appearance(frame: NDArray[np.uint8], mask: NDArray[np.bool_], *,
         mask: ``H x W`` bool removal mask of its markers (what inference would fill).
         ring: px the mask is grown by (the footprint whose darkening is measured).
         radius: TELEA radius of the pseudo-markerless fill.
+        pseudo_fill: another pseudo-markerless fill instead of TELEA (e.g. the model being
+            fine-tuned: a fill closer to the gel makes the context around the moved markers,
+            and their measured darkening, closer to a real frame's).
     """
     import cv2
 
@@ -102,7 +109,8 @@ def measure_appearance(frame: NDArray[np.uint8], mask: NDArray[np.bool_], *,
     if ring < 0:
         raise ValueError(f"ring: must be >= 0 px; got {ring}")
     footprint = dilate_mask(mask, ring) if ring else mask.astype(bool)
-    fill = inpaint_telea(frame, footprint, radius)
+    fill = (inpaint_telea(frame, footprint, radius) if pseudo_fill is None
+            else np.asarray(pseudo_fill(frame, footprint), np.uint8))
     ratio = np.ones(frame.shape, np.float32)
     f = frame[footprint].astype(np.float32)
     # The +0.5 keeps black gel (a 0 fill) from dividing by zero; it is far below the noise.
@@ -135,7 +143,7 @@ def movable(app: Appearance, mask: NDArray[np.bool_], offset: tuple[int, int], *
 
 
 def transplant(frame: NDArray[np.uint8], mask: NDArray[np.bool_], offset: tuple[int, int], *,
-               ring: int = DEFAULT_RING, radius: int = 3
+               ring: int = DEFAULT_RING, radius: int = 3, pseudo_fill: PseudoFill | None = None
                ) -> tuple[NDArray[np.uint8], NDArray[np.bool_], NDArray[np.bool_], int]:
     """The frame's real markers moved by ``offset`` onto real gel.
 
@@ -145,7 +153,7 @@ def transplant(frame: NDArray[np.uint8], mask: NDArray[np.bool_], offset: tuple[
         markers, its pixels on real gel (off every original footprint; the loss goes there
         only), and how many markers were moved.
     """
-    app = measure_appearance(frame, mask, ring=ring, radius=radius)
+    app = measure_appearance(frame, mask, ring=ring, radius=radius, pseudo_fill=pseudo_fill)
     ok = movable(app, mask, offset)
     keep = ok[shift(app.labels, offset, 0)]
     ratio = np.where(keep[:, :, None], shift(app.ratio, offset, 1.0), np.float32(1.0))

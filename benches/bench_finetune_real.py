@@ -90,7 +90,7 @@ def finetune_case(frames: np.ndarray, run: Path, args: argparse.Namespace, seed:
                    val_every=args.val_every, threads=int(os.environ.get("BENCH_THREADS", "0")),
                    progress=bool(os.environ.get("BENCH_PROGRESS")), loss=args.loss,
                    terminal_fraction=args.terminal_fraction, recompress=args.recompress,
-                   pseudo=args.pseudo)
+                   pseudo=args.pseudo, mask_originals=args.mask_originals)
     last = export_onnx(load_network(run / "model.safetensors"), run / "last.onnx")
     return res, last
 
@@ -127,6 +127,9 @@ def main() -> None:
                          "jpeg:Q, h264:CRF)")
     ap.add_argument("--pseudo", default="model", choices=("model", "telea"),
                     help="pseudo-markerless fill of the transplants (finetune(pseudo=...))")
+    ap.add_argument("--mask-originals", action=argparse.BooleanOptionalAction, default=True,
+                    help="finetune(mask_originals=...): every original marker a hole too "
+                         "(default; --no-mask-originals: the moved markers only)")
     ap.add_argument("--fots", default=None, help="folder of real marker frames (FOTS) too")
     ap.add_argument("--json", default=None)
     args = ap.parse_args()

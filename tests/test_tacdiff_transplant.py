@@ -219,6 +219,9 @@ def test_finetune_cli_pseudo_model_and_bad_choice(tmp_path: Path, marker_frame_d
               "--crop", "64", "--init", "fast", "-q"]
     assert main([*common, "--out", str(tmp_path / "m"), "--pseudo", "model"]) == 0
     assert (tmp_path / "m" / "model.onnx").is_file()
+    assert main([*common, "--out", str(tmp_path / "t"), "--pseudo", "telea",
+                 "--no-mask-originals"]) == 0
+    assert (tmp_path / "t" / "model.onnx").is_file()
     with pytest.raises(SystemExit):
         main([*common, "--out", str(tmp_path / "x"), "--pseudo", "ns"])
     assert "--pseudo" in capsys.readouterr().err
@@ -226,3 +229,14 @@ def test_finetune_cli_pseudo_model_and_bad_choice(tmp_path: Path, marker_frame_d
 
     with pytest.raises(ValueError, match="pseudo"):
         finetune([np.zeros((64, 64, 3), np.uint8)], tmp_path / "y", pseudo="ns")
+
+
+def test_mask_originals_makes_every_marker_a_hole_and_keeps_the_loss(marker_frames):
+    plain = tdata.marker_offset_pairs(marker_frames[:1])
+    both = tdata.marker_offset_pairs(marker_frames[:1], mask_originals=True)
+    orig = tdata.removal_markers(marker_frames[0]).mask
+    np.testing.assert_array_equal(both["moved"][0], plain["mask"][0])
+    np.testing.assert_array_equal(both["mask"][0], plain["mask"][0] | orig)
+    np.testing.assert_array_equal(both["loss_mask"], plain["loss_mask"])  # real gel only
+    np.testing.assert_array_equal(both["cond"], plain["cond"])
+    assert "moved" not in plain

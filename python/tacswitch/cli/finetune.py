@@ -70,6 +70,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="the fill your markers are removed with where the transplants are "
                         "built: model (the start model's own fill, closer to the gel) or telea "
                         "(TELEA r=3, the choice before 0.6; default: %(default)s)")
+    p.add_argument("--mask-originals", action=argparse.BooleanOptionalAction, default=True,
+                   help="make every original marker a hole too in the training and validation "
+                        "inputs, as at inference (default: on; --no-mask-originals: the moved "
+                        "markers only, as before 0.6)")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(run=run)
 
@@ -103,7 +107,8 @@ def run(args: argparse.Namespace) -> int:
                       transplant=args.transplant, ring=args.ring, val_every=args.val_every,
                       val_frames=args.val_frames, progress=not args.quiet, loss=args.loss,
                       terminal_fraction=args.terminal_fraction, recompress=args.recompress,
-                      pseudo=args.pseudo, extra={"finetune": [str(f) for f in files]})
+                      pseudo=args.pseudo, mask_originals=args.mask_originals,
+                      extra={"finetune": [str(f) for f in files]})
     # The choice is the result: printed even with -q.
     print(result.summary())
     return 0

@@ -246,6 +246,7 @@ def marker_offset_pairs(frames: Sequence[NDArray[np.uint8]], *, offset: tuple[in
                         = None,
                         pseudo_fill: Callable[[NDArray[np.uint8], NDArray[np.bool_]],
                                               NDArray[np.uint8]] | None = None,
+                        mask_originals: bool = False,
                         **extract_opts: Any) -> dict[str, NDArray[Any]]:
     """Training pairs from a sensor with markers only (the paper's marker-offset strategy).
 
@@ -261,6 +262,11 @@ def marker_offset_pairs(frames: Sequence[NDArray[np.uint8]], *, offset: tuple[in
             inference (default); False: the paper's clean shifted holes in the TELEA frame.
         ring: px beyond the removal mask over which a marker's darkening is measured
             (``transplant`` only).
+        mask_originals: also mark every original marker's removal mask as a hole
+            (``transplant`` only; the loss stays on the moved markers' real pixels), so the
+            network fills each moved marker among neighbours that are holes too, as at
+            inference, not among pseudo-filled gel; the moved mask alone is returned as
+            ``moved``.
         pseudo_fill: the pseudo-markerless fill the transplants are measured against and
             carried on (``transplant`` only; default: TELEA of ``radius``), e.g. the start
             model's own fill (``tacswitch finetune --pseudo model``).
@@ -282,7 +288,7 @@ def marker_offset_pairs(frames: Sequence[NDArray[np.uint8]], *, offset: tuple[in
     if len(frames) == 0:
         raise ValueError("frames: need at least one frame")
     shape = frames[0].shape
-    conds, targets, masks, losses = [], [], [], []
+    conds, targets, masks, losses, moveds = [], [], [], [], []
     shift = offset
     for i, f in enumerate(frames):
         if f.shape != shape or f.dtype != np.uint8 or f.ndim != 3 or f.shape[2] != 3:
@@ -302,6 +308,9 @@ def marker_offset_pairs(frames: Sequence[NDArray[np.uint8]], *, offset: tuple[in
                                                 pseudo_fill=pseudo_fill)
             conds.append(cond if recompress is None else recompress(cond))
             targets.append(f)
+            if mask_originals:
+                moveds.append(moved)
+                moved = moved | mask
             masks.append(moved)
             losses.append(real)
             continue
@@ -312,8 +321,11 @@ def marker_offset_pairs(frames: Sequence[NDArray[np.uint8]], *, offset: tuple[in
         masks.append(moved)
         # Real pixels only: the shifted hole must not land on an original (TELEA-filled) marker.
         losses.append(moved & ~mask)
-    return {"cond": np.stack(conds), "target": np.stack(targets), "mask": np.stack(masks),
-            "loss_mask": np.stack(losses)}
+    out = {"cond": np.stack(conds), "target": np.stack(targets), "mask": np.stack(masks),
+           "loss_mask": np.stack(losses)}
+    if moveds:
+        out["moved"] = np.stack(moveds)
+    return out
 
 
 def _shift(mask: NDArray[np.bool_], offset: tuple[int, int]) -> NDArray[np.bool_]:

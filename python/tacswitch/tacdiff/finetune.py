@@ -187,7 +187,8 @@ class ValidationSet:
 
 def validation_set(frames: Sequence[NDArray[np.uint8]], offset: tuple[int, int], *,
                    ring: int = DEFAULT_RING, recompress: Recompress | None = None,
-                   pseudo_fill: Any = None, **extract_opts: Any) -> ValidationSet:
+                   pseudo_fill: Any = None, mask_originals: bool = False,
+                   **extract_opts: Any) -> ValidationSet:
     """The validation transplant of ``frames`` by ``offset`` (see the module docstring),
     re-compressed by ``recompress`` like the training pairs."""
     import cv2
@@ -195,9 +196,11 @@ def validation_set(frames: Sequence[NDArray[np.uint8]], offset: tuple[int, int],
     from tacswitch.tacdiff.data import marker_offset_pairs
 
     pairs = marker_offset_pairs(frames, offset=offset, transplant=True, ring=ring,
-                                recompress=recompress, pseudo_fill=pseudo_fill, **extract_opts)
+                                recompress=recompress, pseudo_fill=pseudo_fill,
+                                mask_originals=mask_originals, **extract_opts)
+    # One label per moved marker (the originals, holes too with mask_originals, are not scored).
     labels = np.stack([cv2.connectedComponents(m.view(np.uint8), connectivity=8)[1]
-                       for m in pairs["mask"]]).astype(np.int32)
+                       for m in pairs.get("moved", pairs["mask"])]).astype(np.int32)
     return ValidationSet(pairs, labels, offset)
 
 
@@ -287,7 +290,7 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
              ring: int = DEFAULT_RING, val_every: int = 100, val_share: float = 0.2,
              val_frames: int = 8, threads: int = 0, progress: bool = True,
              loss: str | None = None, terminal_fraction: float | None = None,
-             recompress: str = "auto", pseudo: str = "model",
+             recompress: str = "auto", pseudo: str = "model", mask_originals: bool = True,
              extra: dict[str, Any] | None = None) -> FinetuneResult:
     """Fine-tunes TacDiff on ``frames`` (a sensor's marker frames, no ground truth) and keeps the
     best of the starting model and the validated checkpoints (module docstring).
@@ -309,6 +312,9 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
             moved markers; the default since 0.6) or ``"telea"`` (TELEA r = 3, before:
             its smooth fills next to the moved markers let validation and held-out frames
             disagree on the dense Mini grid); :data:`PSEUDO_FILLS`.
+        mask_originals: every original marker is a hole too in training and validation inputs
+            (:func:`~tacswitch.tacdiff.data.marker_offset_pairs`), as at inference (the default
+            since 0.6; False: the moved markers only, among pseudo-filled originals).
         recompress: how the transplanted frames (training and validation) are re-compressed
             like the source: ``"auto"``, ``"none"``, ``"jpeg:Q"`` or ``"h264:CRF"``
             (:func:`~tacswitch.tacdiff.recompress.recompressor`).
@@ -354,12 +360,14 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
             return inpaint_tacdiff(img, holes, model=start)
 
     pairs = marker_offset_pairs([frames[i] for i in tr], offset=offset, transplant=transplant,
-                                ring=ring, recompress=redo, pseudo_fill=fill)
+                                ring=ring, recompress=redo, pseudo_fill=fill,
+                                mask_originals=mask_originals and transplant)
+    pairs.pop("moved", None)
     if not pairs["loss_mask"].any():
         raise ValueError("frames: no shifted marker pixel lands on real gel; pass offset")
     val_offset, overlap = validation_offset(first.mask, offset, ring=ring)
     val = validation_set([frames[i] for i in va], val_offset, ring=ring, recompress=redo,
-                         pseudo_fill=fill)
+                         pseudo_fill=fill, mask_originals=mask_originals and transplant)
     if not val.pairs["loss_mask"].any():
         raise ValueError("frames: no validation marker lands on real gel; pass offset")
     inherited = start_objective(start)

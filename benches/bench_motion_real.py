@@ -109,13 +109,14 @@ def methods(models: dict[str, str | None], slow: bool, sensor: str
 
 
 def evaluate(sensor: str, meths: dict[str, tuple[Predict, tuple[str, ...]]], every: int,
-             per_press: int, seed: int) -> dict[tuple[str, str], dict[str, float]]:
+             per_press: int, seed: int, stream: bool = False
+             ) -> dict[tuple[str, str], dict[str, float]]:
     """Metrics per (setting, method) over the proxy samples of ``sensor``."""
     presses = proxy.load_real_presses(sensor)
     preds: dict[tuple[str, str], list[np.ndarray]] = {}
     times: dict[tuple[str, str], list[float]] = {}
     trues: list[np.ndarray] = []
-    for s in proxy.make_proxy(presses=presses, per_press=per_press, seed=seed):
+    for s in proxy.make_proxy(presses=presses, per_press=per_press, seed=seed, stream=stream):
         if s.press % every:  # every kind of field on every ``every``-th press
             continue
         trues.append(s.motion)
@@ -193,6 +194,9 @@ def main() -> int:
                     help="score this ONNX motion model too (default: the shipped one)")
     ap.add_argument("--per-press", type=int, default=1, help="random fields per press and kind")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--stream", action="store_true",
+                    help="capture no-contact frame, press and warp as one recording "
+                         "(proxy.make_proxy(stream=True))")
     ap.add_argument("--sensors", nargs="+", default=["gelsight_mini", "gelsight"],
                     choices=sorted(proxy.SENSORS))
     ap.add_argument("--calibrate-outward", action="store_true")
@@ -218,7 +222,7 @@ def main() -> int:
     rows = []
     for sensor in args.sensors:
         meths = methods(models, args.slow, sensor)
-        res = evaluate(sensor, meths, every, args.per_press, args.seed)
+        res = evaluate(sensor, meths, every, args.per_press, args.seed, args.stream)
         for setting in proxy.SETTINGS:
             for name in meths:
                 r = res.get((setting, name))

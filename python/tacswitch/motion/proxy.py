@@ -324,15 +324,39 @@ def _capture(img: NDArray[np.uint8], rng: np.random.Generator, drift: bool) -> N
     return capture.apply(img, prof, rng)
 
 
+def _capture_stream(frames: list[NDArray[np.uint8]], rng: np.random.Generator
+                    ) -> list[NDArray[np.uint8]]:
+    """Captures ``frames`` as one recording would: the last one gets the exposure /
+    white-balance drift, then all go through one codec at one quality (H.264: one stream,
+    in order, so the later frames are predicted from the earlier ones; MJPEG: each frame)."""
+    from tacswitch.sim import capture
+
+    gain = rng.uniform(0.85, 1.15) * rng.uniform(0.95, 1.05, 3)
+    offset = rng.uniform(-8, 8, 3)
+    codec: Literal["mjpeg", "h264"] = "mjpeg" if rng.random() < 0.6 else "h264"
+    quality = int(rng.integers(75, 96)) if codec == "mjpeg" else int(rng.integers(18, 29))
+    last = capture.colour_drift(frames[-1].astype(np.float32), gain, offset)
+    seq = [*frames[:-1], np.clip(np.rint(last), 0, 255).astype(np.uint8)]
+    prof = capture.CaptureProfile(read_noise=0.5, codec=codec, quality=quality)
+    return list(capture.apply_sequence(seq, prof, rng))
+
+
 def make_proxy(sensor: str = "gelsight", *, kinds: tuple[str, ...] = FIELD_KINDS,
                per_press: int = 1, seed: int = 0, presses: RealPresses | None = None,
-               capture: bool = True) -> Iterator[ProxySample]:
+               capture: bool = True, stream: bool = False) -> Iterator[ProxySample]:
     """Yields proxy samples: every real press of ``sensor`` x every field kind x ``per_press``
     random fields, each with the references of every setting (see the module doc).
     Deterministic given ``seed``.
 
     Args:
         capture: apply the exposure drift and compression (False: the exact warp, for tests).
+        stream: capture the no-contact frame, the press and its warp as ONE recording (one codec
+            and quality; H.264 as one stream in that order), as a sensor's video holds them;
+            default False: each captured on its own, codec drawn per frame (the proxy's
+            published numbers; separately encoded H.264 frames show false motion to flow).
+            Not bit-for-bit reproducible: under pytest the predicted frames of a stream were
+            seen to differ by up to 2 grey levels between runs, rarely (cause not found;
+            `h264_roundtrip` itself repeated identically in and across processes).
     """
     data = presses if presses is not None else load_real_presses(sensor)
     rest, _ = marker_grid(data.sensor)
@@ -348,7 +372,10 @@ def make_proxy(sensor: str = "gelsight", *, kinds: tuple[str, ...] = FIELD_KINDS
                 fld = random_field(kind, c, float(data.radii[i]), max_amp, rng, shape=(h, w))
                 img = warp(data.imgs[i], fld)
                 refs = {"no_contact": data.f0, "press": data.imgs[i]}
-                if capture:
+                if capture and stream:
+                    f0, press, img = _capture_stream([data.f0, data.imgs[i], img], rng)
+                    refs = {"no_contact": f0, "press": press}
+                elif capture:
                     img = _capture(img, rng, drift=True)
                     refs = {k: _capture(v, rng, drift=False) for k, v in refs.items()}
                 yield ProxySample(img, refs, rest, fld.at(rest), fld, i,

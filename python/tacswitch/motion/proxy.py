@@ -335,7 +335,7 @@ def _capture_stream(frames: list[NDArray[np.uint8]], rng: np.random.Generator
     offset = rng.uniform(-8, 8, 3)
     codec: Literal["mjpeg", "h264"] = "mjpeg" if rng.random() < 0.6 else "h264"
     quality = int(rng.integers(75, 96)) if codec == "mjpeg" else int(rng.integers(18, 29))
-    last = capture.colour_drift(frames[-1].astype(np.float32), gain, offset)
+    last = capture.colour_drift(frames[-1].astype(np.float32), gain.tolist(), offset.tolist())
     seq = [*frames[:-1], np.clip(np.rint(last), 0, 255).astype(np.uint8)]
     prof = capture.CaptureProfile(read_noise=0.5, codec=codec, quality=quality)
     return list(capture.apply_sequence(seq, prof, rng))

@@ -307,21 +307,28 @@ class ProxySample:
         return self.refs.get(setting)
 
 
-def _capture(img: NDArray[np.uint8], rng: np.random.Generator, drift: bool) -> NDArray[np.uint8]:
-    """Exposure / white-balance drift (``drift``), a little read noise and the capture's codec.
-    The real frame already holds its optics' blur and its sensor's noise."""
+def _draw_capture(rng: np.random.Generator, drift: bool) -> Any:
+    """A random capture of the proxy: exposure / white-balance drift (``drift``; gain
+    0.85-1.15 x 0.95-1.05 per channel, offset +-8), read noise 0.5 and MJPEG q75-95 (60 %) or
+    H.264 CRF 18-28. The real frames already hold their optics' blur and sensor noise."""
     from tacswitch.sim import capture
 
     gain = (rng.uniform(0.85, 1.15) * rng.uniform(0.95, 1.05, 3)) if drift else np.ones(3)
     offset = rng.uniform(-8, 8, 3) if drift else np.zeros(3)
     codec: Literal["mjpeg", "h264"] = "mjpeg" if rng.random() < 0.6 else "h264"
     quality = int(rng.integers(75, 96)) if codec == "mjpeg" else int(rng.integers(18, 29))
-    prof = capture.CaptureProfile(read_noise=0.5,
+    return capture.CaptureProfile(read_noise=0.5,
                                   gain=(float(gain[0]), float(gain[1]), float(gain[2])),
                                   offset=(float(offset[0]), float(offset[1]), float(offset[2])),
                                   codec=codec,
                                   quality=quality)
-    return capture.apply(img, prof, rng)
+
+
+def _capture(img: NDArray[np.uint8], rng: np.random.Generator, drift: bool) -> NDArray[np.uint8]:
+    """One frame through its own random capture (:func:`_draw_capture`)."""
+    from tacswitch.sim import capture
+
+    return capture.apply(img, _draw_capture(rng, drift), rng)
 
 
 def _capture_stream(frames: list[NDArray[np.uint8]], rng: np.random.Generator
@@ -329,16 +336,15 @@ def _capture_stream(frames: list[NDArray[np.uint8]], rng: np.random.Generator
     """Captures ``frames`` as one recording would: the last one gets the exposure /
     white-balance drift, then all go through one codec at one quality (H.264: one stream,
     in order, so the later frames are predicted from the earlier ones; MJPEG: each frame)."""
+    from dataclasses import replace
+
     from tacswitch.sim import capture
 
-    gain = rng.uniform(0.85, 1.15) * rng.uniform(0.95, 1.05, 3)
-    offset = rng.uniform(-8, 8, 3)
-    codec: Literal["mjpeg", "h264"] = "mjpeg" if rng.random() < 0.6 else "h264"
-    quality = int(rng.integers(75, 96)) if codec == "mjpeg" else int(rng.integers(18, 29))
-    last = capture.colour_drift(frames[-1].astype(np.float32), gain.tolist(), offset.tolist())
+    prof = _draw_capture(rng, drift=True)
+    last = capture.colour_drift(frames[-1].astype(np.float32), prof.gain, prof.offset)
     seq = [*frames[:-1], np.clip(np.rint(last), 0, 255).astype(np.uint8)]
-    prof = capture.CaptureProfile(read_noise=0.5, codec=codec, quality=quality)
-    return list(capture.apply_sequence(seq, prof, rng))
+    steady = replace(prof, gain=(1.0, 1.0, 1.0), offset=(0.0, 0.0, 0.0))
+    return list(capture.apply_sequence(seq, steady, rng))
 
 
 def make_proxy(sensor: str = "gelsight", *, kinds: tuple[str, ...] = FIELD_KINDS,

@@ -160,11 +160,7 @@ def render_pairs(out: str | Path, n: int, *, seed: int = 0,
     ``SeedSequence([seed, preset_index, i])``, so a rerun (any ``workers``) renders the same
     pairs. ``workers`` processes render shards in parallel; with ``prior`` each shard also
     caches that prior's classical fills at TELEA ``prior_radius`` px (:func:`ensure_fills`)."""
-    if not isinstance(workers, (int, np.integer)) or workers < 1:
-        raise ValueError(f"workers: must be an integer >= 1; got {workers!r}")
-    radius = check_radius(DEFAULT_PRIOR_RADIUS if prior_radius is None else prior_radius)
-    if prior is not None:
-        check_prior(prior)
+    radius = render_options(workers, prior, prior_radius)
     root = Path(out)
     root.mkdir(parents=True, exist_ok=True)
     total = sum(w for _, w in mix)
@@ -178,45 +174,79 @@ def render_pairs(out: str | Path, n: int, *, seed: int = 0,
             if not path.is_file():
                 jobs.append((path, preset, [seed, pi], start, min(count, start + shard), count,
                              realism, prior, radius))
-    t0 = time.perf_counter()
-    if workers == 1 or len(jobs) <= 1:
-        done = map(lambda job: _sim_shard(*job), jobs)
-        for job, _ in zip(jobs, done, strict=True):
-            if progress:
-                print(f"{job[0].name}: {job[4]}/{job[5]} pairs, "
-                      f"{time.perf_counter() - t0:.0f} s", flush=True)
-        return paths
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor
-
-    with ProcessPoolExecutor(min(workers, len(jobs)),
-                             mp_context=mp.get_context("spawn")) as pool:
-        futures = [pool.submit(_sim_shard, *job) for job in jobs]
-        try:
-            for job, f in zip(jobs, futures, strict=True):
-                f.result()
-                if progress:
-                    print(f"{job[0].name}: {job[4]}/{job[5]} pairs, "
-                          f"{time.perf_counter() - t0:.0f} s", flush=True)
-        except BaseException:
-            pool.shutdown(wait=True, cancel_futures=True)  # do not render the rest first
-            raise
+    run_shard_jobs(_sim_shard, jobs, workers,
+                   (lambda job: f"{job[4]}/{job[5]} pairs") if progress else None)
     return paths
 
 
 def _sim_shard(path: Path, preset: str, key: list[int], start: int, stop: int, count: int,
                realism: bool, prior: str | None, radius: float) -> Path:
     """Renders samples ``start .. stop`` of one preset into the shard ``path`` (atomically)."""
-    from tacswitch._io import atomic_open
-
     items = [render_pair(preset, np.random.SeedSequence([*key, i]), realism=realism)
              for i in range(start, stop)]
+    return write_shard(path, items, prior, radius)
+
+
+def render_options(workers: int, prior: str | None, prior_radius: float | None) -> float:
+    """Checks the options shared by the pair renderers (``workers`` >= 1, ``prior`` known) and
+    returns the TELEA radius (px) of the fills to cache (default: the library's)."""
+    if not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise ValueError(f"workers: must be an integer >= 1; got {workers!r}")
+    radius = check_radius(DEFAULT_PRIOR_RADIUS if prior_radius is None else prior_radius)
+    if prior is not None:
+        check_prior(prior)
+    return radius
+
+
+def write_shard(path: Path, items: Sequence[dict[str, NDArray[Any]]], prior: str | None,
+                radius: float) -> Path:
+    """Stacks ``items`` (one pair each) into a shard, caches ``prior``'s classical fills at
+    TELEA ``radius`` px when ``prior`` is given (:func:`ensure_fills`), and writes it to ``path``
+    atomically."""
+    from tacswitch._io import atomic_open
+
     arrays = {k: np.stack([it[k] for it in items]) for k in items[0]}
     if prior is not None:
         ensure_fills(arrays, prior, radius)
     with atomic_open(path, "wb") as fh:
         np.savez(fh, **arrays)  # type: ignore[arg-type]
     return path
+
+
+def run_shard_jobs(fn: Callable[..., Path], jobs: Sequence[tuple[Any, ...]], workers: int,
+                   describe: Callable[[tuple[Any, ...]], str] | None, *,
+                   initializer: Callable[..., None] | None = None,
+                   initargs: tuple[Any, ...] = ()) -> None:
+    """Runs ``fn(*job)`` (which writes the shard ``job[0]``) for every job: in this process, or
+    in ``workers`` spawned processes (each first running ``initializer(*initargs)``); with
+    ``describe`` a progress line per finished shard. A failure stops the jobs not yet started."""
+    t0 = time.perf_counter()
+
+    def report(job: tuple[Any, ...]) -> None:
+        if describe is not None:
+            print(f"{job[0].name}: {describe(job)}, {time.perf_counter() - t0:.0f} s",
+                  flush=True)
+
+    if workers == 1 or len(jobs) <= 1:
+        if initializer is not None:
+            initializer(*initargs)
+        for job in jobs:
+            fn(*job)
+            report(job)
+        return
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(min(workers, len(jobs)), mp_context=mp.get_context("spawn"),
+                             initializer=initializer, initargs=initargs) as pool:
+        futures = [pool.submit(fn, *job) for job in jobs]
+        try:
+            for job, f in zip(jobs, futures, strict=True):
+                f.result()
+                report(job)
+        except BaseException:
+            pool.shutdown(wait=True, cancel_futures=True)  # do not render the rest first
+            raise
 
 
 def load_pairs(root: str | Path) -> list[dict[str, NDArray[Any]]]:

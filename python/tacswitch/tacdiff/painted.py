@@ -17,9 +17,7 @@ beside simulated ones. Images are uint8 BGR, points ``(x, y)`` px.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -146,20 +144,14 @@ def _init(frames: list[NDArray[np.uint8]], contacts: list[NDArray[np.bool_] | No
 
 def _shard(path: Path, seeds: list[Any], pitch: float, diameter: float,
            prior: str | None, prior_radius: float) -> Path:
-    from tacswitch._io import atomic_open
-    from tacswitch.tacdiff.data import ensure_fills
+    from tacswitch.tacdiff.data import write_shard
 
     items = []
     for s in seeds:
         k = int(np.random.default_rng(s).integers(len(_FRAMES)))
         items.append(painted_pair(_FRAMES[k], pitch=pitch, diameter=diameter, seed=s,
                                   contact=_CONTACTS[k]))
-    arrays = {key: np.stack([it[key] for it in items]) for key in items[0]}
-    if prior is not None:
-        ensure_fills(arrays, prior, prior_radius)
-    with atomic_open(path, "wb") as fh:
-        np.savez(fh, **arrays)  # type: ignore[arg-type]
-    return path
+    return write_shard(path, items, prior, prior_radius)
 
 
 def render_painted_pairs(out: str | Path, frames: Sequence[NDArray[np.uint8]], n: int, *,
@@ -183,49 +175,25 @@ def render_painted_pairs(out: str | Path, frames: Sequence[NDArray[np.uint8]], n
         prior, prior_radius: also cache the classical fills of this prior
             (:func:`~tacswitch.tacdiff.data.ensure_fills`), so training skips computing them.
     """
-    from tacswitch.tacdiff.prior import DEFAULT_PRIOR_RADIUS, check_prior, check_radius
+    from tacswitch.tacdiff.data import render_options, run_shard_jobs
 
     fr, cts = check_frames(frames, contacts)
-    for arg, v in (("n", n), ("shard", shard), ("workers", workers)):
+    for arg, v in (("n", n), ("shard", shard)):
         if not isinstance(v, (int, np.integer)) or v < 1:
             raise ValueError(f"{arg}: must be an integer >= 1; got {v!r}")
     if not (np.isfinite(pitch) and np.isfinite(diameter) and 0 < diameter < pitch):
         raise ValueError(f"pitch, diameter: need 0 < diameter < pitch; got {pitch}, {diameter}")
     if not name or not all(c.isalnum() or c in "_-" for c in name):
         raise ValueError(f"name: letters, digits, '_' and '-' only; got {name!r}")
-    radius = check_radius(DEFAULT_PRIOR_RADIUS if prior_radius is None else prior_radius)
-    if prior is not None:
-        check_prior(prior)
+    radius = render_options(workers, prior, prior_radius)
     root = Path(out)
     root.mkdir(parents=True, exist_ok=True)
-    jobs = []
-    for k, start in enumerate(range(0, n, shard)):
-        path = root / f"pairs_{name}_{k:03d}.npz"
-        if not path.is_file():
-            seeds = [np.random.SeedSequence([seed, i]) for i in range(start, min(n, start + shard))]
-            jobs.append((path, seeds))
     paths = [root / f"pairs_{name}_{k:03d}.npz" for k in range(-(-n // shard))]
-    t0 = time.perf_counter()
-    if workers == 1 or len(jobs) <= 1:
-        _init(fr, cts)
-        for path, seeds in jobs:
-            _shard(path, seeds, pitch, diameter, prior, radius)
-            if progress:
-                print(f"{path.name}: {len(seeds)} pairs, {time.perf_counter() - t0:.0f} s",
-                      flush=True)
-        return paths
-    import multiprocessing as mp
-
-    with ProcessPoolExecutor(min(workers, len(jobs)), mp_context=mp.get_context("spawn"),
-                             initializer=_init, initargs=(fr, cts)) as pool:
-        futures = [pool.submit(_shard, path, seeds, pitch, diameter, prior, radius)
-                   for path, seeds in jobs]
-        try:
-            for f in futures:
-                done = f.result()
-                if progress:
-                    print(f"{done.name}: done, {time.perf_counter() - t0:.0f} s", flush=True)
-        except BaseException:
-            pool.shutdown(wait=True, cancel_futures=True)  # do not render the rest first
-            raise
+    jobs = [(path, [np.random.SeedSequence([seed, i]) for i in range(k * shard,
+                                                                      min(n, (k + 1) * shard))],
+             pitch, diameter, prior, radius)
+            for k, path in enumerate(paths) if not path.is_file()]
+    run_shard_jobs(_shard, jobs, workers,
+                   (lambda job: f"{len(job[1])} pairs") if progress else None,
+                   initializer=_init, initargs=(fr, cts))
     return paths

@@ -235,7 +235,7 @@ def train(shards: list[dict[str, NDArray[Any]]], out: str | Path, cfg: TrainConf
     if ckpt_path.is_file():
         ck = torch.load(ckpt_path, map_location="cpu", weights_only=False)
         # Checkpoints written before the loss was recorded trained v_mse.
-        if {"loss": "v_mse", "time_budget": 0.0, **ck["config"]} != _cfg_dict(cfg):
+        if {"loss": "v_mse", "time_budget": 0.0, **ck["config"]} != config_dict(cfg):
             raise ValueError(f"out: {str(out)!r} holds a run with another configuration; "
                              "use another folder")
         net.load_state_dict(ck["model"])
@@ -296,20 +296,16 @@ def train(shards: list[dict[str, NDArray[Any]]], out: str | Path, cfg: TrainConf
         if done % cfg.save_every == 0 or last:
             save_torch(ckpt_path, {"model": net.state_dict(), "ema": ema.state_dict(),
                               "optim": opt.state_dict(), "step": done, "log": log,
-                              "config": _cfg_dict(cfg),
+                              "config": config_dict(cfg),
                               "elapsed": elapsed + time.perf_counter() - t0})
         if last:
             break
-    save_weights(ema, out / "model.safetensors", _cfg_dict(cfg))
+    save_weights(ema, out / "model.safetensors", config_dict(cfg))
     return ema.cpu()
 
 
 def config_dict(cfg: TrainConfig) -> dict[str, Any]:
     """``cfg`` as the JSON-able dict recorded in checkpoints and weight files."""
-    return _cfg_dict(cfg)
-
-
-def _cfg_dict(cfg: TrainConfig) -> dict[str, Any]:
     d = asdict(cfg)
     d["mults"] = list(cfg.mults)
     return d

@@ -19,7 +19,7 @@ model, the fine-tune's last weights, the model it chose, and our TELEA default p
 truth at all) and report its validation (start vs chosen).
 
     python benches/bench_finetune_real.py [--sensors gelsight,gelsight_mini] [--codecs h264]
-        [--seeds 0,1] [--steps 400] [--model default|fast|PATH] [--fots DIR]
+        [--seeds 0,1] [--steps 1200] [--shifts 4] [--model default|fast|PATH] [--fots DIR]
 
 A benchmark, not a test: it needs the ``train`` extra and a few CPU minutes per fine-tune.
 """
@@ -90,7 +90,8 @@ def finetune_case(frames: np.ndarray, run: Path, args: argparse.Namespace, seed:
                    val_every=args.val_every, threads=int(os.environ.get("BENCH_THREADS", "0")),
                    progress=bool(os.environ.get("BENCH_PROGRESS")), loss=args.loss,
                    terminal_fraction=args.terminal_fraction, recompress=args.recompress,
-                   pseudo=args.pseudo, mask_originals=args.mask_originals)
+                   pseudo=args.pseudo, mask_originals=args.mask_originals,
+                   **({} if args.shifts is None else {"shifts": args.shifts}))
     last = export_onnx(load_network(run / "model.safetensors"), run / "last.onnx")
     return res, last
 
@@ -110,11 +111,15 @@ def main() -> None:
                     help="frames scored: heldout = the presses realproxy.held_out_indices "
                          "names (never in the 0.6 models' training), the rest fine-tune; "
                          "last = the last --test frames (the protocol before 0.6)")
-    ap.add_argument("--steps", type=int, default=600)
+    from tacswitch.tacdiff.finetune import DEFAULT_STEPS
+
+    ap.add_argument("--steps", type=int, default=DEFAULT_STEPS)
     ap.add_argument("--batch", type=int, default=8)
     ap.add_argument("--crop", type=int, default=96)
     ap.add_argument("--lr", type=float, default=2e-4)
     ap.add_argument("--ring", type=int, default=3)
+    ap.add_argument("--shifts", type=int, default=None,
+                    help="training shifts (default: finetune's own, DEFAULT_SHIFTS)")
     ap.add_argument("--val-every", type=int, default=100)
     ap.add_argument("--model", default="fast",
                     help="the starting model: default, fast or a weights/ONNX path")

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -56,6 +57,48 @@ def test_validation_offset_avoids_the_training_gel():
         ft.validation_offset(mask, (0, 0))
 
 
+def test_training_shifts_add_the_opposite_and_horizontal_shifts_that_land_on_gel():
+    mask = square_grid()
+    d = 20
+    assert ft.training_shifts(mask, (d, d), 4) == [(d, d), (-d, -d), (d, 0), (-d, 0)]
+    assert ft.training_shifts(mask, (d, d), 2) == [(d, d), (-d, -d)]
+    assert ft.training_shifts(mask, (d, d), 1) == [(d, d)]
+    # The validation shift is chosen first; the extra shifts keep off its gel.
+    val, overlap = ft.validation_offset(mask, (d, d))
+    assert val[0] * val[1] == 0 and overlap == 0.0  # an axis shift, on gel between two markers
+    trained = ft.training_shifts(mask, (d, d), 4, avoid=val)
+    free = [(d, 0), (-d, 0)] if val[0] == 0 else [(0, d), (0, -d)]  # the other axis
+    assert trained == [(d, d), (-d, -d), *free]
+    assert ft.training_shifts(mask, (d, d), 4, avoid=(0, d)) == [(d, d), (-d, -d), (d, 0),
+                                                                  (-d, 0)]
+    # A shift on the validation gel is kept out of training: (d, 0) shares (-d, 0)'s gel.
+    assert (d, 0) not in ft.training_shifts(mask, (d, d), 4, avoid=(-d, 0))
+    assert ft.validation_offset(mask, ft.training_shifts(mask, (d, d), 4))[1] == 0.0
+    # Holes that would crowd the originals (median gap under the separation of crowded holes)
+    # are never met at inference: on a dense grid only the given offset trains.
+    dense = square_grid(pitch=20, radius=6)
+    assert ft.training_shifts(dense, (10, 10), 4) == [(10, 10), (-10, -10)]
+    tight = square_grid(pitch=24, radius=7)  # axis shifts leave 5 px of gel; under 4 px: out
+    assert ft.training_shifts(tight, (12, 12), 4) == [(12, 12), (-12, -12)]
+    # An axis offset has no distinct axis part beyond itself and its opposite.
+    assert ft.training_shifts(mask, (0, d), 4) == [(0, d), (0, -d)]
+    for bad in (0, -1):
+        with pytest.raises(ValueError, match=r"^shifts"):
+            ft.training_shifts(mask, (d, d), bad)
+    with pytest.raises(ValueError, match=r"^offset"):
+        ft.training_shifts(mask, (0, 0), 2)
+
+
+def test_summary_cautions_on_a_dense_grid_only_when_a_checkpoint_was_chosen():
+    kw = {"model": Path("m.onnx"), "start_score": 2.0, "scores": {100: 1.9}, "noise": 0.05,
+          "val_frames": [1], "val_markers": 50}
+    chosen = ft.FinetuneResult(chosen_step=100, dense=True, **kw)  # type: ignore[arg-type]
+    assert "chosen step 100" in chosen.summary() and "caution: a dense" in chosen.summary()
+    assert "caution" not in ft.FinetuneResult(chosen_step=100, **kw).summary()  # type: ignore[arg-type]
+    kept = ft.FinetuneResult(chosen_step=0, dense=True, **kw)  # type: ignore[arg-type]
+    assert "starting model" in kept.summary() and "caution" not in kept.summary()
+
+
 def test_beats_needs_an_improvement_beyond_noise():
     rng = np.random.default_rng(0)
     start = rng.uniform(1, 3, 400)
@@ -67,6 +110,34 @@ def test_beats_needs_an_improvement_beyond_noise():
     assert not ft.beats(start, start + 0.1)[0]
     with pytest.raises(ValueError, match="cand"):
         ft.beats(start, start[:3])
+
+
+def test_t975_matches_scipy():
+    from scipy import stats
+
+    for df in (1, 2, 3, 7, 30, 31, 60, 500):
+        assert ft.t975(df) == pytest.approx(stats.t.ppf(0.975, df), rel=2e-3)
+    with pytest.raises(ValueError, match=r"^df"):
+        ft.t975(0)
+
+
+def test_beats_counts_frames_not_markers_when_groups_are_given():
+    rng = np.random.default_rng(1)
+    start = rng.uniform(1, 3, 300)
+    groups = np.repeat(np.arange(3), 100)
+    # One frame much better, two unchanged: many markers agree, but one frame is not evidence.
+    cand = start - np.where(groups == 0, 0.3, 0.0) + rng.normal(0, 0.05, 300)
+    assert ft.beats(start, cand)[0]  # the per-marker test is fooled
+    ok, noise = ft.beats(start, cand, groups=groups)
+    assert not ok and noise > 0.1
+    # Every frame better: passes either way.
+    cand = start - 0.1 - 0.01 * groups + rng.normal(0, 0.05, 300)
+    assert ft.beats(start, cand, groups=groups)[0]
+    # Fewer than MIN_CLUSTER_FRAMES frames: the per-marker test.
+    two = np.repeat(np.arange(2), 150)
+    assert ft.beats(start, cand, groups=two) == ft.beats(start, cand)
+    with pytest.raises(ValueError, match="groups"):
+        ft.beats(start, cand, groups=groups[:10])
 
 
 def test_finetune_keeps_the_start_model_when_nothing_beats_it(tmp_path: Path,
@@ -125,6 +196,10 @@ def test_finetune_trains_at_the_start_models_prior_radius(tmp_path: Path, marker
                       lr=0.0, val_every=1, threads=1, progress=False)
     ck = torch.load(tmp_path / "ft" / "checkpoint.pt", map_location="cpu", weights_only=False)
     assert ck["config"]["prior_radius"] == 7.0  # the sampler's fills and the EMA's record
+    shifts = ck["config"]["extra"]["offsets"]
+    assert shifts[0] == ck["config"]["extra"]["offset"] and list(res.val_offset) not in shifts
+    assert [list(o) for o in res.train_offsets] == shifts
+    assert res.dense == (len(shifts) == 1)
     assert TacDiffModel(tmp_path / "ft" / "start.onnx").prior_radius == 7.0
     assert TacDiffModel(res.model).prior_radius == 7.0
     # A start exported without a recorded objective trains with the defaults; an explicit one
@@ -147,6 +222,11 @@ def test_finetune_trains_at_the_start_models_prior_radius(tmp_path: Path, marker
     with pytest.raises(ValueError, match=r"^loss: expected one of"):
         ft.finetune(marker_frames, tmp_path / "ft4", init=start, steps=1, progress=False,
                     loss="l2")
+    bads: list[Any] = [0, 1.5, True]
+    for bad in bads:
+        with pytest.raises(ValueError, match=r"^shifts: expected"):
+            ft.finetune(marker_frames, tmp_path / "ft6", init=start, steps=1, progress=False,
+                        shifts=bad)
 
 
 def test_shipped_weights_record_their_models_prior_radius():

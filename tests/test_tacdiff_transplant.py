@@ -166,6 +166,12 @@ def test_finetune_cli_options(tmp_path: Path, marker_frame_dir: Path):
                  "fast"]) == 0
     assert (tmp_path / "a" / "model.onnx").is_file()
     assert main([*common, "--out", str(tmp_path / "b"), "--ring", "-1"]) == 1
+    assert main([*common, "--out", str(tmp_path / "c"), "--shifts", "0"]) == 1
+    assert main([*common, "--out", str(tmp_path / "d"), "--shifts", "1", "--init", "fast"]) == 0
+    import torch
+
+    ck = torch.load(tmp_path / "d" / "checkpoint.pt", map_location="cpu", weights_only=False)
+    assert len(ck["config"]["extra"]["offsets"]) == 1
 
 
 def test_cache_fills_is_reused_and_dropped_by_remask(tmp_path: Path, monkeypatch):
@@ -240,3 +246,38 @@ def test_mask_originals_makes_every_marker_a_hole_and_keeps_the_loss(marker_fram
     np.testing.assert_array_equal(both["loss_mask"], plain["loss_mask"])  # real gel only
     np.testing.assert_array_equal(both["cond"], plain["cond"])
     assert "moved" not in plain
+
+
+def test_marker_offset_pairs_several_shifts_share_one_fill_per_frame(marker_frames):
+    calls: list[int] = []
+
+    def flat(img: np.ndarray, holes: np.ndarray) -> np.ndarray:
+        calls.append(1)
+        out = img.copy()
+        out[holes] = 128
+        return out
+
+    shifts = [(16, 16), (-16, -16), (16, 0)]
+    pairs = tdata.marker_offset_pairs(marker_frames, offset=shifts, pseudo_fill=flat)
+    assert len(calls) == len(marker_frames)  # the pseudo-markerless fill: once per frame
+    assert len(pairs["cond"]) == len(marker_frames) * len(shifts)
+    for j, sh in enumerate(shifts):  # frame by frame, its shifts in order: each as alone
+        one = tdata.marker_offset_pairs(marker_frames[1:], offset=sh, pseudo_fill=flat)
+        k = len(shifts) + j
+        for key in ("cond", "target", "mask", "loss_mask"):
+            assert np.array_equal(pairs[key][k], one[key][0]), (sh, key)
+    # per_frame: each frame gets that many shifts, in rotation over the frames.
+    two = tdata.marker_offset_pairs(marker_frames, offset=shifts, per_frame=1, pseudo_fill=flat)
+    assert len(two["cond"]) == len(marker_frames)
+    assert np.array_equal(two["mask"][1], pairs["mask"][len(shifts) + 1])  # frame 1, shift 1
+    assert np.array_equal(tdata.marker_offset_pairs(marker_frames[:1], offset=[(16, 16)])["cond"],
+                          tdata.marker_offset_pairs(marker_frames[:1], offset=(16, 16))["cond"])
+    for bad in ((16,), [(16, 16, 1)], [], (16.5, 16), "16,16", (np.nan, 0)):
+        with pytest.raises(ValueError, match=r"^offset"):
+            tdata.marker_offset_pairs(marker_frames, offset=bad)
+    with pytest.raises(ValueError, match=r"^per_frame"):
+        tdata.marker_offset_pairs(marker_frames, offset=shifts, per_frame=0)
+    app = tp.measure_appearance(marker_frames[0], tdata.removal_markers(marker_frames[0]).mask)
+    with pytest.raises(ValueError, match=r"^appearance"):
+        tp.transplant(marker_frames[0][:100], np.zeros((100, 320), bool), (16, 16),
+                     appearance=app)

@@ -3,7 +3,8 @@
 The paper's marker-offset strategy, made to look like inference: your frames have markers and no
 ground truth, so each frame's markers are removed by TELEA (a pseudo-markerless frame, never a
 loss target), and each real marker's appearance (its darkening relative to the gel, soft edge
-and compression ring included) is transplanted about half a marker pitch away, onto real gel.
+and compression ring included) is transplanted about half a marker pitch away, onto real gel
+(``--shifts``: in several directions, for more training gel from the same frames).
 The network learns to fill those moved markers with the mask remove_markers would use; the loss
 sees only their real gel pixels. ``--no-transplant`` cuts clean shifted holes instead (the
 paper's variant). Starts from the shipped model's weights; resumable (rerun the command).
@@ -20,7 +21,8 @@ from __future__ import annotations
 
 import argparse
 
-from tacswitch.tacdiff.train import LOSSES  # numpy-only import, no torch
+from tacswitch.tacdiff.finetune import DEFAULT_SHIFTS, DEFAULT_STEPS  # numpy only
+from tacswitch.tacdiff.train import LOSSES
 from tacswitch.tacdiff.transplant import DEFAULT_RING
 
 
@@ -33,13 +35,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--offset", default=None, metavar="DX,DY",
                    help="mask shift in px (default: half the estimated marker pitch, rounded "
                         "to a multiple of 8 px with transplanted markers)")
+    p.add_argument("--shifts", type=int, default=DEFAULT_SHIFTS,
+                   help="how many shifts each frame's markers are moved by: the offset, its "
+                        "opposite and its axis parts, those that land on gel clear of the "
+                        "other markers and of the validation gel (more training gel from the "
+                        "same frames; dense grids keep fewer; 1: the offset alone, as before; "
+                        "default: %(default)s)")
     p.add_argument("--no-transplant", dest="transplant", action="store_false",
                    help="clean shifted holes in the TELEA frame (the paper) instead of moved "
                         "real markers")
     p.add_argument("--ring", type=int, default=DEFAULT_RING,
                    help="px beyond the removal mask over which a marker's darkening is "
                         "measured and moved (default: %(default)s)")
-    p.add_argument("--steps", type=int, default=600,
+    p.add_argument("--steps", type=int, default=DEFAULT_STEPS,
                    help="training steps (default: %(default)s)")
     p.add_argument("--batch", type=int, default=8)
     p.add_argument("--crop", type=int, default=96, help="crop side, multiple of 16")
@@ -98,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
         offset = (dx, dy)
     if args.ring < 0:
         raise ValueError(f"--ring: must be >= 0 px; got {args.ring}")
-    for name in ("steps", "batch", "val_every", "val_frames"):
+    for name in ("steps", "batch", "val_every", "val_frames", "shifts"):
         if getattr(args, name) < 1:
             raise ValueError(f"--{name.replace('_', '-')}: must be >= 1; got "
                              f"{getattr(args, name)}")
@@ -108,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
                       val_frames=args.val_frames, progress=not args.quiet, loss=args.loss,
                       terminal_fraction=args.terminal_fraction, recompress=args.recompress,
                       pseudo=args.pseudo, mask_originals=args.mask_originals,
-                      extra={"finetune": [str(f) for f in files]})
+                      shifts=args.shifts, extra={"finetune": [str(f) for f in files]})
     # The choice is the result: printed even with -q.
     print(result.summary())
     return 0

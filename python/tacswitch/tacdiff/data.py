@@ -269,20 +269,22 @@ def removal_markers(frame: NDArray[np.uint8], **extract_opts: Any) -> Markers:
     return extract_markers(frame, **extract_opts)
 
 
-def marker_offset_pairs(frames: Sequence[NDArray[np.uint8]], *, offset: tuple[int, int] | None
-                        = None, radius: int = 3, transplant: bool = True,
+def marker_offset_pairs(frames: Sequence[NDArray[np.uint8]], *,
+                        offset: tuple[int, int] | Sequence[tuple[int, int]] | None = None,
+                        radius: int = 3, transplant: bool = True,
                         ring: int = DEFAULT_RING,
                         recompress: Callable[[NDArray[np.uint8]], NDArray[np.uint8]] | None
                         = None,
                         pseudo_fill: Callable[[NDArray[np.uint8], NDArray[np.bool_]],
                                               NDArray[np.uint8]] | None = None,
-                        mask_originals: bool = False,
+                        mask_originals: bool = False, per_frame: int | None = None,
                         **extract_opts: Any) -> dict[str, NDArray[Any]]:
     """Training pairs from a sensor with markers only (the paper's marker-offset strategy).
 
     Args:
         frames: ``H x W x 3`` uint8 BGR frames with markers, all the same size.
-        offset: mask shift ``(dx, dy)`` px; default: half the marker pitch estimated from the
+        offset: mask shift ``(dx, dy)`` px, or a list of shifts (one pair per frame and shift,
+            see ``per_frame``); default: half the marker pitch estimated from the
             first frame, on both axes (the paper: (+36, +36) px on its 83 px-pitch GelSight),
             rounded to a multiple of 8 px when ``transplant`` (codec block phase, see
             :mod:`~tacswitch.tacdiff.transplant`).
@@ -299,63 +301,93 @@ def marker_offset_pairs(frames: Sequence[NDArray[np.uint8]], *, offset: tuple[in
             ``moved``.
         pseudo_fill: the pseudo-markerless fill the transplants are measured against and
             carried on (``transplant`` only; default: TELEA of ``radius``), e.g. the start
-            model's own fill (``tacswitch finetune --pseudo model``).
+            model's own fill (``tacswitch finetune --pseudo model``). Made once per frame,
+            whatever the number of shifts.
         recompress: applied to each transplanted input frame (``transplant`` only), so the gel
             around a moved marker is quantised with the marker as on the source recording
             (:mod:`~tacswitch.tacdiff.recompress`); the target stays the frame itself.
+        per_frame: with a list of ``k`` shifts, how many each frame gets (None: all): frame
+            ``i`` takes shifts ``i, i + 1, ...`` (mod ``k``), so a long recording still sees
+            every shift while its pairs stay within memory (a frame's shifts keep the list's
+            order).
         **extract_opts: passed to :func:`tacswitch.extract_markers` (see :func:`removal_markers`).
 
     Returns:
-        arrays ``cond``, ``target``, ``mask``, ``loss_mask`` (``B x H x W [x 3]``) as in the
-        module docstring; with ``transplant``, ``target`` is the frame itself (its pixels under
-        the moved markers are real gel) and ``mask`` holds the moved markers only.
+        arrays ``cond``, ``target``, ``mask``, ``loss_mask`` (``B x H x W [x 3]``, frame by frame,
+        its shifts in order) as in the module docstring; with ``transplant``, ``target`` is the
+        frame itself (its pixels under the moved markers are real gel) and ``mask`` holds the
+        moved markers only.
     """
     from tacswitch.inpaint import inpaint_telea
-    from tacswitch.tacdiff.transplant import default_offset
+    from tacswitch.tacdiff.transplant import default_offset, measure_appearance
     from tacswitch.tacdiff.transplant import transplant as move_markers
     from tacswitch.tracking import estimate_pitch
 
     if len(frames) == 0:
         raise ValueError("frames: need at least one frame")
+    shifts = _offsets(offset)
+    if per_frame is not None and per_frame < 1:
+        raise ValueError(f"per_frame: must be >= 1 shift; got {per_frame}")
     shape = frames[0].shape
     conds, targets, masks, losses, moveds = [], [], [], [], []
-    shift = offset
     for i, f in enumerate(frames):
         if f.shape != shape or f.dtype != np.uint8 or f.ndim != 3 or f.shape[2] != 3:
             raise ValueError(f"frames[{i}]: expected {shape} uint8 BGR like frames[0]; got "
                              f"{f.shape} {f.dtype}")
         found = removal_markers(f, **extract_opts)
         mask = found.mask
-        if shift is None:
+        if not shifts:
             pitch = estimate_pitch(found.centres)
             if pitch is None:
                 raise ValueError("frames: too few markers found to estimate the pitch; pass "
                                  "offset=(dx, dy)")
             half = round(pitch / 2)
-            shift = default_offset(pitch) if transplant else (half, half)
+            shifts = [default_offset(pitch) if transplant else (half, half)]
+        k = len(shifts)
+        mine = [shifts[j] for j in sorted({(i + m) % k for m in range(min(k, per_frame or k))})]
         if transplant:
-            cond, moved, real, _ = move_markers(f, mask, shift, ring=ring, radius=radius,
-                                                pseudo_fill=pseudo_fill)
-            conds.append(cond if recompress is None else recompress(cond))
-            targets.append(f)
-            if mask_originals:
-                moveds.append(moved)
-                moved = moved | mask
-            masks.append(moved)
-            losses.append(real)
+            app = measure_appearance(f, mask, ring=ring, radius=radius, pseudo_fill=pseudo_fill)
+            for sh in mine:
+                cond, moved, real, _ = move_markers(f, mask, sh, appearance=app)
+                conds.append(cond if recompress is None else recompress(cond))
+                targets.append(f)
+                if mask_originals:
+                    moveds.append(moved)
+                    moved = moved | mask
+                masks.append(moved)
+                losses.append(real)
             continue
         pseudo = inpaint_telea(f, mask, radius)
-        moved = _shift(mask, shift)
-        conds.append(pseudo)
-        targets.append(pseudo)
-        masks.append(moved)
-        # Real pixels only: the shifted hole must not land on an original (TELEA-filled) marker.
-        losses.append(moved & ~mask)
+        for sh in mine:
+            moved = _shift(mask, sh)
+            conds.append(pseudo)
+            targets.append(pseudo)
+            masks.append(moved)
+            # Real pixels only: the shifted hole must not land on an original (TELEA-filled)
+            # marker.
+            losses.append(moved & ~mask)
     out = {"cond": np.stack(conds), "target": np.stack(targets), "mask": np.stack(masks),
            "loss_mask": np.stack(losses)}
     if moveds:
         out["moved"] = np.stack(moveds)
     return out
+
+
+def _offsets(offset: Any) -> list[tuple[int, int]]:
+    """``offset`` of :func:`marker_offset_pairs` as a list of ``(dx, dy)`` int shifts (empty:
+    None, estimate one); ``ValueError`` naming it unless it is one or more pairs of ints."""
+    if offset is None:
+        return []
+    try:
+        a = np.asarray(offset, np.float64)
+    except (TypeError, ValueError):
+        a = np.empty(0)
+    if a.ndim == 1:
+        a = a[None]
+    if (a.ndim != 2 or a.shape[1] != 2 or a.shape[0] == 0 or not np.isfinite(a).all()
+            or (a != np.round(a)).any()):
+        raise ValueError(f"offset: expected (dx, dy) whole px or a list of them; got {offset!r}")
+    return [(int(x), int(y)) for x, y in a]
 
 
 def _shift(mask: NDArray[np.bool_], offset: tuple[int, int]) -> NDArray[np.bool_]:

@@ -143,9 +143,14 @@ def movable(app: Appearance, mask: NDArray[np.bool_], offset: tuple[int, int], *
 
 
 def transplant(frame: NDArray[np.uint8], mask: NDArray[np.bool_], offset: tuple[int, int], *,
-               ring: int = DEFAULT_RING, radius: int = 3, pseudo_fill: PseudoFill | None = None
+               ring: int = DEFAULT_RING, radius: int = 3, pseudo_fill: PseudoFill | None = None,
+               appearance: Appearance | None = None
                ) -> tuple[NDArray[np.uint8], NDArray[np.bool_], NDArray[np.bool_], int]:
     """The frame's real markers moved by ``offset`` onto real gel.
+
+    ``appearance``: the frame's :func:`measure_appearance` (with ``mask``), when several
+    offsets of one frame are made (the pseudo-markerless fill is its costly part); ``ring``,
+    ``radius`` and ``pseudo_fill`` are then not used.
 
     Returns:
         ``(cond, moved_mask, loss_mask, n)``: the pseudo-markerless frame (original footprints
@@ -153,7 +158,11 @@ def transplant(frame: NDArray[np.uint8], mask: NDArray[np.bool_], offset: tuple[
         markers, its pixels on real gel (off every original footprint; the loss goes there
         only), and how many markers were moved.
     """
-    app = measure_appearance(frame, mask, ring=ring, radius=radius, pseudo_fill=pseudo_fill)
+    app = appearance if appearance is not None else measure_appearance(
+        frame, mask, ring=ring, radius=radius, pseudo_fill=pseudo_fill)
+    if app.ratio.shape != frame.shape:
+        raise ValueError(f"appearance: measured on a {app.ratio.shape} frame, not this "
+                         f"{frame.shape} one")
     ok = movable(app, mask, offset)
     keep = ok[shift(app.labels, offset, 0)]
     ratio = np.where(keep[:, :, None], shift(app.ratio, offset, 1.0), np.float32(1.0))

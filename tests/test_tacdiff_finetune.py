@@ -75,7 +75,7 @@ def test_training_shifts_add_the_opposite_and_horizontal_shifts_that_land_on_gel
     assert (d, 0) not in ft.training_shifts(mask, (d, d), 4, avoid=(-d, 0))
     assert ft.validation_offset(mask, ft.training_shifts(mask, (d, d), 4))[1] == 0.0
     # Holes that would crowd the originals (median gap under the separation of crowded holes)
-    # are never met at inference: on a dense grid only the given offset trains.
+    # are never met at inference: on a dense grid only the diagonals train.
     dense = square_grid(pitch=20, radius=6)
     assert ft.training_shifts(dense, (10, 10), 4) == [(10, 10), (-10, -10)]
     tight = square_grid(pitch=24, radius=7)  # axis shifts leave 5 px of gel; under 4 px: out
@@ -97,6 +97,25 @@ def test_summary_cautions_on_a_dense_grid_only_when_a_checkpoint_was_chosen():
     assert "caution" not in ft.FinetuneResult(chosen_step=100, **kw).summary()  # type: ignore[arg-type]
     kept = ft.FinetuneResult(chosen_step=0, dense=True, **kw)  # type: ignore[arg-type]
     assert "starting model" in kept.summary() and "caution" not in kept.summary()
+    assert "dense marker grid" in kept.summary()
+    # It names the noise test: per marker with fewer than 3 validation frames.
+    assert "per-marker test" in kept.summary()
+    three = ft.FinetuneResult(chosen_step=100, **{**kw, "val_frames": [2, 5, 9]})  # type: ignore[arg-type]
+    assert "per-frame test over 3 frames" in three.summary()
+
+
+def test_marker_frames_line_up_with_the_per_marker_scores(marker_frames):
+    from tacswitch.sim.scene import render_sample
+
+    frames = [*marker_frames, render_sample("gelsight_mini", 42).image_markers]
+    val = ft.validation_set(frames, (0, -16))
+    # marker_scores' order: per frame, its labels with scored pixels, ascending.
+    per = [int((np.bincount(lab[lm]) > 0).sum()) for lab, lm
+           in zip(val.labels, val.pairs["loss_mask"], strict=True)]
+    assert min(per) > 0 and np.bincount(val.marker_frames).tolist() == per
+    assert val.markers == sum(per)
+    with pytest.raises(ValueError, match=r"^offset: expected one"):
+        ft.validation_set(frames, [(0, -16), (0, 16)])  # type: ignore[arg-type]
 
 
 def test_beats_needs_an_improvement_beyond_noise():
@@ -196,10 +215,10 @@ def test_finetune_trains_at_the_start_models_prior_radius(tmp_path: Path, marker
                       lr=0.0, val_every=1, threads=1, progress=False)
     ck = torch.load(tmp_path / "ft" / "checkpoint.pt", map_location="cpu", weights_only=False)
     assert ck["config"]["prior_radius"] == 7.0  # the sampler's fills and the EMA's record
-    shifts = ck["config"]["extra"]["offsets"]
-    assert shifts[0] == ck["config"]["extra"]["offset"] and list(res.val_offset) not in shifts
+    extra = ck["config"]["extra"]
+    shifts = extra.get("offsets", [extra["offset"]])  # recorded when several train
+    assert shifts[0] == extra["offset"] and list(res.val_offset) not in shifts
     assert [list(o) for o in res.train_offsets] == shifts
-    assert res.dense == (len(shifts) == 1)
     assert TacDiffModel(tmp_path / "ft" / "start.onnx").prior_radius == 7.0
     assert TacDiffModel(res.model).prior_radius == 7.0
     # A start exported without a recorded objective trains with the defaults; an explicit one

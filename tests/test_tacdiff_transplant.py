@@ -4,6 +4,7 @@ pairs, and continuing training from a shipped ONNX model."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -171,7 +172,8 @@ def test_finetune_cli_options(tmp_path: Path, marker_frame_dir: Path):
     import torch
 
     ck = torch.load(tmp_path / "d" / "checkpoint.pt", map_location="cpu", weights_only=False)
-    assert len(ck["config"]["extra"]["offsets"]) == 1
+    # One shift is recorded as before (no "offsets"), so older run folders still resume.
+    assert "offsets" not in ck["config"]["extra"] and len(ck["config"]["extra"]["offset"]) == 2
 
 
 def test_cache_fills_is_reused_and_dropped_by_remask(tmp_path: Path, monkeypatch):
@@ -272,11 +274,14 @@ def test_marker_offset_pairs_several_shifts_share_one_fill_per_frame(marker_fram
     assert np.array_equal(two["mask"][1], pairs["mask"][len(shifts) + 1])  # frame 1, shift 1
     assert np.array_equal(tdata.marker_offset_pairs(marker_frames[:1], offset=[(16, 16)])["cond"],
                           tdata.marker_offset_pairs(marker_frames[:1], offset=(16, 16))["cond"])
-    for bad in ((16,), [(16, 16, 1)], [], (16.5, 16), "16,16", (np.nan, 0)):
+    bads: list[Any] = [(16,), [(16, 16, 1)], [], (16.5, 16), "16,16", (np.nan, 0), ["16", "16"],
+                       (True, False), [(16, 16), (0, 0)], [(16, 16), (8,)]]
+    for bad in bads:
         with pytest.raises(ValueError, match=r"^offset"):
             tdata.marker_offset_pairs(marker_frames, offset=bad)
-    with pytest.raises(ValueError, match=r"^per_frame"):
-        tdata.marker_offset_pairs(marker_frames, offset=shifts, per_frame=0)
+    for bad in (0, 1.5, True):
+        with pytest.raises(ValueError, match=r"^per_frame: expected"):
+            tdata.marker_offset_pairs(marker_frames, offset=shifts, per_frame=bad)
     app = tp.measure_appearance(marker_frames[0], tdata.removal_markers(marker_frames[0]).mask)
     with pytest.raises(ValueError, match=r"^appearance"):
         tp.transplant(marker_frames[0][:100], np.zeros((100, 320), bool), (16, 16),

@@ -326,8 +326,9 @@ def marker_offset_pairs(frames: Sequence[NDArray[np.uint8]], *,
     if len(frames) == 0:
         raise ValueError("frames: need at least one frame")
     shifts = _offsets(offset)
-    if per_frame is not None and per_frame < 1:
-        raise ValueError(f"per_frame: must be >= 1 shift; got {per_frame}")
+    if per_frame is not None and (isinstance(per_frame, bool) or not isinstance(
+            per_frame, (int, np.integer)) or per_frame < 1):
+        raise ValueError(f"per_frame: expected an int >= 1 (shifts per frame); got {per_frame!r}")
     shape = frames[0].shape
     conds, targets, masks, losses, moveds = [], [], [], [], []
     for i, f in enumerate(frames):
@@ -379,14 +380,17 @@ def _offsets(offset: Any) -> list[tuple[int, int]]:
     if offset is None:
         return []
     try:
-        a = np.asarray(offset, np.float64)
-    except (TypeError, ValueError):
-        a = np.empty(0)
+        raw = np.asarray(offset)
+    except (TypeError, ValueError):  # ragged lists
+        raw = np.empty(0, object)
+    a = raw.astype(np.float64) if raw.dtype.kind in "iuf" else np.empty(0)
     if a.ndim == 1:
         a = a[None]
     if (a.ndim != 2 or a.shape[1] != 2 or a.shape[0] == 0 or not np.isfinite(a).all()
             or (a != np.round(a)).any()):
         raise ValueError(f"offset: expected (dx, dy) whole px or a list of them; got {offset!r}")
+    if not np.abs(a).max(axis=1).all():
+        raise ValueError(f"offset: (0, 0) moves no marker; got {offset!r}")
     return [(int(x), int(y)) for x, y in a]
 
 

@@ -17,7 +17,7 @@ half-pitch diagonal, its opposite and its axis parts, where they land on gel cle
 originals and off the validation gel): more gel
 and more marker arrangements from the same few frames. On taxim's real GelSight presses (39
 training frames, H.264, a start that never saw that sensor) four shifts and 1200 steps took the
-held-out error from -1.7 % to -3.2 % of the start's (BENCHMARKS.md).
+held-out error from -1.7 % to -2.8 % of the start's (BENCHMARKS.md).
 
 Both the training and the validation transplants are re-compressed like the source recording
 (``recompress``, :mod:`~tacswitch.tacdiff.recompress`: a JPEG/MJPEG source's quality is
@@ -98,7 +98,7 @@ class FinetuneResult:
         train_offsets: the training shifts used (:func:`training_shifts`).
         dense: more shifts were asked for than the grid allows (dense markers, such as the
             GelSight Mini's): there the check has been seen to improve while held-out frames
-            got worse, and :meth:`summary` says so when a checkpoint was chosen.
+            got worse, and :meth:`summary` says so.
     """
 
     model: Path
@@ -130,15 +130,22 @@ class FinetuneResult:
         if not self.scores:
             return head + "; no checkpoint validated"
         best = min(self.scores, key=lambda k: self.scores[k])
+        g = len(set(self.val_frames))
+        test = (f"per-frame test over {g} frames" if g >= MIN_CLUSTER_FRAMES
+                else "per-marker test: fewer than 3 validation frames")
         if self.kept_start:
+            note = ("; a dense marker grid (one training shift fits), where this check has "
+                    "improved while held-out frames got worse" if self.dense else "")
             return (head + f", best step {best} {self.scores[best]:.3f}; no checkpoint beat the "
-                    f"start beyond noise ({self.noise:.3f}): {self.model} is the starting model")
+                    f"start beyond noise ({self.noise:.3f}, {test}): {self.model} is the "
+                    "starting model" + note)
         s = self.scores[self.chosen_step]
         caution = ("; caution: a dense marker grid (one training shift fits), where this check "
                    "has improved while held-out frames got worse: compare with the start model "
                    "on frames you know" if self.dense else "")
         return (head + f", chosen step {self.chosen_step} {s:.3f} "
-                f"({100 * (s / self.start_score - 1):+.1f} %, noise {self.noise:.3f})" + caution)
+                f"({100 * (s / self.start_score - 1):+.1f} %, noise {self.noise:.3f}, {test})"
+                + caution)
 
 
 def split_frames(n: int, val_share: float = 0.2, val_frames: int = 8
@@ -174,10 +181,10 @@ def _footprint_appearance(mask: NDArray[np.bool_], ring: int) -> Any:
                       np.empty((0, 0, 3), np.uint8))
 
 
-def training_shifts(mask: NDArray[np.bool_], offset: tuple[int, int], count: int, *,
+def training_shifts(mask: NDArray[np.bool_], offset: tuple[int, int], shifts: int, *,
                     ring: int = DEFAULT_RING, avoid: tuple[int, int] | None = None
                     ) -> list[tuple[int, int]]:
-    """The training shifts of a fine-tune: the first ``count`` of ``offset`` ``(a, b)``, its
+    """The training shifts of a fine-tune: the first ``shifts`` of ``offset`` ``(a, b)``, its
     opposite ``(-a, -b)`` and its axis parts (``(a, 0)``, ``(-a, 0)``, then ``(0, b)``,
     ``(0, -b)``), keeping only
     those that move at least half as many of ``mask``'s markers onto gel as ``offset`` does
@@ -197,8 +204,8 @@ def training_shifts(mask: NDArray[np.bool_], offset: tuple[int, int], count: int
     from tacswitch.tacdiff.infer import SEPARATION
     from tacswitch.tacdiff.transplant import movable, shift
 
-    if count < 1:
-        raise ValueError(f"shifts: must be >= 1; got {count}")
+    if shifts < 1:
+        raise ValueError(f"shifts: must be >= 1; got {shifts}")
     a, b = int(offset[0]), int(offset[1])
     if (a, b) == (0, 0):
         raise ValueError(f"offset: must not be (0, 0); got {offset}")
@@ -217,7 +224,7 @@ def training_shifts(mask: NDArray[np.bool_], offset: tuple[int, int], count: int
     allowed = overlap(held, (a, b)) if held is not None else 0.0
     out = [(a, b)]
     for cand in ((-a, -b), (a, 0), (-a, 0), (0, b), (0, -b)):
-        if len(out) >= count:
+        if len(out) >= shifts:
             break
         if cand == (0, 0) or cand in out:
             continue
@@ -304,9 +311,12 @@ def validation_set(frames: Sequence[NDArray[np.uint8]], offset: tuple[int, int],
                    ring: int = DEFAULT_RING, recompress: Recompress | None = None,
                    pseudo_fill: Any = None, mask_originals: bool = False,
                    **extract_opts: Any) -> ValidationSet:
-    """The validation transplant of ``frames`` by ``offset`` (see the module docstring),
-    re-compressed by ``recompress`` like the training pairs."""
+    """The validation transplant of ``frames`` by ``offset`` (one ``(dx, dy)``; see the module
+    docstring), re-compressed by ``recompress`` like the training pairs."""
     import cv2
+
+    if np.ndim(offset) != 1:
+        raise ValueError(f"offset: expected one (dx, dy) shift for validation; got {offset!r}")
 
     from tacswitch.tacdiff.data import marker_offset_pairs
 
@@ -447,8 +457,9 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
         offset: training shift ``(dx, dy)`` px (default: half the pitch, codec-block rounded).
         shifts: how many training shifts each frame's markers are moved by
             (:func:`training_shifts`: ``offset``, its opposite and its axis parts;
-            more gel and more marker-neighbour arrangements from the same frames); frames x
-            shifts is capped at :data:`MAX_PAIRS` pairs, the shifts then rotate over the frames.
+            more gel and more marker-neighbour arrangements from the same frames); past
+            :data:`MAX_PAIRS` frames x shifts each frame gets fewer shifts (at least one), in
+            rotation over the frames.
         transplant, ring: as :func:`~tacswitch.tacdiff.data.marker_offset_pairs`.
         val_every: validate the EMA weights every this many steps (and at the end).
         val_share, val_frames: frames held out for validation (:func:`split_frames`).
@@ -569,8 +580,11 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
                       prior=arch.prior, prior_radius=arch.prior_radius, steps=steps, batch=batch,
                       crop=crop, lr=lr, loss=loss, terminal_fraction=terminal_fraction,
                       warmup=min(100, steps // 10), seed=seed, threads=threads,
+                      # The shifts are recorded only when several train, so a run folder of
+                      # one shift (every release before) still resumes.
                       extra={**(extra or {}), "offset": list(offset),
-                             "offsets": [list(o) for o in offsets], "transplant": transplant,
+                             **({"offsets": [list(o) for o in offsets]} if len(offsets) > 1
+                                else {}), "transplant": transplant,
                              "ring": ring, "recompress": redo_text, "train_frames": tr,
                              "val_frames": va})
     train([pairs], run, cfg, progress=progress, init=weights, callback=validate,

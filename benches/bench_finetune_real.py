@@ -91,7 +91,7 @@ def finetune_case(frames: np.ndarray, run: Path, args: argparse.Namespace, seed:
                    progress=bool(os.environ.get("BENCH_PROGRESS")), loss=args.loss,
                    terminal_fraction=args.terminal_fraction, recompress=args.recompress,
                    pseudo=args.pseudo, mask_originals=args.mask_originals,
-                   **({} if args.shifts is None else {"shifts": args.shifts}))
+                   shifts=args.shifts)
     last = export_onnx(load_network(run / "model.safetensors"), run / "last.onnx")
     return res, last
 
@@ -111,15 +111,15 @@ def main() -> None:
                     help="frames scored: heldout = the presses realproxy.held_out_indices "
                          "names (never in the 0.6 models' training), the rest fine-tune; "
                          "last = the last --test frames (the protocol before 0.6)")
-    from tacswitch.tacdiff.finetune import DEFAULT_STEPS
+    from tacswitch.tacdiff.finetune import DEFAULT_SHIFTS, DEFAULT_STEPS
 
     ap.add_argument("--steps", type=int, default=DEFAULT_STEPS)
     ap.add_argument("--batch", type=int, default=8)
     ap.add_argument("--crop", type=int, default=96)
     ap.add_argument("--lr", type=float, default=2e-4)
     ap.add_argument("--ring", type=int, default=3)
-    ap.add_argument("--shifts", type=int, default=None,
-                    help="training shifts (default: finetune's own, DEFAULT_SHIFTS)")
+    ap.add_argument("--shifts", type=int, default=DEFAULT_SHIFTS,
+                    help="training shifts (default: %(default)s)")
     ap.add_argument("--val-every", type=int, default=100)
     ap.add_argument("--model", default="fast",
                     help="the starting model: default, fast or a weights/ONNX path")

@@ -73,7 +73,6 @@ def test_training_shifts_add_the_opposite_and_horizontal_shifts_that_land_on_gel
                                                                   (-d, 0)]
     # A shift on the validation gel is kept out of training: (d, 0) shares (-d, 0)'s gel.
     assert (d, 0) not in ft.training_shifts(mask, (d, d), 4, avoid=(-d, 0))
-    assert ft.validation_offset(mask, ft.training_shifts(mask, (d, d), 4))[1] == 0.0
     # Holes that would crowd the originals (median gap under the separation of crowded holes)
     # are never met at inference: on a dense grid only the diagonals train.
     dense = square_grid(pitch=20, radius=6)

@@ -181,6 +181,22 @@ def _footprint_appearance(mask: NDArray[np.bool_], ring: int) -> Any:
                       np.empty((0, 0, 3), np.uint8))
 
 
+def _moved_holes(app: Any, mask: NDArray[np.bool_], sh: tuple[int, int],
+                 ok: NDArray[np.bool_] | None = None) -> NDArray[np.bool_]:
+    """``mask`` moved by ``sh``, keeping only the markers
+    :func:`~tacswitch.tacdiff.transplant.movable` lets move (``ok``, computed if None)."""
+    from tacswitch.tacdiff.transplant import movable, shift
+
+    if ok is None:
+        ok = movable(app, mask, sh)
+    return shift(mask, sh, False) & ok[shift(app.labels, sh, 0)]
+
+
+def _share(moved: NDArray[np.bool_], other: NDArray[np.bool_]) -> float:
+    """Share of ``moved``'s pixels that ``other`` holds too."""
+    return float((moved & other).sum() / max(1, moved.sum()))
+
+
 def training_shifts(mask: NDArray[np.bool_], offset: tuple[int, int], shifts: int, *,
                     ring: int = DEFAULT_RING, avoid: tuple[int, int] | None = None
                     ) -> list[tuple[int, int]]:
@@ -202,7 +218,7 @@ def training_shifts(mask: NDArray[np.bool_], offset: tuple[int, int], shifts: in
     import cv2
 
     from tacswitch.tacdiff.infer import SEPARATION
-    from tacswitch.tacdiff.transplant import movable, shift
+    from tacswitch.tacdiff.transplant import movable
 
     if shifts < 1:
         raise ValueError(f"shifts: must be >= 1; got {shifts}")
@@ -212,16 +228,8 @@ def training_shifts(mask: NDArray[np.bool_], offset: tuple[int, int], shifts: in
     app = _footprint_appearance(mask, ring)
     need = 0.5 * max(1, int(movable(app, mask, (a, b)).sum()))
     gap = cv2.distanceTransform((~mask.astype(bool)).view(np.uint8), cv2.DIST_C, 3)
-
-    def moved_holes(sh: tuple[int, int]) -> NDArray[np.bool_]:
-        return shift(mask, sh, False) & movable(app, mask, sh)[shift(app.labels, sh, 0)]
-
-    def overlap(held: NDArray[np.bool_], sh: tuple[int, int]) -> float:
-        m = moved_holes(sh)
-        return float((m & held).sum() / max(1, m.sum()))
-
-    held = moved_holes(avoid) if avoid is not None else None
-    allowed = overlap(held, (a, b)) if held is not None else 0.0
+    held = _moved_holes(app, mask, avoid) if avoid is not None else None
+    allowed = _share(_moved_holes(app, mask, (a, b)), held) if held is not None else 0.0
     out = [(a, b)]
     for cand in ((-a, -b), (a, 0), (-a, 0), (0, b), (0, -b)):
         if len(out) >= shifts:
@@ -231,51 +239,45 @@ def training_shifts(mask: NDArray[np.bool_], offset: tuple[int, int], shifts: in
         ok = movable(app, mask, cand)
         if ok.sum() < need:
             continue
-        moved = shift(mask, cand, False) & ok[shift(app.labels, cand, 0)]
+        moved = _moved_holes(app, mask, cand, ok)
         if not moved.any() or float(np.median(gap[moved])) < SEPARATION:
             continue
-        if held is not None and overlap(held, cand) > allowed + 1e-9:
+        if held is not None and _share(moved, held) > allowed + 1e-9:
             continue
         out.append(cand)
     return out
 
 
-def validation_offset(mask: NDArray[np.bool_],
-                      train_offset: tuple[int, int] | Sequence[tuple[int, int]], *,
+def validation_offset(mask: NDArray[np.bool_], train_offset: tuple[int, int], *,
                       ring: int = DEFAULT_RING) -> tuple[tuple[int, int], float]:
     """A half-pitch shift for the validation transplant, and the share of its moved holes that
-    overlaps the training holes (``mask`` shifted by ``train_offset``, one shift or the list
-    :func:`training_shifts` gives; the first sets the half pitch).
+    overlaps the training holes (``mask`` shifted by ``train_offset``; the extra training shifts
+    of :func:`training_shifts` are then chosen to keep off the validation gel).
 
     Candidates are the eight half-pitch shifts; those moving fewer than half as many markers as
-    the (first) training shift (:func:`~tacswitch.tacdiff.transplant.movable`: on dense grids
-    the axis shifts land on the neighbours' footprints) are dropped, and the one overlapping the
+    the training shift (:func:`~tacswitch.tacdiff.transplant.movable`: on dense grids the axis
+    shifts land on the neighbours' footprints) are dropped, and the one overlapping the
     training holes least is taken. On a square grid with the training shift (+d, +d) the
     mirrored (-d, +d) lands on the very same gel (the neighbour's training spot) while (d, 0)
     lands between two markers, on gel never trained on; where only the diagonals can move
     markers the overlap is returned so the caller can say so."""
     from tacswitch.tacdiff.transplant import movable, shift
 
-    listed: Sequence[Any] = [train_offset] if np.ndim(train_offset) == 1 else train_offset
-    trains = [(int(o[0]), int(o[1])) for o in listed]
-    d = max(abs(trains[0][0]), abs(trains[0][1]))
+    train_offset = (int(train_offset[0]), int(train_offset[1]))
+    d = max(abs(train_offset[0]), abs(train_offset[1]))
     if d == 0:
-        raise ValueError(f"offset: must not be (0, 0); got {trains[0]}")
+        raise ValueError(f"offset: must not be (0, 0); got {train_offset}")
     app = _footprint_appearance(mask, ring)
-    trained = np.zeros(mask.shape, bool)
-    for o in trains:
-        trained |= shift(mask, o, False)
-    need = 0.5 * max(1, int(movable(app, mask, trains[0]).sum()))
+    trained = shift(mask, train_offset, False)
+    need = 0.5 * max(1, int(movable(app, mask, train_offset).sum()))
     options = []
     for cand in ((d, 0), (0, d), (-d, 0), (0, -d), (-d, d), (d, -d), (-d, -d), (d, d)):
-        if cand in trains:
+        if cand == train_offset:
             continue
         ok = movable(app, mask, cand)
         if ok.sum() < need:
             continue
-        moved = shift(mask, cand, False) & ok[shift(app.labels, cand, 0)]
-        overlap = float((moved & trained).sum() / max(1, moved.sum()))
-        options.append((overlap, -int(ok.sum()), cand))
+        options.append((_share(_moved_holes(app, mask, cand, ok), trained), -int(ok.sum()), cand))
     if not options:
         raise ValueError("offset: no validation shift moves enough markers onto gel; pass "
                          "another offset")

@@ -16,6 +16,7 @@ scored on:
 
     python benches/bench_prior_radius.py [--frames 3] [--radii 3,8,12] [--parts proxy,fots,sim]
         [--models LABEL=PATH,...] [--seed 0[,1,...]] [--separation S[,S...]]
+        [--orientations N[,N...]]
         [--update [--section TITLE --intro TEXT]]
 
 ``--models`` scores these TacDiff ONNX files instead of the radius copies, each at the radius
@@ -25,7 +26,9 @@ list: one proxy table per set). ``--section`` writes another BENCHMARKS.md secti
 radius one (a model comparison), ``--intro`` its opening paragraph. ``--separation`` scores
 TacDiff and hybrid at each hole separation given (``inpaint_tacdiff(separation=...)``: holes
 closer than this are filled in separate passes; 0 = one pass), one row each; default: the
-library's default only.
+library's default only. ``--orientations`` likewise scores each orientation count
+(``remove_markers(orientations=...)``: the network's estimate averaged over flips of the
+frame), crossed with the separations when both are given.
 
 Needs ``onnx`` (the ``train`` extra) for the model copies; FOTS frames from /work/shared.
 """
@@ -68,39 +71,41 @@ def model_copies(radii: list[int], tmp: Path) -> dict[str, str]:
     return out
 
 
-Combo = tuple[str, str, str | None, int | None]
+#: ``(row label, method, model path, remove_markers options)``.
+Combo = tuple[str, str, str | None, dict[str, int]]
+#: The option axes: ``{"separation": [...], "orientations": [...]}`` (absent or empty: the
+#: library's default).
+Axes = dict[str, list[int]]
 
 
-def _combos(models: dict[str, str], separations: list[int] | None = None) -> list[Combo]:
-    """``(row label, method, model path, separation)``: TELEA default first, then each model x
-    method (x separation when given; None: the library's default)."""
+def _combos(models: dict[str, str], axes: Axes | None = None) -> list[Combo]:
+    """``(row label, method, model path, options)``: TELEA default first, then each model x
+    method x every combination of the option values given (none: the library's defaults)."""
+    import itertools
+
     from tacswitch.tacdiff.infer import load_model
 
-    rows: list[Combo] = [("TELEA default (r=12)", "telea", None, None)]
+    axes = {k: v for k, v in (axes or {}).items() if v}
+    rows: list[Combo] = [("TELEA default (r=12)", "telea", None, {})]
     for method in METHODS:
         for label, path in models.items():
             r = load_model(path).prior_radius
-            for sep in separations or [None]:
-                tag = "" if sep is None else f", separation {sep}"
-                rows.append((f"{method} {label} (prior r={r:g}{tag})", method, path, sep))
+            for values in itertools.product(*axes.values()):
+                kw = dict(zip(axes, values, strict=True))
+                tag = "".join(f", {k} {v}" for k, v in kw.items())
+                rows.append((f"{method} {label} (prior r={r:g}{tag})", method, path, kw))
     return rows
 
 
-def _fill(method: str, path: str | None, sep: int | None = None):  # type: ignore[no-untyped-def]
+def _fill(method: str, path: str | None, kw: dict[str, int]):  # type: ignore[no-untyped-def]
     import tacswitch as ts
     from tacswitch import realproxy as R
-    from tacswitch.tacdiff import inpaint_hybrid, inpaint_tacdiff
 
     def fill(img, extra):  # type: ignore[no-untyped-def]
         m = R._with(R.default_mask(img), extra)
         if path is None:
             return ts.remove_markers(img, m)
-        if sep is None:
-            return ts.remove_markers(img, m, method=method, model=path)
-        # remove_markers' tacdiff / hybrid with the separation set (same defaults otherwise).
-        if method == "tacdiff":
-            return inpaint_tacdiff(img, m, model=path, separation=sep)
-        return inpaint_hybrid(img, m, model=path, separation=sep)[0]
+        return ts.remove_markers(img, m, method=method, model=path, **kw)
 
     return fill
 
@@ -110,15 +115,15 @@ def _case(name: str) -> str:
 
 
 def proxy_rows(n: int, models: dict[str, str], seed: int = 0,
-               separations: list[int] | None = None) -> list[list[str]]:
+               axes: Axes | None = None) -> list[list[str]]:
     from tacswitch import realproxy as R
 
     want = {f"{s}/{c}" for v in CASES.values() for s, c in v}
     rows = []
     for sensor in R.SENSORS:
         frames = [f for f in R.proxy_frames(sensor, n, seed=seed) if _case(f.name) in want]
-        for label, method, path, sep in _combos(models, separations):
-            res = R.run(frames, _fill(method, path, sep))
+        for label, method, path, kw in _combos(models, axes):
+            res = R.run(frames, _fill(method, path, kw))
             per = {c: R.pool([x for x in res if _case(x.name) in {f"{s}/{k}" for s, k in v}])
                    for c, v in CASES.items()}
             rows.append([sensor, label, *(f"{per[c].mae:.3f}" for c in CASES),
@@ -127,8 +132,7 @@ def proxy_rows(n: int, models: dict[str, str], seed: int = 0,
     return rows
 
 
-def fots_rows(models: dict[str, str], separations: list[int] | None = None
-              ) -> list[list[str]]:
+def fots_rows(models: dict[str, str], axes: Axes | None = None) -> list[list[str]]:
     import cv2
 
     from tacswitch import realproxy as R
@@ -141,8 +145,8 @@ def fots_rows(models: dict[str, str], separations: list[int] | None = None
         holdout, hidden = R.shifted_holdout(img)
         prep.append((img, holdout, hidden, dilate_mask(R.threshold_mask(img), 3)))
     rows = []
-    for label, method, path, sep in _combos(models, separations):
-        fill = _fill(method, path, sep)
+    for label, method, path, kw in _combos(models, axes):
+        fill = _fill(method, path, kw)
         sc = [R.heldout_scores(img, fill, ho, hid, holes) for img, ho, hid, holes in prep]
         sp = [R.sparse_heldout_scores(img, fill, ho, hid) for img, ho, hid, _ in prep]
         rows.append([label, f"{np.mean([s[0] for s in sc]):.3f}",
@@ -153,21 +157,7 @@ def fots_rows(models: dict[str, str], separations: list[int] | None = None
     return rows
 
 
-def _sim_fill(img, m, method, path, kw):  # type: ignore[no-untyped-def]
-    """``remove_markers(img, m, method, model=path, **kw)``; with a separation, the function
-    behind it (``remove_markers`` does not take one)."""
-    import tacswitch as ts
-    from tacswitch.tacdiff import inpaint_hybrid, inpaint_tacdiff
-
-    if "separation" not in kw:
-        return ts.remove_markers(img, m, method=method, model=path, **kw)
-    if method == "tacdiff":
-        return inpaint_tacdiff(img, m, model=path, **kw)
-    return inpaint_hybrid(img, m, kw.pop("ref", None), model=path, **kw)[0]
-
-
-def sim_rows(models: dict[str, str], n: int = 4, separations: list[int] | None = None
-             ) -> list[list[str]]:
+def sim_rows(models: dict[str, str], n: int = 4, axes: Axes | None = None) -> list[list[str]]:
     import tacswitch as ts
     from tacswitch import tradeoff
     from tacswitch.metrics import masked_mae
@@ -176,17 +166,16 @@ def sim_rows(models: dict[str, str], n: int = 4, separations: list[int] | None =
     rows = []
     for preset in ("gelsight", "gelsight_mini"):
         frames = tradeoff.simulated_frames(n, preset, seed=HELD_OUT_SEED, mask="true")
-        for label, method, path, sep in _combos(models, separations):
+        for label, method, path, kw in _combos(models, axes):
             mae, contact = [], []
             for f in frames:
                 m = f.mask.astype(bool)
                 if path is None:
                     out = ts.remove_markers(f.with_markers, m)
                 else:
-                    kw = {"ref": f.reference} if method == "hybrid" else {}
-                    if sep is not None:
-                        kw["separation"] = sep
-                    out = _sim_fill(f.with_markers, m, method, path, kw)
+                    ref = {"ref": f.reference} if method == "hybrid" else {}
+                    out = ts.remove_markers(f.with_markers, m, method=method, model=path,
+                                            **ref, **kw)
                 mae.append(masked_mae(out, f.truth, f.scored))
                 sc = f.scored & f.contact
                 if sc.any():
@@ -207,6 +196,9 @@ def main() -> None:
     ap.add_argument("--parts", default="proxy,fots,sim")
     ap.add_argument("--separation", default="",
                     help="hole separations (px, comma list) to score TacDiff and hybrid at")
+    ap.add_argument("--orientations", default="",
+                    help="orientation counts (comma list of 1, 2, 4, 8) to score TacDiff and "
+                         "hybrid at")
     ap.add_argument("--update", action="store_true", help="write the BENCHMARKS.md section")
     ap.add_argument("--section", default=SECTION,
                     help="BENCHMARKS.md section title (a '## ' heading) that --update writes")
@@ -218,11 +210,13 @@ def main() -> None:
         seeds = [int(x) for x in args.seed.split(",") if x.strip()]
     except ValueError:
         raise SystemExit(f"--seed: expected integers like 0,1,2; got {args.seed!r}") from None
-    try:
-        seps = [int(x) for x in args.separation.split(",") if x.strip()] or None
-    except ValueError:
-        raise SystemExit(f"--separation: expected integers like 0,8; got {args.separation!r}"
-                         ) from None
+    axes: Axes = {}
+    for flag, key in (("--separation", "separation"), ("--orientations", "orientations")):
+        text = getattr(args, key)
+        try:
+            axes[key] = [int(x) for x in text.split(",") if x.strip()]
+        except ValueError:
+            raise SystemExit(f"{flag}: expected integers like 1,4; got {text!r}") from None
     parts = args.parts.split(",")
     out = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -234,22 +228,24 @@ def main() -> None:
             out.append(f"Real-frame proxy ({args.frames} presses per sensor, seed {seed}, "
                        "x 7 cases), masked MAE:\n\n"
                        + table(["sensor", "method", *CASES, "all"],
-                               proxy_rows(args.frames, models, seed, seps)))
+                               proxy_rows(args.frames, models, seed, axes)))
         if "fots" in parts and any(REAL.glob("*.png")):
             out.append("Real FOTS GelSight Mini frames, held-out MAE and signed error (dense: "
                        "every shifted hole at once, twice the real hole density; sparse: a "
                        "quarter at a time, pooled over 4 sets), ghost:\n\n"
                        + table(["method", "dense MAE", "dense signed", "sparse MAE",
-                                "sparse signed", "ghost"], fots_rows(models, seps)))
+                                "sparse signed", "ghost"], fots_rows(models, axes)))
         if "sim" in parts:
             out.append("Held-out simulated frames (4 per preset, true mask dilated once):\n\n"
                        + table(["preset", "method", "masked MAE", "MAE in contact"],
-                               sim_rows(models, separations=seps)))
+                               sim_rows(models, axes=axes)))
     what = f"--models '{args.models}'" if args.models else f"--radii {args.radii}"
     body = "\n\n".join([*([args.intro] if args.intro else []), *out, f"Machine: {machine()}.",
                          f"Command: `python benches/bench_prior_radius.py --frames {args.frames} "
                          f"--seed {args.seed} {what} --parts {args.parts}"
-                         + (f" --separation {args.separation}" if seps else "")
+                         + (f" --separation {args.separation}" if axes["separation"] else "")
+                         + (f" --orientations {args.orientations}" if axes["orientations"]
+                            else "")
                          + (f" --section '{args.section}'" if args.section != SECTION else "")
                          + "`"])
     print(body)

@@ -88,21 +88,30 @@ def _methods(frame) -> dict[str, Callable[[], object]]:  # type: ignore[no-untyp
     m = R.default_mask(img)
     m8 = m.view(np.uint8)
     r = int(DEFAULT_RADIUS)
-    extra = {f"TacDiff K=1, {name}": (lambda path=path: inpaint_tacdiff(img, m, 1, model=path))
-             for name, path in COMPARE}
+    extra = {f"TacDiff K=1, 1 orientation, {name}": (
+        lambda path=path: inpaint_tacdiff(img, m, 1, model=path, orientations=1))
+        for name, path in COMPARE}
     return extra | {
         "mask extraction (remove_markers' own)": lambda: R.default_mask(img),
         "TELEA r=3": lambda: ts.inpaint_telea(img, m, 3),
         f"TELEA r={r} (default)": lambda: ts.inpaint_telea(img, m, r),
         "cv2.inpaint TELEA r=3": lambda: cv2.inpaint(img, m8, 3, cv2.INPAINT_TELEA),
         f"cv2.inpaint TELEA r={r}": lambda: cv2.inpaint(img, m8, r, cv2.INPAINT_TELEA),
-        "TacDiff K=1": lambda: inpaint_tacdiff(img, m, 1),
-        "TacDiff K=1, whole frame (patch=None)": lambda: inpaint_tacdiff(img, m, 1, patch=None),
-        "TacDiff fast K=1": lambda: inpaint_tacdiff(img, m, 1, model="fast"),
+        "TacDiff K=1 (default: 4 orientations)": lambda: inpaint_tacdiff(img, m, 1),
+        "TacDiff K=1, 1 orientation": lambda: inpaint_tacdiff(img, m, 1, orientations=1),
+        "TacDiff K=1, 1 orientation, whole frame (patch=None)": lambda: inpaint_tacdiff(
+            img, m, 1, patch=None, orientations=1),
+        "TacDiff fast K=1 (default: 1 orientation)": lambda: inpaint_tacdiff(img, m, 1,
+                                                                           model="fast"),
+        "TacDiff fast K=1, 4 orientations": lambda: inpaint_tacdiff(img, m, 1, model="fast",
+                                                                    orientations=4),
         "TacDiff fast K=1, whole frame (patch=None)": lambda: inpaint_tacdiff(
             img, m, 1, model="fast", patch=None),
         "TacDiff fast K=2": lambda: inpaint_tacdiff(img, m, 2, model="fast"),
-        f"hybrid K=1 (reference, TELEA r={r})": lambda: inpaint_hybrid(img, m, ref, radius=r),
+        f"hybrid K=1 (reference, TELEA r={r}; 4 orientations)": lambda: inpaint_hybrid(
+            img, m, ref, radius=r),
+        f"hybrid K=1 (reference, TELEA r={r}), 1 orientation": lambda: inpaint_hybrid(
+            img, m, ref, radius=r, orientations=1),
         f"hybrid fast K=1 (reference, TELEA r={r})": lambda: inpaint_hybrid(
             img, m, ref, radius=r, model="fast"),
     }

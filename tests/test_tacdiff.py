@@ -210,20 +210,27 @@ def test_tiles_without_holes_are_not_run(sample, monkeypatch):
     mask = np.zeros(img.shape[:2], bool)
     mask[20:30, 20:30] = True  # one hole in a corner
     count = _Counter(monkeypatch)
-    out = infer.inpaint_tacdiff(img, mask, 1, patch=128, overlap=32)
+    out = infer.inpaint_tacdiff(img, mask, 1, patch=128, overlap=32, orientations=1)
     assert count.pixels == 128 * 128  # one tile of 128, not the frame's 15 tiles
     np.testing.assert_array_equal(out[~mask], img[~mask])
     count.pixels = 0
-    infer.inpaint_tacdiff(img, mask, 1, patch="auto")
+    infer.inpaint_tacdiff(img, mask, 1, patch="auto", orientations=1)
     # auto picks the crop around the hole (10 px + 8 px of context a side, rounded up to 16)
     # over the window in 16-px cells (48 x 48), the tile and the 240 x 640 frame
     assert count.pixels == 32 * 32
     count.pixels = 0
-    infer.inpaint_tacdiff(img, mask, 1, patch="holes")
+    infer.inpaint_tacdiff(img, mask, 1, patch="holes", orientations=1)
     assert count.pixels == 48 * 48
     count.pixels = 0
-    infer.inpaint_tacdiff(img, mask, 1, patch=None)
+    infer.inpaint_tacdiff(img, mask, 1, patch=None, orientations=1)
     assert count.pixels == 240 * 640
+    # The default model's default: four orientations, each choosing its own regions.
+    count.pixels = 0
+    infer.inpaint_tacdiff(img, mask, 1, patch="auto")
+    assert count.pixels == 4 * 32 * 32
+    count.pixels = 0
+    infer.inpaint_tacdiff(img, mask, 1, patch=None, orientations=8)
+    assert count.pixels == 8 * 240 * 640
 
 
 def test_hole_windows_cover_every_hole_once():
@@ -305,12 +312,12 @@ def test_crops_run_one_call_per_size_and_match_the_whole_frame(monkeypatch):
             return orig(names, feed)
 
     monkeypatch.setattr(model, "session", _Session())
-    out = infer.inpaint_tacdiff(s.image_markers, mask, 1, patch="crops")
+    out = infer.inpaint_tacdiff(s.image_markers, mask, 1, patch="crops", orientations=1)
     assert sorted(c[2:] for c in calls) == sorted(sizes)
     assert sum(c[0] for c in calls) == len(crops)
     monkeypatch.undo()
     np.testing.assert_array_equal(out[~mask], s.image_markers[~mask])
-    whole = infer.inpaint_tacdiff(s.image_markers, mask, 1, patch=None)
+    whole = infer.inpaint_tacdiff(s.image_markers, mask, 1, patch=None, orientations=1)
     e_w = masked_mae(whole, s.image, mask)
     e_c = masked_mae(out, s.image, mask)
     assert abs(e_w - e_c) < 0.1 * e_w

@@ -85,7 +85,8 @@ def default_methods(radii: Sequence[int] = (3, 5, 8, 12), opencv: bool = True
 
 def tacdiff_methods(steps: Sequence[int] = (1, 2, 4, 8, 20), hybrid_steps: Sequence[int] = (2,),
                     model: str | None = None) -> dict[tuple[str, str], Inpaint]:
-    """TacDiff (onnxruntime, all cores) at each step count K, the hybrid mode (TacDiff near
+    """TacDiff (onnxruntime, all cores) at each step count K (in the default orientations;
+    K = 1 also in one orientation), the hybrid mode (TacDiff near
     the contact, found against the reference frame or from texture; TELEA at
     :data:`tacswitch.inpaint.DEFAULT_RADIUS` elsewhere), and
     the model's classical prior alone (what the network starts from), so the table shows what
@@ -110,6 +111,10 @@ def tacdiff_methods(steps: Sequence[int] = (1, 2, 4, 8, 20), hybrid_steps: Seque
     methods: dict[tuple[str, str], Inpaint] = {("TacDiff prior (no network)", kind): prior_only}
     for k in steps:
         methods[("TacDiff", f"K={k}")] = diffusion(k)
+    if 1 in steps:
+        # The default averages DEFAULT_ORIENTATIONS orientations; one is the speed knob.
+        methods[("TacDiff", "K=1, 1 orientation")] = \
+            lambda img, m, f: inpaint_tacdiff(img, m, 1, model=model, orientations=1)
     for k in hybrid_steps:
         methods[("Hybrid (reference)", f"K={k}")] = hybrid(k, True)
         methods[("Hybrid (texture)", f"K={k}")] = hybrid(k, False)
@@ -117,6 +122,8 @@ def tacdiff_methods(steps: Sequence[int] = (1, 2, 4, 8, 20), hybrid_steps: Seque
         # The shipped narrow model: the model-width knob, at its fastest setting.
         methods[("TacDiff fast", "K=1")] = \
             lambda img, m, f: inpaint_tacdiff(img, m, 1, model="fast")
+        methods[("TacDiff fast", "K=1, 4 orientations")] = \
+            lambda img, m, f: inpaint_tacdiff(img, m, 1, model="fast", orientations=4)
         methods[("Hybrid fast (reference)", "K=1")] = \
             lambda img, m, f: inpaint_hybrid(img, m, f.reference, steps=1, model="fast")[0]
     return methods

@@ -55,6 +55,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--separation", type=int, default=None, metavar="PX",
                    help="tacdiff/hybrid: holes within PX of one another are filled in separate "
                         "passes (default: 4; 0: one pass)")
+    p.add_argument("--orientations", type=int, choices=(1, 2, 4, 8), default=None,
+                   help="tacdiff/hybrid: run the network on the frame in N orientations (as is, "
+                        "mirrored, turned) and average them: lower error, N times the network "
+                        "time (default: 4, or 1 with --model fast)")
     p.add_argument("--ref", default=None,
                    help="hybrid: no-contact frame of the sensor to find the contact against "
                         "(default for a video: its first frame, which should show no contact; "
@@ -85,7 +89,8 @@ def _remover(args: argparse.Namespace, ref: np.ndarray | None) -> Remover:
 
     opts: dict[str, Any] = extraction_options(args)
     if args.method in MODEL_METHODS:
-        opts.update(steps=args.steps, ref=ref, model=args.model, separation=args.separation)
+        opts.update(steps=args.steps, ref=ref, model=args.model, separation=args.separation,
+                    orientations=args.orientations)
 
     def remove(img: np.ndarray) -> np.ndarray:
         return ts.remove_markers(img, method=args.method, radius=args.radius, **opts)
@@ -135,6 +140,7 @@ def _check_options(args: argparse.Namespace) -> None:
     ignored = [flag for flag, value, used_by in (
         ("--steps", args.steps, MODEL_METHODS), ("--model", args.model, MODEL_METHODS),
         ("--separation", args.separation, MODEL_METHODS),
+        ("--orientations", args.orientations, MODEL_METHODS),
         ("--ref", args.ref, ("hybrid",))) if value is not None and args.method not in used_by]
     if ignored:
         users = {"--ref": "hybrid"}

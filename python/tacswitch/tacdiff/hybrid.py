@@ -134,7 +134,7 @@ def model_mask(img: NDArray[np.uint8], mask: NDArray[np.bool_],
 def inpaint_hybrid(img: Any, mask: Any, ref: Any = None, *, steps: int | None = None,
                    radius: float = DEFAULT_RADIUS, margin: int = 6, threshold: float | None = None,
                    seed: int | None = 0, separation: int = SEPARATION,
-                   model: str | os.PathLike[str] | None = None
+                   model: str | os.PathLike[str] | None = None, orientations: int | None = None
                    ) -> tuple[NDArray[np.uint8], HybridInfo]:
     """TELEA everywhere, TacDiff on the holes in or near the contact.
 
@@ -151,6 +151,8 @@ def inpaint_hybrid(img: Any, mask: Any, ref: Any = None, *, steps: int | None = 
         separation: px; the network fills its holes within this distance of one another in
             separate passes (:func:`~tacswitch.tacdiff.infer.inpaint_tacdiff`; 0: one pass).
         model: TacDiff ONNX path (default: the shipped model).
+        orientations: orientations the network's frame is averaged over (1, 2, 4 or 8; None:
+            4, or 1 for the fast model), see :func:`~tacswitch.tacdiff.infer.inpaint_tacdiff`.
 
     Returns:
         ``(image, info)``: the markerless frame (unmasked pixels bit-identical to ``img``) and a
@@ -158,10 +160,11 @@ def inpaint_hybrid(img: Any, mask: Any, ref: Any = None, *, steps: int | None = 
     """
     from tacswitch._checks import as_count, as_image_u8
     from tacswitch.inpaint import _as_mask, inpaint_telea
-    from tacswitch.tacdiff.infer import DEFAULT_STEPS, inpaint_tacdiff
+    from tacswitch.tacdiff.infer import DEFAULT_STEPS, inpaint_tacdiff, orientations_for
 
-    # Checked here too: the network (which checks it) may not run when no hole is near contact.
+    # Checked here too: the network (which checks them) may not run when no hole is near contact.
     as_count(separation, "separation", 0, None)
+    orientations_for(orientations, model)
     arr = as_image_u8(img, "img")
     if arr.ndim != 3 or arr.shape[2] != 3:
         raise ValueError(f"img: expected a BGR H x W x 3 uint8 image; got shape {arr.shape}")
@@ -175,8 +178,8 @@ def inpaint_hybrid(img: Any, mask: Any, ref: Any = None, *, steps: int | None = 
     net = model_mask(arr, m, ref_arr, filled=filled, margin=margin, radius=int(radius),
                      threshold=threshold)
     k = DEFAULT_STEPS if steps is None else steps
-    out = (inpaint_tacdiff(filled, net, k, seed=seed, separation=separation, model=model)
-           if net.any() else filled)
+    out = (inpaint_tacdiff(filled, net, k, seed=seed, separation=separation, model=model,
+                           orientations=orientations) if net.any() else filled)
     total = int(m.sum())
     used = int(net.sum())
     return out, HybridInfo(total, used, used / total if total else 0.0)

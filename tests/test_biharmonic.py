@@ -35,7 +35,7 @@ def test_matches_scikit_image_on_interior_holes():
 def test_flat_image_stays_flat_including_border_holes(dtype: type, value: float, channels: int):
     shape = (60, 80)
     mask = disc_mask(shape, [(0, 0), (79, 59), (40, 30), (0, 30), (44, 0)], 6)
-    img = np.full((*shape, channels), value, dtype=dtype)
+    img: np.ndarray = np.full((*shape, channels), value, dtype=dtype)
     img[mask] = 0  # what lies under the mask must not leak
     out = ts.inpaint_biharmonic(img if channels > 1 else img[:, :, 0], mask)
     want = np.full_like(out, value)

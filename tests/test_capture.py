@@ -102,7 +102,8 @@ def test_blur_softens_the_edge() -> None:
 
 def test_apply_sequence_codecs_and_drift() -> None:
     frames = np.stack([_gel()] * 3)
-    for codec, q in (("none", 90), ("mjpeg", 80), ("h264", 23)):
+    cases: tuple[tuple[C.Codec, int], ...] = (("none", 90), ("mjpeg", 80), ("h264", 23))
+    for codec, q in cases:
         p = C.CaptureProfile(codec=codec, quality=q, read_noise=0.5)
         out = C.apply_sequence(frames, p, 0, gain_drift=0.01)
         assert out.shape == frames.shape and out.dtype == np.uint8

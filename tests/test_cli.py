@@ -35,7 +35,7 @@ def frame_folder(tmp_path: Path, grasp: sim.GraspSequence) -> Path:
 def video(tmp_path: Path, grasp: sim.GraspSequence) -> Path:
     path = tmp_path / "grasp.avi"
     h, w = grasp.reference.shape[:2]
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 30, (w, h))
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"MJPG"), 30, (w, h))
     assert writer.isOpened()
     for f in [grasp.reference, *grasp.frames]:
         writer.write(f)
@@ -128,7 +128,7 @@ def test_remove_markers_resumes(tmp_path: Path, grasp) -> None:
     assert main(["remove-markers", str(src), "-o", str(out), "-q"]) == 0
     assert (out / "1.png").stat().st_mtime_ns == stamp
     clean = cv2.imread(str(out / "0.png"))
-    assert clean.shape == grasp.frames[0].shape
+    assert clean is not None and clean.shape == grasp.frames[0].shape
 
 
 def test_progress_bars_go_to_stderr_and_quiet_silences_them(
@@ -249,7 +249,8 @@ def test_motion_command_matches_predict_motion(tmp_path: Path, motion_pair: dict
     np.testing.assert_allclose(pts, rest, atol=1e-3)
     np.testing.assert_allclose(motion, ts.predict_motion(img, ref, rest), atol=1e-3)
     assert np.abs(motion).max() > 0.5  # a loaded contact: the markers moved
-    assert cv2.imread(str(out / "img_motion.png")).shape == img.shape
+    drawn = cv2.imread(str(out / "img_motion.png"))
+    assert drawn is not None and drawn.shape == img.shape
     # Without --centres: the model's grid scaled to the frame.
     assert main(["motion", str(tmp_path / "img.png"), "--ref", str(tmp_path / "ref.png"),
                  "-o", str(tmp_path / "g"), "-q"]) == 0

@@ -70,8 +70,9 @@ def test_remove_markers_skips_and_names_unreadable_images(
     assert "4 written, 0 already done, 2 unreadable skipped" in cap.out
     assert "warning: skipped 2 unreadable inputs" in cap.err
     assert "2.png" in cap.err and "5.png" in cap.err
-    np.testing.assert_array_equal(cv2.imread(str(out / "4.png")),
-                                  ts.remove_markers(cv2.imread(str(folder / "4.png"))))
+    src = cv2.imread(str(folder / "4.png"))
+    assert src is not None
+    np.testing.assert_array_equal(cv2.imread(str(out / "4.png")), ts.remove_markers(src))
 
 
 def test_nothing_readable_is_an_error(tmp_path: Path, folder: Path,
@@ -196,6 +197,7 @@ def test_extraction_options_change_the_result(tmp_path: Path, grasp: sim.GraspSe
     assert main(["remove-markers", str(img), "-o", str(out / "a"), "--dilate", "0", "-q"]) == 0
     assert main(["remove-markers", str(img), "-o", str(out / "b"), "--dilate", "4", "-q"]) == 0
     a, b = cv2.imread(str(out / "a" / "f.png")), cv2.imread(str(out / "b" / "f.png"))
+    assert a is not None and b is not None
     np.testing.assert_array_equal(a, ts.remove_markers(frame, dilate=0))
     np.testing.assert_array_equal(b, ts.remove_markers(frame, dilate=4))
     assert (a != frame).any(axis=2).sum() < (b != frame).any(axis=2).sum()

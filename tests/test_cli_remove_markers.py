@@ -79,6 +79,7 @@ def test_video_frames_are_exact_and_resume_frame_by_frame(tmp_path: Path, video:
     src, _ = decode(video)
     for i, frame in enumerate(src):
         png = cv2.imread(str(out / "grasp" / f"{i:06d}.png"))
+        assert png is not None
         np.testing.assert_array_equal(png, ts.remove_markers(frame, method="telea"))
         mask = marker_mask(frame)
         np.testing.assert_array_equal(png[~mask], frame[~mask])  # untouched off the markers

@@ -17,11 +17,12 @@ import pytest
 from tacswitch import sim
 from tacswitch.cli import main
 from tacswitch.cli.contact import GRASP, NO_CONTACT, PRESSING, GraspSegmenter, top_statistic
+from tacswitch.sim.sequences import Kind
 
 LEAD = 4  # no-contact frames before the press
 
 
-def recording(kind: str, seed: int, release: bool) -> tuple[list[np.ndarray], int, int | None]:
+def recording(kind: Kind, seed: int, release: bool) -> tuple[list[np.ndarray], int, int | None]:
     """Frames, the true grasp start and the true slip onset (frame indices in the recording)."""
     seq = sim.grasp_sequence("gelsight_mini", kind, n_frames=24, seed=seed)
     frames = [seq.reference] * LEAD + list(seq.frames)

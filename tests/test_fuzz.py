@@ -221,7 +221,7 @@ def test_remove_markers_ns_refuses_a_full_mask() -> None:
 def test_remove_markers_ns_dtypes(dtype: type) -> None:
     with pytest.raises(ValueError, match=r"^img:"):
         ts.remove_markers(F.astype(dtype), M, method="ns")
-    grey = F[:, :, 1].astype(dtype)  # grey works, as OpenCV allows
+    grey: np.ndarray = F[:, :, 1].astype(dtype)  # grey works, as OpenCV allows
     out = ts.remove_markers(grey, M, method="ns")
     assert out.dtype == dtype and (out[~M] == grey[~M]).all()
 
@@ -291,29 +291,29 @@ def test_unaligned_arrays_are_accepted() -> None:
 
 @pytest.mark.parametrize("name,call", [
     ("dilate", lambda: ts.remove_markers(F, dilate=-1)),
-    ("dilate", lambda: ts.remove_markers(F, dilate=2.5)),
+    ("dilate", lambda: ts.remove_markers(F, dilate=2.5)),  # type: ignore[arg-type]
     ("patch", lambda: ts.tile(F, 10**30, 0)),
     ("overlap", lambda: ts.tile(F, 64, 10**30)),
     ("origins", lambda: ts.merge_patches(np.zeros((1, 4, 4), np.uint8), [[10**30, 0]], (4, 4))),
-    ("shape", lambda: ts.merge_patches(np.zeros((1, 4, 4), np.uint8), [[0, 0]], 4)),
+    ("shape", lambda: ts.merge_patches(np.zeros((1, 4, 4), np.uint8), [[0, 0]], 4)),  # type: ignore[arg-type]
     ("shape", lambda: ts.merge_patches(np.zeros((1, 4, 4), np.uint8), [[0, 0]], (10**30, 4))),
     ("block_size", lambda: ts.MarkerTracker(PTS, block_size=10**30)),
     ("min_area", lambda: ts.MarkerTracker(PTS, min_area=10**30)),
     ("max_area", lambda: ts.MarkerTracker(PTS, max_area=2**64)),
     ("polarity", lambda: ts.MarkerTracker(PTS, polarity=None)),
-    ("polarity", lambda: ts.extract_markers(F, polarity=None)),
-    ("threshold", lambda: ts.extract_markers(F, threshold="abc")),
-    ("min_fill", lambda: ts.extract_markers(F, min_fill=None)),
+    ("polarity", lambda: ts.extract_markers(F, polarity=None)),  # type: ignore[arg-type]
+    ("threshold", lambda: ts.extract_markers(F, threshold="abc")),  # type: ignore[arg-type]
+    ("min_fill", lambda: ts.extract_markers(F, min_fill=None)),  # type: ignore[arg-type]
     ("block_size", lambda: ts.extract_markers(F, block_size=10**30)),
     ("max_area", lambda: ts.extract_markers(F, max_area=2**64)),
     ("threshold", lambda: ts.MarkerTracker(PTS, threshold="abc")),
     ("min_fill", lambda: ts.MarkerTracker(PTS, min_fill=None)),
-    ("max_dist", lambda: ts.match_markers(PTS, PTS, "x")),
-    ("image_width", lambda: ts.SlipDetector(image_width="abc")),
+    ("max_dist", lambda: ts.match_markers(PTS, PTS, "x")),  # type: ignore[call-overload]
+    ("image_width", lambda: ts.SlipDetector(image_width="abc")),  # type: ignore[arg-type]
     ("radius", lambda: ts.inpaint_telea(F, M, radius=10**30)),
     ("seed", lambda: ts.remove_markers(F, M, method="tacdiff", seed=-1)),
-    ("model", lambda: ts.remove_markers(F, M, method="tacdiff", model=123)),
-    ("model", lambda: ts.predict_motion(F, model=123)),
+    ("model", lambda: ts.remove_markers(F, M, method="tacdiff", model=123)),  # type: ignore[arg-type]
+    ("model", lambda: ts.predict_motion(F, model=123)),  # type: ignore[arg-type]
     ("motion_or_img", lambda: ts.SlipDetector().update(np.zeros((0, 0), np.uint8))),
     ("img", lambda: ts.predict_motion(np.zeros((1, 640, 3), np.uint8),
                                       np.zeros((1, 640, 3), np.uint8))),

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from typing import Literal
 
 import cv2
 import numpy as np
@@ -20,7 +21,7 @@ def soft_dots(shape: tuple[int, int], centres: np.ndarray, radius: float, *, lev
     """Grey float frame: dots of luma ``level`` on ``bg``, antialiased (8x8 supersampling), with
     a Gaussian edge blur of ``edge`` px (0: crisp)."""
     h, w = shape
-    cover = np.zeros(shape, np.float32)
+    cover: np.ndarray = np.zeros(shape, np.float32)
     ss = (np.arange(8) + 0.5) / 8 - 0.5
     for cx, cy in centres:
         x0, x1 = max(int(cx - radius - 2), 0), min(int(cx + radius + 3), w)
@@ -42,11 +43,13 @@ def capture(frame: np.ndarray, seed: int, *, noise: float = NOISE, jpeg: int | N
     """Sensor noise, rounding and optionally a JPEG round trip (BGR uint8)."""
     rng = np.random.default_rng(seed)
     img = np.clip(np.rint(frame + rng.normal(0, noise, frame.shape)), 0, 255).astype(np.uint8)
-    bgr = np.ascontiguousarray(np.repeat(img[:, :, None], 3, axis=2))
+    bgr: np.ndarray = np.ascontiguousarray(np.repeat(img[:, :, None], 3, axis=2))
     if jpeg is not None:
         ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, jpeg])
         assert ok
-        bgr = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+        decoded = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+        assert decoded is not None
+        bgr = decoded
     return bgr
 
 
@@ -179,7 +182,8 @@ def border_frame() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def test_border_slivers_masked_on_all_four_borders() -> None:
     img, inner, cut = border_frame()
-    for dilate, level in ((0, 60), (1, 100), ("auto", 150)):
+    cases: tuple[tuple[int | Literal["auto"], int], ...] = ((0, 60), (1, 100), ("auto", 150))
+    for dilate, level in cases:
         dark = luma(img) < level  # marker pixels (the gel is at 180, dots at 25)
         m = ts.extract_markers(img, dilate=dilate)
         assert not (dark & ~m.mask).any(), f"dilate={dilate}: {(dark & ~m.mask).sum()} px left"

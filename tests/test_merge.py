@@ -43,7 +43,7 @@ def test_unmodified_patches_merge_back_exactly(
 ) -> None:
     rng = np.random.default_rng(0)
     shape = (480, 640) if channels is None else (480, 640, channels)
-    img = (rng.random(shape) * 250).astype(dtype)
+    img: np.ndarray = (rng.random(shape) * 250).astype(dtype)
     patches, origins = tile(img, 256, 30)
     out = merge_patches(patches, origins, img.shape, mode=mode)  # type: ignore[arg-type]
     assert out.dtype == img.dtype and out.shape == img.shape

@@ -78,13 +78,13 @@ def test_padding_is_cropped_and_fits_tiny_frames() -> None:
     f = flow.dense_flow(a, b, pad=7)
     assert f.shape == (8, 400, 2)
     # A 400 px wide frame asks for 20 px of padding; an 8 px high one allows 7 at most.
-    m = predict_motion(np.dstack([b] * 3), np.dstack([a] * 3), np.float32([[200.0, 4.0]]))
+    m = predict_motion(np.dstack([b] * 3), np.dstack([a] * 3), np.array([[200.0, 4.0]], np.float32))
     assert m.shape == (1, 2) and np.isfinite(m).all()
     # The smallest frames accepted (8 px a side; DIS alone refuses under 12 px): padded enough.
     for shape in ((8, 8), (8, 11), (11, 11)):
         small = rng.integers(0, 256, (*shape, 3), dtype=np.uint8)
         for preset in flow.DIS_PRESETS:
-            m = predict_motion(small, np.roll(small, 1, axis=1), np.float32([[4.0, 4.0]]),
+            m = predict_motion(small, np.roll(small, 1, axis=1), np.array([[4.0, 4.0]], np.float32),
                                preset=preset)
             assert m.shape == (1, 2) and np.isfinite(m).all(), (shape, preset)
 
@@ -259,7 +259,7 @@ def test_suppress_imprint_trusts_the_flow_less_where_a_contact_appeared(mini, gr
 def test_suppress_imprint_bad_inputs(mini, grid) -> None:
     img = mini.imgs[0]
     with pytest.raises(TypeError, match=r"^suppress_imprint: expected a bool"):
-        predict_motion(img, mini.f0, grid, suppress_imprint="yes")
+        predict_motion(img, mini.f0, grid, suppress_imprint="yes")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match=r"^suppress_imprint: applies to method='flow'"):
         predict_motion(img, mini.f0, grid, method="outward", suppress_imprint=True)
 
@@ -288,7 +288,7 @@ def test_cli_slip_markerless_ignores_texture_drifting_far_from_the_contact(mini,
     for k in range(1, 7):
         f = mini.imgs[i].copy()
         block = np.ascontiguousarray(f[y0:y0 + bh, x0:x0 + bw])
-        shift = np.float32([[1, 0, float(k)], [0, 1, 0]])
+        shift = np.array([[1, 0, float(k)], [0, 1, 0]], np.float32)
         f[y0:y0 + bh, x0:x0 + bw] = cv2.warpAffine(block, shift, block.shape[1::-1],
                                                    borderMode=cv2.BORDER_REFLECT)
         frames.append(f)

@@ -97,7 +97,9 @@ def test_make_proxy_stream_captures_one_recording() -> None:
             if want is not None:
                 d = np.abs(got.astype(float) - want).mean()
                 assert 0 < d < 6
-        assert not np.array_equal(s.ref("no_contact"), u.ref("no_contact"))
+        s_ref, u_ref = s.ref("no_contact"), u.ref("no_contact")
+        assert s_ref is not None and u_ref is not None
+        assert not np.array_equal(s_ref, u_ref)
 
 
 def test_cosine_metrics() -> None:

@@ -94,16 +94,20 @@ def test_near_contact_keeps_the_markers_around_the_contact(mini, grid) -> None:
     w = mini.f0.shape[1]
     for i in (2, 10, 20):
         near = reference.near_contact(mini.imgs[i], mini.f0, grid)
+        assert near is not None
         d = np.hypot(*(grid - mini.centres[i]).T)
         # Every marker on the contact counts, none far beyond the reach does.
         assert near[d <= mini.radii[i]].all()
         assert not near[d > mini.radii[i] + 2.5 * reference.CONTACT_REACH * w].any()
         assert 0 < near.sum() < len(grid)
     # Nothing changed (identical frames, a brightness change): no contact to place, all count.
-    assert reference.near_contact(mini.f0, mini.f0.copy(), grid).all()
+    same = reference.near_contact(mini.f0, mini.f0.copy(), grid)
+    assert same is not None and same.all()
     brighter = np.clip(mini.f0.astype(np.float32) * 1.1, 0, 255).astype(np.uint8)
-    assert reference.near_contact(brighter, mini.f0, grid).all()
-    assert reference.near_contact(mini.imgs[2], mini.f0, grid[:0]).shape == (0,)
+    lit = reference.near_contact(brighter, mini.f0, grid)
+    assert lit is not None and lit.all()
+    empty = reference.near_contact(mini.imgs[2], mini.f0, grid[:0])
+    assert empty is not None and empty.shape == (0,)
 
 
 def test_near_contact_keeps_a_few_markers_and_checks_its_arguments(mini) -> None:
@@ -113,6 +117,7 @@ def test_near_contact_keeps_a_few_markers_and_checks_its_arguments(mini) -> None
     img[100:110, 150:160] = 255
     coarse = np.array([[x, y] for x in (95.0, 215.0) for y in (45.0, 165.0)], np.float32)
     near = reference.near_contact(img, mini.f0, coarse)
+    assert near is not None
     assert near.sum() == reference.MIN_NEAR_MARKERS
     assert reference.near_contact(mini.f0, mini.f0.copy(), coarse, fallback=False) is None
     with pytest.raises(ValueError, match=r"^no_contact: shape"):

@@ -95,7 +95,7 @@ def test_grain_matcher_recovers_a_shift_on_a_real_frame() -> None:
 
     proxy = pytest.importorskip("tacswitch.motion.proxy")
     f0 = proxy.load_real_presses("gelsight").f0
-    m = np.float32([[1, 0, 1.3], [0, 1, -0.7]])
+    m = np.array([[1, 0, 1.3], [0, 1, -0.7]], np.float32)
     moved = cv2.warpAffine(f0, m, (f0.shape[1], f0.shape[0]), flags=cv2.INTER_CUBIC,
                            borderMode=cv2.BORDER_REFLECT)
     rng = np.random.default_rng(0)

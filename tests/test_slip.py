@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -132,7 +133,7 @@ def test_rigid_auto_is_half_the_scaled_threshold() -> None:
     assert det.rigid_threshold_px == pytest.approx(0.5 * 1.625)
     only = ts.SlipDetector(rigid_threshold_px="auto", use_displacement=False, points=pts)
     only.update(np.zeros_like(pts))
-    big_rigid = np.tile(np.float32([9.0, -4.0]), (len(pts), 1))
+    big_rigid = np.tile(np.array([9.0, -4.0], np.float32), (len(pts), 1))
     state = only.update(big_rigid)
     assert not state.slip and only.threshold_px is None
     with pytest.raises(ValueError, match="rigid_threshold_px"):
@@ -234,7 +235,7 @@ def test_slip_on_videos_judges_only_the_markers_near_the_contact() -> None:
         calls[0] += 1
         return m
 
-    crit = {"displacement": {}}
+    crit: dict[str, dict[str, Any]] = {"displacement": {}}
     gated = slip_on_videos({"d": drifting}, [hold], criteria=crit, near_contact_only=True)
     calls[0] = 0
     every = slip_on_videos({"d": drifting}, [hold], criteria=crit)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -98,7 +99,7 @@ def test_render_painted_pairs_is_the_same_with_workers_and_resumes(tmp_path: Pat
 
 def test_render_painted_pairs_bad_input(tmp_path: Path, mini_presses) -> None:
     f = mini_presses[0][1]
-    kw = {"pitch": PITCH, "diameter": DIAMETER, "progress": False}
+    kw: dict[str, Any] = {"pitch": PITCH, "diameter": DIAMETER, "progress": False}
     with pytest.raises(ValueError, match="frames"):
         painted.render_painted_pairs(tmp_path, [], 1, **kw)
     with pytest.raises(ValueError, match=r"frames\[1\]"):

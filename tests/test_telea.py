@@ -46,7 +46,7 @@ def test_flat_image_stays_exactly_flat(
 ) -> None:
     shape = (120, 160)
     mask = disc_mask(shape, [(20, 20), (80, 60), *[(x / 4, y / 4) for x, y in BORDER]], 9)
-    img = np.full((*shape, channels), value, dtype=dtype)
+    img: np.ndarray = np.full((*shape, channels), value, dtype=dtype)
     img[mask] = 0  # garbage under the mask must not leak
     if channels == 1:
         img = img[:, :, 0]
@@ -149,7 +149,7 @@ def test_empty_mask_returns_a_copy() -> None:
 def test_random_masks(mask: np.ndarray, dtype: type, channels: int, radius: int, seed: int) -> None:
     rng = np.random.default_rng(seed)
     h, w = mask.shape
-    img = rng.integers(0, 255, (h, w, channels)).astype(dtype)
+    img: np.ndarray = rng.integers(0, 255, (h, w, channels)).astype(dtype)
     if mask.all():
         with pytest.raises(ValueError, match="mask"):
             inpaint_telea(img, mask, radius)

@@ -65,10 +65,10 @@ def test_matches_scipy_mutual_nearest_neighbour(ref: np.ndarray, cur: np.ndarray
 def test_default_gate_is_half_the_pitch() -> None:
     ref = sim.marker_grid(240, 320, 9, 11, 28.5)
     assert ts.estimate_pitch(ref) == pytest.approx(28.5, abs=1e-3)
-    small = ref + np.float32([5.0, -6.0])  # 7.8 px < 14.25
+    small = ref + np.array([5.0, -6.0], np.float32)  # 7.8 px < 14.25
     _, valid = ts.match_markers(ref, small)
     assert valid.all()
-    far = ref + np.float32([11.0, 11.0])  # 15.6 px > 14.25 and 15.6 from any neighbour
+    far = ref + np.array([11.0, 11.0], np.float32)  # 15.6 px > 14.25 and 15.6 from any neighbour
     motion, valid = ts.match_markers(ref, far)
     assert not valid.any() and np.isnan(motion).all()
 
@@ -112,7 +112,7 @@ def test_tracker_reacquires_lost_markers() -> None:
     ref = sim.marker_grid(480, 640, 6, 8, 80.0)
     tracker = ts.MarkerTracker(ref)
     for step in range(1, 16):
-        cur = ref + np.float32([3.0 * step, -1.0 * step])
+        cur = ref + np.array([3.0 * step, -1.0 * step], np.float32)
         if 4 <= step < 12:
             cur = np.delete(cur, [10, 11, 20], axis=0)
         motion, valid = tracker.update(cur)

@@ -117,6 +117,22 @@ def test_marker_frames_line_up_with_the_per_marker_scores(marker_frames):
         ft.validation_set(frames, [(0, -16), (0, 16)])  # type: ignore[arg-type]
 
 
+def test_the_check_scores_one_orientation(marker_frames, monkeypatch):
+    from tacswitch.tacdiff import infer
+
+    seen = []
+    real = infer.inpaint_tacdiff
+
+    def spy(*a, **kw):  # type: ignore[no-untyped-def]
+        seen.append(kw.get("orientations"))
+        return real(*a, **kw)
+
+    monkeypatch.setattr(infer, "inpaint_tacdiff", spy)
+    val = ft.validation_set(marker_frames[:1], (0, -16))
+    scores = ft.marker_scores("fast", val)
+    assert len(scores) == val.markers and seen and set(seen) == {1}
+
+
 def test_beats_needs_an_improvement_beyond_noise():
     rng = np.random.default_rng(0)
     start = rng.uniform(1, 3, 400)

@@ -57,8 +57,9 @@ def test_crop_sampler_contact_share_centres_crops_on_contact_holes():
     shard = {k: v[None] for k, v in pair.items()}
     size = 32
 
-    def contact_hole_share(**shares: float) -> float:
-        sampler = tdata.CropSampler([dict(shard)], size, augment=False, **shares)
+    def contact_hole_share(*, contact_share: float, hole_share: float) -> float:
+        sampler = tdata.CropSampler([dict(shard)], size, augment=False,
+                                    contact_share=contact_share, hole_share=hole_share)
         rng = np.random.default_rng(1)
         hits = 0
         for _ in range(40):
@@ -92,6 +93,7 @@ def test_remove_markers_cli_tacdiff_and_hybrid(tmp_path: Path):
         assert main(["remove-markers", str(src), "-o", str(out), "--method", method,
                      "--steps", "1", *extra, "-q"]) == 0
         got = cv2.imread(str(out / "a.png"))
+        assert got is not None
         mask = ts.extract_markers(s.image_markers, dilate="auto").mask
         np.testing.assert_array_equal(got[~mask], s.image_markers[~mask])
 
@@ -103,14 +105,15 @@ def test_evaluate_tacdiff_tiny(tmp_path: Path):
                  "--steps", "1", "--json", str(report), "-q"]) == 0
     rows = json.loads(report.read_text())["gelsight_mini"]
     names = {(r["method"], r["setting"]) for r in rows}
-    assert ("TacDiff", "K=1") in names and ("TELEA (OpenCV)", "r=3") in names
+    assert ("TacDiff", "K=1, 4 orientations") in names and ("TELEA (OpenCV)", "r=3") in names
+    assert ("TacDiff", "K=1, 1 orientation") in names
     assert all(0 < r["ssim"] <= 1 and r["masked_mae"] > 0 for r in rows)
     assert main(["evaluate", "tacdiff", "--frames", "1", "--presets", "gelsight_mini",
                  "--steps", "1", "--mask", "extracted", "--json", str(report), "-q"]) == 0
     extracted = {(r["method"], r["setting"]): r for r in
                  json.loads(report.read_text())["gelsight_mini"]}
     # The extracted mask is scored on its union with the true footprint: a larger area.
-    assert extracted[("TacDiff", "K=1")]["masked_mae"] > 0
+    assert extracted[("TacDiff", "K=1, 4 orientations")]["masked_mae"] > 0
 
 
 def test_train_tacdiff_tiny_run_resumes_and_exports(tmp_path: Path):
@@ -149,7 +152,7 @@ def test_train_tacdiff_tiny_run_resumes_and_exports(tmp_path: Path):
     with torch.no_grad():
         want = net(network_input(*[torch.from_numpy(a) for a in arrs]),
                    torch.tensor([0.7])).numpy()
-    got = model.v(*arrs[:5], 0.7, arrs[5])
+    got = model.v(arrs[0], arrs[1], arrs[2], arrs[3], arrs[4], 0.7, arrs[5])
     np.testing.assert_allclose(got, want, rtol=1e-4, atol=1e-5 * np.abs(want).max())
     img = render_sample("digit", 3).image_markers
     mask = ts.extract_markers(img, dilate=1, exclude_border=False).mask

@@ -367,7 +367,8 @@ def remove_markers(
         orientations: TacDiff / hybrid: the network runs the frame in this many orientations
             (1, 2, 4 or 8: as is, mirrored, turned) and averages them; None (default): 4 for
             the default model (about 2 % lower error on real frames with painted markers, 3x
-            the time), 1 for ``model="fast"``. See :func:`tacswitch.tacdiff.inpaint_tacdiff`.
+            the time), 1 for a narrow model such as ``model="fast"``. See
+            :func:`tacswitch.tacdiff.inpaint_tacdiff`.
         **extract_opts: passed to :func:`tacswitch.extract_markers` when ``mask`` is None.
 
     Returns:
@@ -382,7 +383,10 @@ def remove_markers(
                          f"got {method!r}")
     arr = _as_image(img)
     if method in _MODEL_METHODS:
+        from tacswitch.tacdiff.infer import check_orientations
+
         check_model_arg(model)
+        check_orientations(orientations)
         seed = as_seed(seed)
         # The TacDiff entry points check it and own its default.
         passes: dict[str, Any] = {} if separation is None else {"separation": separation}

@@ -537,7 +537,7 @@ def methods(radii: Sequence[int] = (3, 5, 8, 12), *, models: bool = True,
     OpenCV TELEA at ``radii`` on a one-dilation threshold mask, NS, the biharmonic fill, the
     ``priors`` named (:mod:`tacswitch.tacdiff.prior` kinds, TELEA at the shipped models'
     radius), and with ``models`` TacDiff
-    (default and fast model, K=1) and hybrid."""
+    (default and fast model, K=1, each in its default orientations) and hybrid."""
     from tacswitch.inpaint import DEFAULT_RADIUS
 
     out: dict[str, Fill] = {
@@ -555,9 +555,10 @@ def methods(radii: Sequence[int] = (3, 5, 8, 12), *, models: bool = True,
     for kind in priors:  # at the shipped models' TELEA radius (r=3 before 0.5's benches)
         out[f"prior {kind} r={DEFAULT_PRIOR_RADIUS} (own mask)"] = prior_fill(kind)
     if models:
-        out["TacDiff K=1 (own mask)"] = own_mask_fill("tacdiff")
+        # Each at its default orientations: 4 for the default model, 1 for the fast one.
+        out["TacDiff K=1, 4 orientations (own mask)"] = own_mask_fill("tacdiff")
         out["TacDiff fast K=1 (own mask)"] = own_mask_fill("tacdiff", model="fast")
-        out["hybrid K=1 (own mask)"] = own_mask_fill("hybrid")
+        out["hybrid K=1, 4 orientations (own mask)"] = own_mask_fill("hybrid")
     return out
 
 

@@ -92,10 +92,11 @@ def tacdiff_methods(steps: Sequence[int] = (1, 2, 4, 8, 20), hybrid_steps: Seque
     the model's classical prior alone (what the network starts from), so the table shows what
     the learned part adds."""
     from tacswitch.tacdiff import inpaint_hybrid, inpaint_tacdiff
-    from tacswitch.tacdiff.infer import load_model, model_path
+    from tacswitch.tacdiff.infer import default_orientations, load_model, model_path
     from tacswitch.tacdiff.prior import from_net, prior_planes
 
     kind = load_model(model).prior
+    n_default = default_orientations(load_model(model))
 
     def prior_only(img: NDArray[np.uint8], m: NDArray[np.uint8], f: PairedFrame
                    ) -> NDArray[np.uint8]:
@@ -109,10 +110,11 @@ def tacdiff_methods(steps: Sequence[int] = (1, 2, 4, 8, 20), hybrid_steps: Seque
                                                 steps=k, model=model)[0]
 
     methods: dict[tuple[str, str], Inpaint] = {("TacDiff prior (no network)", kind): prior_only}
+    tag = f", {n_default} orientation{'s' if n_default > 1 else ''}"
     for k in steps:
-        methods[("TacDiff", f"K={k}")] = diffusion(k)
-    if 1 in steps:
-        # The default averages DEFAULT_ORIENTATIONS orientations; one is the speed knob.
+        methods[("TacDiff", f"K={k}{tag}")] = diffusion(k)
+    if 1 in steps and n_default > 1:
+        # The default averages several orientations; one is the speed knob.
         methods[("TacDiff", "K=1, 1 orientation")] = \
             lambda img, m, f: inpaint_tacdiff(img, m, 1, model=model, orientations=1)
     for k in hybrid_steps:
@@ -120,7 +122,7 @@ def tacdiff_methods(steps: Sequence[int] = (1, 2, 4, 8, 20), hybrid_steps: Seque
         methods[("Hybrid (texture)", f"K={k}")] = hybrid(k, False)
     if model is None and model_path("fast").is_file():
         # The shipped narrow model: the model-width knob, at its fastest setting.
-        methods[("TacDiff fast", "K=1")] = \
+        methods[("TacDiff fast", "K=1, 1 orientation")] = \
             lambda img, m, f: inpaint_tacdiff(img, m, 1, model="fast")
         methods[("TacDiff fast", "K=1, 4 orientations")] = \
             lambda img, m, f: inpaint_tacdiff(img, m, 1, model="fast", orientations=4)

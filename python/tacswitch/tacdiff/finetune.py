@@ -25,10 +25,12 @@ recognised; H.264 is named by the user): on a compressed recording the gel aroun
 marker is quantised together with it, and a fine-tune on transplants without that distortion
 improved its own validation while making held-out frames worse.
 
-The score is the masked MAE (grey levels) of the model's fill, exactly as
-:func:`~tacswitch.tacdiff.infer.inpaint_tacdiff` runs it (ONNX, K=1), on the moved markers'
-real-gel pixels, per moved marker. The starting model is scored first; every ``val_every`` steps
-the EMA weights are exported and scored. The best checkpoint is kept only if it beats the
+The score is the masked MAE (grey levels) of the model's fill, as
+:func:`~tacswitch.tacdiff.infer.inpaint_tacdiff` runs it (ONNX, K=1) in one orientation (the
+default averages four at inference; one keeps the check at a quarter of the cost; the
+returned model is then run with four), on the moved markers' real-gel pixels, per moved
+marker. The starting model is scored first; every ``val_every`` steps the EMA weights are
+exported and scored. The best checkpoint is kept only if it beats the
 starting model *beyond noise* (:func:`beats`: with at least :data:`MIN_CLUSTER_FRAMES`
 validation frames, the mean of the per-frame improvements exceeds Student's t 97.5 % quantile
 times their standard error, since the markers of one frame are not independent; with fewer,

@@ -152,7 +152,8 @@ def inpaint_hybrid(img: Any, mask: Any, ref: Any = None, *, steps: int | None = 
             separate passes (:func:`~tacswitch.tacdiff.infer.inpaint_tacdiff`; 0: one pass).
         model: TacDiff ONNX path (default: the shipped model).
         orientations: orientations the network's frame is averaged over (1, 2, 4 or 8; None:
-            4, or 1 for the fast model), see :func:`~tacswitch.tacdiff.infer.inpaint_tacdiff`.
+            4, or 1 for a narrow model such as the fast one), see
+            :func:`~tacswitch.tacdiff.infer.inpaint_tacdiff`.
 
     Returns:
         ``(image, info)``: the markerless frame (unmasked pixels bit-identical to ``img``) and a
@@ -160,11 +161,11 @@ def inpaint_hybrid(img: Any, mask: Any, ref: Any = None, *, steps: int | None = 
     """
     from tacswitch._checks import as_count, as_image_u8
     from tacswitch.inpaint import _as_mask, inpaint_telea
-    from tacswitch.tacdiff.infer import DEFAULT_STEPS, inpaint_tacdiff, orientations_for
+    from tacswitch.tacdiff.infer import DEFAULT_STEPS, check_orientations, inpaint_tacdiff
 
     # Checked here too: the network (which checks them) may not run when no hole is near contact.
     as_count(separation, "separation", 0, None)
-    orientations_for(orientations, model)
+    check_orientations(orientations)
     arr = as_image_u8(img, "img")
     if arr.ndim != 3 or arr.shape[2] != 3:
         raise ValueError(f"img: expected a BGR H x W x 3 uint8 image; got shape {arr.shape}")

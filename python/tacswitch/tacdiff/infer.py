@@ -28,9 +28,9 @@
    mirrored left-right, upside down, and both) and averages the image estimates before they are
    rounded: the network was trained with flips and turns, and its errors in different
    orientations are partly independent. On the real-frame proxy this lowers the masked MAE by
-   about 2.4 % on GelSight and 1.4 % on the GelSight Mini, and a little on the real FOTS
-   frames, at about 3x the time (BENCHMARKS.md, "TacDiff: averaging orientations"). The fast
-   model runs one orientation by default: speed is what it is for.
+   about 2.6 % on GelSight and 1.2 % on the GelSight Mini, and a little on the real FOTS
+   frames, at about 3x the time (BENCHMARKS.md, "TacDiff: averaging orientations"). A narrow
+   model (the fast one) runs one orientation by default: speed is what it is for.
 """
 
 from __future__ import annotations
@@ -94,9 +94,13 @@ SEPARATION = 4
 #: Orientation counts :func:`inpaint_tacdiff` accepts: 1 (as is), 2 (+ mirrored left-right),
 #: 4 (+ upside down, + both: the 180-degree turn) and 8 (+ the four transposed ones).
 ORIENTATIONS = (1, 2, 4, 8)
-#: Orientations averaged by default with the default (or a fine-tuned) model. Eight were no
-#: better than four on the real-frame proxy (GelSight 1.423 vs 1.424) at twice the time.
+#: Orientations averaged by default with the default model (or any model wider than
+#: :data:`NARROW_BASE`). Eight were no better than four on the real-frame proxy (GelSight 1.361
+#: vs 1.362; BENCHMARKS.md, "TacDiff: averaging orientations") at twice the time.
 DEFAULT_ORIENTATIONS = 4
+#: U-Net base width at or below which a model runs one orientation by default: the shipped fast
+#: model's (16; the default model's is 24), kept by a fine-tune of it.
+NARROW_BASE = 16
 #: The eight orientations in the order they are added: ``(flip rows, flip columns, transpose)``.
 _DIHEDRAL = ((False, False, False), (False, True, False), (True, False, False),
              (True, True, False), (False, False, True), (False, True, True),
@@ -113,7 +117,8 @@ def default_model_path() -> Path:
 
 def model_path(model: str | os.PathLike[str] | None) -> Path:
     """The ONNX file of ``model``: None or ``"default"`` (the shipped default), ``"fast"`` (the
-    shipped narrow model, about twice as fast), or a path."""
+    shipped narrow model, about 1.4x as fast per network pass and run in one orientation by
+    default: ~4.6x as fast as the default setting), or a path."""
     if model is None:
         return default_model_path()
     if isinstance(model, str) and model in SHIPPED:
@@ -491,21 +496,37 @@ def _network(planes: NDArray[np.float32], m: NDArray[np.bool_], net: TacDiffMode
     return x0
 
 
+def check_orientations(orientations: Any) -> int | None:
+    """``orientations`` as an int of :data:`ORIENTATIONS`, or None; ``ValueError`` naming the
+    argument otherwise (bools, floats and strings included)."""
+    if orientations is None:
+        return None
+    if (isinstance(orientations, (bool, np.bool_))
+            or not isinstance(orientations, (int, np.integer)) or orientations not in ORIENTATIONS):
+        raise ValueError(f"orientations: must be one of {ORIENTATIONS} (or None: "
+                         f"{DEFAULT_ORIENTATIONS}, 1 for a narrow model such as the fast one); "
+                         f"got {orientations!r}")
+    return int(orientations)
+
+
+def default_orientations(net: TacDiffModel) -> int:
+    """Orientations averaged when none are asked for: 1 for a narrow model (U-Net base width
+    at most :data:`NARROW_BASE`, the shipped fast model's, or a fine-tune of it: speed is what
+    it is for), else :data:`DEFAULT_ORIENTATIONS`."""
+    base = net.unet.get("base")
+    return 1 if isinstance(base, int) and base <= NARROW_BASE else DEFAULT_ORIENTATIONS
+
+
 def orientations_for(orientations: Any, model: str | os.PathLike[str] | None
                      ) -> list[Orientation]:
-    """The orientations :func:`inpaint_tacdiff` averages: ``orientations`` (one of
-    :data:`ORIENTATIONS`), or for None :data:`DEFAULT_ORIENTATIONS`, except 1 for the shipped
-    fast model (``model="fast"`` or its file). ``ValueError`` naming the argument otherwise."""
-    if orientations is None:
-        fast = model is not None and model_path(model).resolve() == model_path("fast").resolve()
-        n = 1 if fast else DEFAULT_ORIENTATIONS
-    elif (isinstance(orientations, (bool, np.bool_))
-          or not isinstance(orientations, (int, np.integer)) or orientations not in ORIENTATIONS):
-        raise ValueError(f"orientations: must be one of {ORIENTATIONS} (or None: "
-                         f"{DEFAULT_ORIENTATIONS}, 1 for the fast model); got {orientations!r}")
-    else:
-        n = int(orientations)
-    return list(_DIHEDRAL[:n])
+    """The orientations :func:`inpaint_tacdiff` averages for ``model``: ``orientations`` (one
+    of :data:`ORIENTATIONS`), or for None :func:`default_orientations` of that model.
+    ``TypeError`` / ``ValueError`` naming the argument otherwise."""
+    from tacswitch._checks import check_model_arg
+
+    check_model_arg(model)
+    n = check_orientations(orientations)
+    return list(_DIHEDRAL[:n if n is not None else default_orientations(load_model(model))])
 
 
 def _orient(a: NDArray[Any], o: Orientation) -> NDArray[Any]:
@@ -592,17 +613,19 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
             came). A marker grid without holes that close is one pass, output identical to
             ``separation=0``, for a check of about 2 ms at 640 x 480; 0 always runs one pass.
         model: ONNX model path, or a shipped model by name: ``"default"`` (the default) or
-            ``"fast"`` (narrower, about twice as fast, slightly less accurate).
+            ``"fast"`` (narrower, one orientation by default: ~4.6x as fast as the default
+            setting at 640 x 480, less accurate).
         orientations: how many orientations of the frame the network runs in, their image
             estimates averaged before rounding: 1, 2 (+ mirrored left-right), 4 (+ upside down,
             + both) or 8 (+ the transposed four); the time grows in proportion. None (default):
-            :data:`DEFAULT_ORIENTATIONS` (4), or 1 for the shipped fast model. Each pixel keeps
-            its noise draw in every orientation.
+            :data:`DEFAULT_ORIENTATIONS` (4), or 1 for a narrow model such as the shipped fast
+            one (:func:`default_orientations`). Each pixel keeps its noise draw in every
+            orientation.
 
     Returns:
         A new ``H x W x 3`` uint8 image; pixels outside ``mask`` are bit-identical to ``img``.
     """
-    from tacswitch._checks import as_count
+    from tacswitch._checks import as_count, check_model_arg
     from tacswitch.inpaint import _as_mask
     from tacswitch.tacdiff.passes import hole_passes, pass_masks
 
@@ -613,12 +636,14 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
     m = _as_mask(mask, arr.shape).astype(bool)
     timesteps(steps)  # validates steps before any work
     sep = as_count(separation, "separation", 0, None)
-    orients = orientations_for(orientations, model)
+    n_orient = check_orientations(orientations)
+    check_model_arg(model)
     if not m.any():
         return arr.copy()
     if m.all():
         raise ValueError("mask: covers the whole image; nothing is known to inpaint from")
     net = load_model(model)
+    orients = list(_DIHEDRAL[:n_orient if n_orient is not None else default_orientations(net)])
     if patch not in (None, "auto", "holes", "crops"):
         side = as_count(patch, "patch", net.multiple)
         if side % net.multiple:

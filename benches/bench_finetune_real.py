@@ -91,7 +91,9 @@ def finetune_case(frames: np.ndarray, run: Path, args: argparse.Namespace, seed:
                    progress=bool(os.environ.get("BENCH_PROGRESS")), loss=args.loss,
                    terminal_fraction=args.terminal_fraction, recompress=args.recompress,
                    pseudo=args.pseudo, mask_originals=args.mask_originals,
-                   shifts=args.shifts)
+                   shifts=args.shifts, trust_dense=args.trust_dense)
+    if res.skipped:  # a dense grid, not trusted: nothing trained, the start is the last too
+        return res, res.model
     last = export_onnx(load_network(run / "model.safetensors"), run / "last.onnx")
     return res, last
 
@@ -135,6 +137,8 @@ def main() -> None:
     ap.add_argument("--mask-originals", action=argparse.BooleanOptionalAction, default=True,
                     help="finetune(mask_originals=...): every original marker a hole too "
                          "(default; --no-mask-originals: the moved markers only)")
+    ap.add_argument("--trust-dense", action="store_true",
+                    help="train on dense grids too (finetune(trust_dense=True))")
     ap.add_argument("--fots", default=None, help="folder of real marker frames (FOTS) too")
     ap.add_argument("--json", default=None)
     args = ap.parse_args()
@@ -163,6 +167,7 @@ def main() -> None:
                         vals.append(score(out, clean[i], footprint[i]))
                     row[name] = [float(v) for v in np.mean(vals, axis=0)]
                 row["recompress"] = res.recompress
+                row["skipped"] = res.skipped
                 row["validation"] = {"start": res.start_score, "scores": res.scores,
                                      "chosen_step": res.chosen_step, "noise": res.noise,
                                      "markers": res.val_markers, "frames": res.val_frames,
@@ -180,7 +185,8 @@ def main() -> None:
           "chosen by validation | validation start -> chosen |\n|---|---|---|---|---|---|---|---|")
     for r in rows:
         v = r["validation"]
-        pick = ("start kept" if v["chosen_step"] == 0 else
+        pick = ("start kept, not trained (dense grid)" if r["skipped"] else
+                "start kept" if v["chosen_step"] == 0 else
                 f"step {v['chosen_step']}: {v['scores'][v['chosen_step']]:.3f}")
         print(f"| {r['sensor']} | {r['codec']} | {r['seed']} | {r['TELEA'][0]:.3f} | "
               f"{r['zero-shot'][0]:.3f} | {r['last'][0]:.3f} | {r['chosen'][0]:.3f} | "

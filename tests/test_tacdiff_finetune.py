@@ -203,6 +203,70 @@ def test_finetune_keeps_the_start_model_when_nothing_beats_it(tmp_path: Path,
         assert main([*args[:4], str(tmp_path / "x"), *args[5:], *bad]) == 1
 
 
+def _dense_frames(n: int = 2) -> list[np.ndarray]:
+    """Frames of a dense grid like a GelSight Mini's: 16 px dark dots every 28 px on smooth gel
+    (their masks leave room for one training shift only)."""
+    from conftest import disc_mask
+    from tacswitch import sim
+
+    out = []
+    for i in range(n):
+        gel = np.clip(sim.gel_background(192, 256, seed=i), 0, 255).astype(np.uint8)
+        cs = [(x, y) for y in np.arange(14.0, 192, 28.0) for x in np.arange(14.0, 256, 28.0)]
+        m = disc_mask((192, 256), cs, 8.0)
+        img = gel.copy()
+        img[m] = (img[m] * 0.25).astype(np.uint8)
+        out.append(img)
+    return out
+
+
+def test_a_dense_grid_keeps_the_start_model_without_training(tmp_path: Path, capsys):
+    pytest.importorskip("torch")
+    pytest.importorskip("onnx")
+    from tacswitch.tacdiff.data import removal_markers
+    from tacswitch.tacdiff.infer import model_path
+    from tacswitch.tacdiff.transplant import default_offset
+    from tacswitch.tracking import estimate_pitch
+
+    frames = _dense_frames()
+    first = removal_markers(frames[0])
+    pitch = estimate_pitch(first.centres)
+    assert pitch is not None
+    off = default_offset(pitch)
+    vo, _ = ft.validation_offset(first.mask, off)
+    assert len(ft.training_shifts(first.mask, off, ft.DEFAULT_SHIFTS, avoid=vo)) == 1
+    run = tmp_path / "dense"
+    res = ft.finetune(frames, run, init="fast", steps=2, batch=1, crop=64, val_every=2,
+                      progress=False)
+    assert res.skipped and res.dense and res.kept_start and not res.scores
+    assert (run / "model.onnx").read_bytes() == model_path("fast").read_bytes()
+    assert not (run / "checkpoint.pt").exists()  # nothing trained
+    assert "no training ran" in res.summary() and "--trust-dense" in res.summary()
+    assert np.isfinite(res.start_score) and res.val_markers > 0
+    # Trusted, it trains and validates as on any grid; the summary still cautions.
+    res2 = ft.finetune(frames, tmp_path / "trusted", init="fast", steps=2, batch=1, crop=64,
+                       val_every=2, progress=False, trust_dense=True)
+    assert not res2.skipped and res2.dense and set(res2.scores) == {2}
+    assert (tmp_path / "trusted" / "checkpoint.pt").is_file()
+    with pytest.raises(ValueError, match=r"^trust_dense: "):
+        ft.finetune(frames, tmp_path / "bad", init="fast", steps=1, progress=False,
+                    trust_dense="yes")  # type: ignore[arg-type]
+    # The CLI flag reaches it.
+    import cv2
+
+    from tacswitch.cli import main
+
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, f in enumerate(frames):
+        cv2.imwrite(str(src / f"{i}.png"), f)
+    assert main(["finetune", "--images", str(src), "--out", str(tmp_path / "cli"), "--init",
+                 "fast", "--steps", "2", "--batch", "1", "--crop", "64", "--val-every", "2",
+                 "-q"]) == 0
+    assert "no training ran" in capsys.readouterr().out
+    assert not (tmp_path / "cli" / "checkpoint.pt").exists()
+
+
 def test_train_callback_sees_the_ema_at_its_steps(tmp_path: Path, marker_frames):
     pytest.importorskip("torch")
     from tacswitch.tacdiff.data import marker_offset_pairs

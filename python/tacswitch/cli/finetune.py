@@ -82,6 +82,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="make every original marker a hole too in the training and validation "
                         "inputs, as at inference (default: on; --no-mask-originals: the moved "
                         "markers only, as before 0.6)")
+    p.add_argument("--trust-dense", action="store_true",
+                   help="on a dense marker grid (one training shift fits, e.g. a GelSight "
+                        "Mini's), train and let the check choose; default: keep the start "
+                        "model there without training (its check has passed worse models)")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(run=run)
 
@@ -116,7 +120,8 @@ def run(args: argparse.Namespace) -> int:
                       val_frames=args.val_frames, progress=not args.quiet, loss=args.loss,
                       terminal_fraction=args.terminal_fraction, recompress=args.recompress,
                       pseudo=args.pseudo, mask_originals=args.mask_originals,
-                      shifts=args.shifts, extra={"finetune": [str(f) for f in files]})
+                      shifts=args.shifts, trust_dense=args.trust_dense,
+                      extra={"finetune": [str(f) for f in files]})
     # The choice is the result: printed even with -q.
     print(result.summary())
     return 0

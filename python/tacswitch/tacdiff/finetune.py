@@ -3,6 +3,9 @@ validated without ground truth, and keep whichever model is best (torch).
 
 A fine-tune on a user's frames can help, do nothing or hurt (too few frames, a learning rate
 too high, markers the transplant misrepresents), and the user has no ground truth to tell which.
+On a dense marker grid (one training shift fits, e.g. a GelSight Mini's) the check below has
+passed models that were worse on held-out frames and never found a real gain, so there nothing
+is trained unless ``trust_dense=True``.
 So the fine-tune checks itself on pixels it never trains on:
 
 - **held-out frames**: with at least :data:`MIN_FRAMES_TO_SPLIT` frames, every k-th frame
@@ -98,9 +101,11 @@ class FinetuneResult:
         recompress: how the transplanted frames were re-compressed (``"none"``, ``"jpeg:Q"``,
             ``"h264:CRF"``).
         train_offsets: the training shifts used (:func:`training_shifts`).
-        dense: more shifts were asked for than the grid allows (dense markers, such as the
-            GelSight Mini's): there the check has been seen to improve while held-out frames
-            got worse, and :meth:`summary` says so.
+        dense: the grid allows one training shift only (dense markers, such as the GelSight
+            Mini's): there the check has been seen to improve while held-out frames got worse,
+            and :meth:`summary` says so.
+        skipped: a dense grid without ``trust_dense``: no training ran and ``model`` is the
+            starting model (:func:`finetune`).
     """
 
     model: Path
@@ -116,6 +121,7 @@ class FinetuneResult:
     recompress: str = "none"
     train_offsets: list[tuple[int, int]] = field(default_factory=list)
     dense: bool = False
+    skipped: bool = False
 
     @property
     def kept_start(self) -> bool:
@@ -129,6 +135,11 @@ class FinetuneResult:
                 + (f", {100 * self.val_overlap:.0f} % on training gel" if self.val_overlap
                    else "") + f", re-compressed: {self.recompress}"
                 f"; masked MAE in grey levels): start {self.start_score:.3f}")
+        if self.skipped:
+            return (head + "; a dense marker grid (one training shift fits), where this check "
+                    "has passed models that were worse on held-out frames: no training ran, "
+                    f"{self.model} is the starting model (trust_dense=True, --trust-dense: "
+                    "train and let the check choose)")
         if not self.scores:
             return head + "; no checkpoint validated"
         best = min(self.scores, key=lambda k: self.scores[k])
@@ -449,8 +460,8 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
              val_frames: int = 8, threads: int = 0, progress: bool = True,
              loss: str | None = None, terminal_fraction: float | None = None,
              recompress: str = "auto", pseudo: str = "model", mask_originals: bool = True,
-             shifts: int = DEFAULT_SHIFTS, extra: dict[str, Any] | None = None
-             ) -> FinetuneResult:
+             shifts: int = DEFAULT_SHIFTS, trust_dense: bool = False,
+             extra: dict[str, Any] | None = None) -> FinetuneResult:
     """Fine-tunes TacDiff on ``frames`` (a sensor's marker frames, no ground truth) and keeps the
     best of the starting model and the validated checkpoints (module docstring).
 
@@ -482,6 +493,11 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
         recompress: how the transplanted frames (training and validation) are re-compressed
             like the source: ``"auto"``, ``"none"``, ``"jpeg:Q"`` or ``"h264:CRF"``
             (:func:`~tacswitch.tacdiff.recompress.recompressor`).
+        trust_dense: on a dense marker grid (one training shift fits, :func:`training_shifts`
+            with :data:`DEFAULT_SHIFTS`), train and let the check choose. Default False: keep
+            the starting model there without training, because on the GelSight Mini's grid
+            (28.5 px pitch) no variant ever made held-out frames better and the check has
+            passed models up to 4 % worse (BENCHMARKS.md, TacDiff fine-tune sections).
     """
     from tacswitch.tacdiff.data import marker_offset_pairs, removal_markers
     from tacswitch.tacdiff.export import export_onnx
@@ -502,6 +518,8 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
         raise ValueError(f"pseudo: expected one of {PSEUDO_FILLS}; got {pseudo!r}")
     if isinstance(shifts, bool) or not isinstance(shifts, (int, np.integer)) or shifts < 1:
         raise ValueError(f"shifts: expected an int >= 1; got {shifts!r}")
+    if not isinstance(trust_dense, (bool, np.bool_)):
+        raise ValueError(f"trust_dense: expected a bool; got {trust_dense!r}")
     run = Path(out)
     run.mkdir(parents=True, exist_ok=True)
     frames = list(frames)
@@ -529,6 +547,13 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
     # its gel.
     val_offset, overlap = validation_offset(first.mask, offset, ring=ring)
     offsets = training_shifts(first.mask, offset, int(shifts), ring=ring, avoid=val_offset)
+    # Dense whatever the number of shifts asked for: only the main one fits among the markers.
+    dense = len(offsets if shifts >= DEFAULT_SHIFTS else training_shifts(
+        first.mask, offset, DEFAULT_SHIFTS, ring=ring, avoid=val_offset)) == 1
+    if dense and not trust_dense:
+        return _keep_dense_start(frames, va, tr, start, run, val_offset, overlap, offsets,
+                                 ring, redo, redo_text, fill, mask_originals and transplant,
+                                 progress)
     pairs = marker_offset_pairs([frames[i] for i in tr], offset=offsets, transplant=transplant,
                                 ring=ring, recompress=redo, pseudo_fill=fill,
                                 mask_originals=mask_originals and transplant,
@@ -618,8 +643,27 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
     _write_json(state_path, state)
     return FinetuneResult(target, chosen, float(start_scores.mean()),
                           {int(k): v for k, v in state["scores"].items()}, noise, tr, va,
-                          val.offset, val.markers, overlap, redo_text, offsets,
-                          len(offsets) == 1 < shifts)
+                          val.offset, val.markers, overlap, redo_text, offsets, dense)
+
+
+def _keep_dense_start(frames: list[NDArray[np.uint8]], va: list[int], tr: list[int],
+                      start: Path, run: Path, val_offset: tuple[int, int], overlap: float,
+                      offsets: list[tuple[int, int]], ring: int, redo: Any, redo_text: str,
+                      fill: Any, mask_originals: bool, progress: bool) -> FinetuneResult:
+    """A dense grid without ``trust_dense``: the start model scored on the validation
+    transplants (for the summary) and copied to ``OUT/model.onnx``; nothing trained."""
+    val = validation_set([frames[i] for i in va], val_offset, ring=ring, recompress=redo,
+                         pseudo_fill=fill, mask_originals=mask_originals)
+    score = float(marker_scores(start, val).mean()) if val.markers else float("nan")
+    target = run / "model.onnx"
+    shutil.copyfile(start, target)
+    _write_json(run / "finetune.json", {"chosen": 0, "skipped": "dense grid", "start": score})
+    res = FinetuneResult(target, 0, score, {}, 0.0, tr, va, val.offset, val.markers, overlap,
+                         redo_text, offsets, dense=True, skipped=True)
+    if progress:
+        print("dense marker grid (one training shift fits): keeping the start model without "
+              "training (trust_dense=True to train)", flush=True)
+    return res
 
 
 def _write_json(path: Path, obj: dict[str, Any]) -> None:

@@ -248,6 +248,12 @@ def test_a_dense_grid_keeps_the_start_model_without_training(tmp_path: Path, cap
                        val_every=2, progress=False, trust_dense=True)
     assert not res2.skipped and res2.dense and set(res2.scores) == {2}
     assert (tmp_path / "trusted" / "checkpoint.pt").is_file()
+    # That trained run is not overwritten by a rerun that does not trust the grid.
+    before = (tmp_path / "trusted" / "finetune.json").read_bytes()
+    with pytest.raises(ValueError, match=r"^out: .*trust_dense=True"):
+        ft.finetune(frames, tmp_path / "trusted", init="fast", steps=2, batch=1, crop=64,
+                    val_every=2, progress=False)
+    assert (tmp_path / "trusted" / "finetune.json").read_bytes() == before
     with pytest.raises(ValueError, match=r"^trust_dense: "):
         ft.finetune(frames, tmp_path / "bad", init="fast", steps=1, progress=False,
                     trust_dense="yes")  # type: ignore[arg-type]

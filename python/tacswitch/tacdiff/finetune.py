@@ -651,13 +651,18 @@ def _keep_dense_start(frames: list[NDArray[np.uint8]], va: list[int], tr: list[i
                       offsets: list[tuple[int, int]], ring: int, redo: Any, redo_text: str,
                       fill: Any, mask_originals: bool, progress: bool) -> FinetuneResult:
     """A dense grid without ``trust_dense``: the start model scored on the validation
-    transplants (for the summary) and copied to ``OUT/model.onnx``; nothing trained."""
+    transplants (for the summary) and copied to ``OUT/model.onnx``; nothing trained. A folder
+    holding a trained run (``trust_dense=True`` before) is refused, not overwritten."""
+    state_path = run / "finetune.json"
+    if state_path.is_file() and "scores" in json.loads(state_path.read_text()):
+        raise ValueError(f"out: {str(run)!r} holds a trained run on a dense grid; rerun with "
+                         "trust_dense=True (--trust-dense) to resume it, or use another folder")
     val = validation_set([frames[i] for i in va], val_offset, ring=ring, recompress=redo,
                          pseudo_fill=fill, mask_originals=mask_originals)
     score = float(marker_scores(start, val).mean()) if val.markers else float("nan")
     target = run / "model.onnx"
     shutil.copyfile(start, target)
-    _write_json(run / "finetune.json", {"chosen": 0, "skipped": "dense grid", "start": score})
+    _write_json(state_path, {"chosen": 0, "skipped": "dense grid", "start": score})
     res = FinetuneResult(target, 0, score, {}, 0.0, tr, va, val.offset, val.markers, overlap,
                          redo_text, offsets, dense=True, skipped=True)
     if progress:

@@ -51,6 +51,18 @@ def load(folder: Path) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]:
     return out
 
 
+def load_pair(folder: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                     np.ndarray] | None:
+    """``(im0, im1, rest, d0, d1)`` of the two FOTS frames (press, press + shear) sharing one
+    rest grid, or None (with a message on stderr) when ``folder`` does not hold them."""
+    frames = load(folder)
+    if len(frames) != 2 or not np.array_equal(frames[0][2], frames[1][2]):
+        print(f"need the two FOTS frames (same rest grid) under {folder}", file=sys.stderr)
+        return None
+    (_, im0, rest, d0), (_, im1, _, d1) = frames
+    return im0, im1, rest, d0, d1
+
+
 def methods() -> dict[str, Callable[[np.ndarray, np.ndarray], np.ndarray]]:
     """``name -> fn(markerless, rest)``: the single-frame methods compared."""
     from tacswitch.motion.heuristic import outward_motion
@@ -100,11 +112,10 @@ def main() -> int:
     ap.add_argument("--data", type=Path, default=DATA, help="folder of FOTS PNG + CSV pairs")
     ap.add_argument("--update", action="store_true", help="write the section of BENCHMARKS.md")
     args = ap.parse_args()
-    frames = load(args.data)
-    if len(frames) != 2 or not np.array_equal(frames[0][2], frames[1][2]):
-        print(f"need the two FOTS frames (same rest grid) under {args.data}", file=sys.stderr)
+    pair = load_pair(args.data)
+    if pair is None:
         return 1
-    (_, im0, rest, d0), (_, im1, _, d1) = frames
+    im0, im1, rest, d0, d1 = pair
     clean = [ts.remove_markers(im0), ts.remove_markers(im1)]
     hybrid = [ts.remove_markers(im, method="hybrid") for im in (im0, im1)]
     # Ghost check: both frames filled on the union of their marker masks, so the filled holes

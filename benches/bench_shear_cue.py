@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from bench_motion_fots import DATA, load
+from bench_motion_fots import DATA, load_pair
 from harness import machine, publish
 
 SECTION = "## A shear cue in one markerless frame? (real FOTS GelSight Mini pair)"
@@ -89,14 +89,14 @@ def main() -> int:
                     help="gel thickness T, mm, of the thin-layer bulge (the presets' default)")
     ap.add_argument("--update", action="store_true", help="write the section of BENCHMARKS.md")
     args = ap.parse_args()
-    frames = load(args.data)
-    if len(frames) != 2 or not np.array_equal(frames[0][2], frames[1][2]):
-        print(f"need the two FOTS frames (same rest grid) under {args.data}", file=sys.stderr)
+    pair = load_pair(args.data)
+    if pair is None:
         return 1
-    (_, im0, rest, d0), (_, im1, _, d1) = frames
-    c0, c1 = (ts.remove_markers(im).astype(np.float32) for im in (im0, im1))
+    im0, im1, rest, d0, d1 = pair
+    u0, u1 = ts.remove_markers(im0), ts.remove_markers(im1)
+    c0, c1 = u0.astype(np.float32), u1.astype(np.float32)
     h, w = c0.shape[:2]
-    hp0, hp1 = highpass(c0.astype(np.uint8)), highpass(c1.astype(np.uint8))
+    hp0, hp1 = highpass(u0), highpass(u1)
     (cx, cy), a = contact_of(hp0)
 
     # 1. The imprint's translation against the gel's (markers over the contact).

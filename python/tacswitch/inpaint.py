@@ -383,14 +383,12 @@ def remove_markers(
                          f"got {method!r}")
     arr = _as_image(img)
     if method in _MODEL_METHODS:
-        from tacswitch.tacdiff.infer import check_orientations
-
         check_model_arg(model)
-        check_orientations(orientations)
         seed = as_seed(seed)
-        # The TacDiff entry points check it and own its default.
-        passes: dict[str, Any] = {} if separation is None else {"separation": separation}
-        passes["orientations"] = orientations
+        # The TacDiff entry points check these and own their defaults.
+        passes: dict[str, Any] = {"orientations": orientations}
+        if separation is not None:
+            passes["separation"] = separation
     elif orientations is not None:
         raise ValueError("orientations: applies to method='tacdiff' or 'hybrid' only; got "
                          f"method={method!r}")

@@ -95,8 +95,9 @@ def tacdiff_methods(steps: Sequence[int] = (1, 2, 4, 8, 20), hybrid_steps: Seque
     from tacswitch.tacdiff.infer import default_orientations, load_model, model_path
     from tacswitch.tacdiff.prior import from_net, prior_planes
 
-    kind = load_model(model).prior
-    n_default = default_orientations(load_model(model))
+    net = load_model(model)
+    kind = net.prior
+    n_default = default_orientations(net)
 
     def prior_only(img: NDArray[np.uint8], m: NDArray[np.uint8], f: PairedFrame
                    ) -> NDArray[np.uint8]:

@@ -550,10 +550,12 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
     # Dense whatever the number of shifts asked for: only the main one fits among the markers.
     dense = len(offsets if shifts >= DEFAULT_SHIFTS else training_shifts(
         first.mask, offset, DEFAULT_SHIFTS, ring=ring, avoid=val_offset)) == 1
+    val = validation_set([frames[i] for i in va], val_offset, ring=ring, recompress=redo,
+                         pseudo_fill=fill, mask_originals=mask_originals and transplant)
     if dense and not trust_dense:
-        return _keep_dense_start(frames, va, tr, start, run, val_offset, overlap, offsets,
-                                 ring, redo, redo_text, fill, mask_originals and transplant,
-                                 progress)
+        target, score = _keep_dense_start(start, run, val, progress)
+        return FinetuneResult(target, 0, score, {}, 0.0, tr, va, val.offset, val.markers,
+                              overlap, redo_text, offsets, dense=True, skipped=True)
     pairs = marker_offset_pairs([frames[i] for i in tr], offset=offsets, transplant=transplant,
                                 ring=ring, recompress=redo, pseudo_fill=fill,
                                 mask_originals=mask_originals and transplant,
@@ -561,8 +563,6 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
     pairs.pop("moved", None)
     if not pairs["loss_mask"].any():
         raise ValueError("frames: no shifted marker pixel lands on real gel; pass offset")
-    val = validation_set([frames[i] for i in va], val_offset, ring=ring, recompress=redo,
-                         pseudo_fill=fill, mask_originals=mask_originals and transplant)
     if not val.pairs["loss_mask"].any():
         raise ValueError("frames: no validation marker lands on real gel; pass offset")
     inherited = start_objective(start)
@@ -646,29 +646,23 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
                           val.offset, val.markers, overlap, redo_text, offsets, dense)
 
 
-def _keep_dense_start(frames: list[NDArray[np.uint8]], va: list[int], tr: list[int],
-                      start: Path, run: Path, val_offset: tuple[int, int], overlap: float,
-                      offsets: list[tuple[int, int]], ring: int, redo: Any, redo_text: str,
-                      fill: Any, mask_originals: bool, progress: bool) -> FinetuneResult:
-    """A dense grid without ``trust_dense``: the start model scored on the validation
-    transplants (for the summary) and copied to ``OUT/model.onnx``; nothing trained. A folder
-    holding a trained run (``trust_dense=True`` before) is refused, not overwritten."""
+def _keep_dense_start(start: Path, run: Path, val: ValidationSet, progress: bool
+                      ) -> tuple[Path, float]:
+    """A dense grid without ``trust_dense``: the start model copied to ``OUT/model.onnx``
+    (nothing trained) and its validation score (for the summary), as ``(model, score)``. A
+    folder holding a trained run (``trust_dense=True`` before) is refused, not overwritten."""
     state_path = run / "finetune.json"
     if state_path.is_file() and "scores" in json.loads(state_path.read_text()):
         raise ValueError(f"out: {str(run)!r} holds a trained run on a dense grid; rerun with "
                          "trust_dense=True (--trust-dense) to resume it, or use another folder")
-    val = validation_set([frames[i] for i in va], val_offset, ring=ring, recompress=redo,
-                         pseudo_fill=fill, mask_originals=mask_originals)
     score = float(marker_scores(start, val).mean()) if val.markers else float("nan")
     target = run / "model.onnx"
     shutil.copyfile(start, target)
     _write_json(state_path, {"chosen": 0, "skipped": "dense grid", "start": score})
-    res = FinetuneResult(target, 0, score, {}, 0.0, tr, va, val.offset, val.markers, overlap,
-                         redo_text, offsets, dense=True, skipped=True)
     if progress:
         print("dense marker grid (one training shift fits): keeping the start model without "
               "training (trust_dense=True to train)", flush=True)
-    return res
+    return target, score
 
 
 def _write_json(path: Path, obj: dict[str, Any]) -> None:

@@ -517,6 +517,12 @@ def default_orientations(net: TacDiffModel) -> int:
     return 1 if isinstance(base, int) and base <= NARROW_BASE else DEFAULT_ORIENTATIONS
 
 
+def _orientation_list(n: int | None, net: TacDiffModel) -> list[Orientation]:
+    """The first ``n`` orientations (a checked count), or :func:`default_orientations` of
+    ``net`` for None."""
+    return list(_DIHEDRAL[:n if n is not None else default_orientations(net)])
+
+
 def orientations_for(orientations: Any, model: str | os.PathLike[str] | None
                      ) -> list[Orientation]:
     """The orientations :func:`inpaint_tacdiff` averages for ``model``: ``orientations`` (one
@@ -525,8 +531,7 @@ def orientations_for(orientations: Any, model: str | os.PathLike[str] | None
     from tacswitch._checks import check_model_arg
 
     check_model_arg(model)
-    n = check_orientations(orientations)
-    return list(_DIHEDRAL[:n if n is not None else default_orientations(load_model(model))])
+    return _orientation_list(check_orientations(orientations), load_model(model))
 
 
 def _orient(a: NDArray[Any], o: Orientation) -> NDArray[Any]:
@@ -550,20 +555,14 @@ def _network_oriented(planes: NDArray[np.float32], m: NDArray[np.bool_], net: Ta
                       orients: list[Orientation]) -> NDArray[np.float32]:
     """The mean over ``orients`` of :func:`_network`'s ``3 x H x W`` image estimate for the
     unpadded ``planes`` filling ``m``, each orientation padded and run on its own."""
-    h, w = m.shape
-    acc: NDArray[np.float32] | None = None
+    # Summed from zero and divided by the count: one orientation comes back bit for bit.
+    acc = np.zeros((3, *m.shape), np.float32)
     for o in orients:
         om = _orient(m, o)
         x0 = _network(_pad(_orient(planes, o), net.multiple), om, net, steps, sampler, patch, ov,
-                      ctx)[:, :om.shape[0], :om.shape[1]]
-        back = _unorient(x0, o)
-        if acc is None:
-            acc = np.array(back, np.float32)
-        else:
-            acc += back
-    assert acc is not None and acc.shape == (3, h, w)
-    if len(orients) > 1:
-        acc /= np.float32(len(orients))
+                      ctx)
+        acc += _unorient(x0[:, :om.shape[0], :om.shape[1]], o)
+    acc /= np.float32(len(orients))
     return acc
 
 
@@ -643,7 +642,7 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
     if m.all():
         raise ValueError("mask: covers the whole image; nothing is known to inpaint from")
     net = load_model(model)
-    orients = list(_DIHEDRAL[:n_orient if n_orient is not None else default_orientations(net)])
+    orients = _orientation_list(n_orient, net)
     if patch not in (None, "auto", "holes", "crops"):
         side = as_count(patch, "patch", net.multiple)
         if side % net.multiple:

@@ -49,7 +49,7 @@ from tacswitch.motion.evaluate import motion_metrics
 from tacswitch.motion.heuristic import outward_motion
 from tacswitch.motion.infer import MotionModel
 from tacswitch.motion.mechanics import MECHANICS_GAIN, mechanics_motion
-from tacswitch.sim.presets import MECHANICS_GAINS, OUTWARD_GAINS
+from tacswitch.sim.presets import MECHANICS_GAINS, OUTWARD_GAINS, PRESETS
 
 SECTION = "## Marker motion from a single frame: contact-mechanics rule vs outward rule and model"
 #: ``fn(img, ref, centres, sensor)``: ``sensor`` names the frame's press gains
@@ -337,10 +337,12 @@ def main() -> int:
     notes = [f"{machine()}; OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', '-')}.", "",
              "**Real frames + modelled field**: taxim's real presses (GelSight 640 x 480, Mini "
              "320 x 240) with their real imprint; truth = the simulator's field "
-             "(`sim.motion.contact_displacement`) of a ball press at the recorded touch centre / "
-             "radius (ball radius U(max(2, 1.2 a), 6) mm, the preset's press law measured on "
-             "real presses: GelSight dilation U(10, 19.1) with a 5 mm reach, Mini U(0, 0.05), "
-             "as the simulator draws them; `bench_press_calibration.py`), plus for `shear` / "
+             "(`sim.motion.contact_displacement`) of taxim's ball pressed to the recorded touch "
+             "centre / radius (ball radius `proxy.REAL_BALL_RADIUS_MM`, measured from the real "
+             "imprints: GelSight 2 mm, Mini 3 mm; the preset's press law calibrated on the same "
+             f"presses for that ball: GelSight dilation U{PRESETS['gelsight'].press_dilation} "
+             "with a 5 mm reach, Mini U(0, 0.05), as the simulator draws them; "
+             "`bench_press_calibration.py`), plus for `shear` / "
              "`twist` / `shear_twist` cases a stuck "
              "shear (pitch x U(0, 0.9)^1.5) / twist (U(-0.08, 0.08) rad) of the same contact, "
              "the frame warped by that field; exposure drift + MJPEG / H.264. The truth is "

@@ -9,8 +9,13 @@
    raw ring means (nothing removed) for comparison with the DIS flow table.
 2. **Estimator check**: the same real presses warped by a known radial bump (2 px at 3 a) plus
    a 1e-3 zoom; the profile's change recovers the bump.
-3. **Calibration**: the simulator's press law (:func:`tacswitch.sim.motion.contact_displacement`
-   via :func:`tacswitch.motion.proxy.contact_fields`, ball presses at the recorded contacts) at
+3. **Geometry** (:func:`ball_geometry`): which ball made the presses. The simulator's shading
+   (Taxim's tables, :func:`tacswitch.sim.optics.shade_taxim`) of a ball of radius ``R`` pressed
+   to each recorded contact radius ``a`` (depth ``R - sqrt(R^2 - a^2)``) against the real
+   colour change, both as the median change on rings about the contact; the radius with the
+   smallest relative profile error is :data:`tacswitch.motion.proxy.REAL_BALL_RADIUS_MM`.
+4. **Calibration**: the simulator's press law (:func:`tacswitch.sim.motion.contact_displacement`
+   via :func:`tacswitch.motion.proxy.contact_fields`, that ball pressed to the recorded contacts) at
    unit gain for a grid of reaches ``decay_mm``; least-squares gain per reach against the
    even-index presses' profile over 1.5-6 a; the best reach and its gain; the gain range of
    the presses (10th-90th percentile of per-press gains, each press's rings with its own fitted
@@ -44,6 +49,10 @@ KNOTS = np.array([1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0])
 MIN_SHAPE_PX = 0.1
 #: Reaches (mm) tried for the press law's smoothing (the presets' gel thickness among them).
 DECAYS = (1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 5.0, 6.0)
+#: Ball radii (mm) tried for the presses' geometry (every one above every recorded contact).
+BALL_RADII = (2.0, 2.25, 2.5, 3.0, 4.0, 6.0)
+#: Rings (contact radii) of the geometry's change profile.
+GEOMETRY_RINGS = np.array([0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 2.0])
 
 
 def native(sensor: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
@@ -72,6 +81,45 @@ def raw_rings(f0: np.ndarray, imgs: np.ndarray, centres: np.ndarray, radii: np.n
     return out
 
 
+def ball_geometry(sensor: str, every: int = 3) -> dict[str, np.ndarray]:
+    """Median colour change (grey levels, distance over BGR of frames blurred at 2 px) on rings
+    ``GEOMETRY_RINGS`` ``x a`` about the recorded contacts of every ``every``-th press: the real
+    press against the real no-contact frame (``"real"``) and the simulator's shading of a ball of
+    each radius in :data:`BALL_RADII` pressed to the same contact radius (``"R=..."``; NaN
+    where the ball is smaller than a contact), at capture size. Medians over the presses."""
+    import cv2
+
+    from tacswitch.sim.deform import deform_gel
+    from tacswitch.sim.indenters import ObjectSpec
+    from tacswitch.sim.optics import load_calibration, shade_taxim
+
+    f0, imgs, cen, rad, _ = native(sensor)
+    cal = load_calibration(sensor)
+    h, w = f0.shape[:2]
+    yy, xx = np.mgrid[0:h, 0:w]
+    b0 = cv2.GaussianBlur(f0.astype(np.float32), (0, 0), 2)
+    out: dict[str, list[list[float]]] = {"real": []} | {f"R={r:g}": [] for r in BALL_RADII}
+    for i in range(0, len(imgs), every):
+        (cx, cy), a = cen[i], float(rad[i])
+        r = np.hypot(xx - cx, yy - cy) / a
+        rings = [(r > q - 0.125) & (r <= q + 0.125) for q in GEOMETRY_RINGS]
+        real = np.linalg.norm(cv2.GaussianBlur(imgs[i].astype(np.float32), (0, 0), 2) - b0,
+                              axis=2)
+        out["real"].append([float(np.median(real[m])) for m in rings])
+        a_mm = a * cal.pixmm
+        for big_r in BALL_RADII:
+            if big_r <= a_mm:
+                out[f"R={big_r:g}"].append([np.nan] * len(rings))
+                continue
+            depth = big_r - float(np.sqrt(big_r ** 2 - a_mm ** 2))
+            z = ObjectSpec("sphere", {"radius": big_r}).surface(h, w, cal.pixmm, (cx, cy), 0.0,
+                                                                depth)
+            gel, _ = deform_gel(z, cal.pixmm)
+            sim = np.linalg.norm(shade_taxim(gel, cal.pixmm, cal), axis=2)
+            out[f"R={big_r:g}"].append([float(np.median(sim[m])) for m in rings])
+    return {k: np.nanmedian(np.array(v), 0) for k, v in out.items()}
+
+
 def sim_rings(sensor: str, centres: np.ndarray, radii: np.ndarray, qs: np.ndarray,
               decay_mm: float | None, dilation: float | None) -> np.ndarray:
     """The simulator's press law (unit gain unless ``dilation``) at the same contacts (working
@@ -84,7 +132,8 @@ def sim_rings(sensor: str, centres: np.ndarray, radii: np.ndarray, qs: np.ndarra
         rng = np.random.default_rng([11, i])
         press, _, st, _ = proxy.contact_fields(sensor, (float(c[0]), float(c[1])), float(a),
                                                "press", rng, dilation=dilation,
-                                               decay_mm=decay_mm)
+                                               decay_mm=decay_mm,
+                                               ball_radius_mm=proxy.REAL_BALL_RADIUS_MM[sensor])
         for j, q in enumerate(qs):
             pts = c + q * a * unit
             ok = ((pts >= 2) & (pts < np.array([p.width - 2, p.height - 2]))).all(1)
@@ -276,10 +325,20 @@ def main() -> int:
     ap.add_argument("--no-check", action="store_true", help="skip the estimator check")
     args = ap.parse_args()
     qs = KNOTS[:-1]
-    rows, notes_fit, check, rule_rows = [], [], [], []
+    rows, notes_fit, check, rule_rows, geo_rows = [], [], [], [], []
     tdata: dict[str, dict[str, list[np.ndarray]]] = {}
     selfcal: dict[str, Any] = {}
     for sensor in ("gelsight", "gelsight_mini"):
+        geo = ball_geometry(sensor)
+        real = geo.pop("real")
+        errs = {k: float(np.sqrt(np.nanmean(((v - real) / real) ** 2))) for k, v in geo.items()}
+        best = min(errs, key=lambda k: errs[k] if np.isfinite(errs[k]) else np.inf)
+        geo_rows.append([sensor, "real", *(f"{x:.1f}" for x in real), "-"])
+        for k, v in geo.items():
+            mark = " (best)" if k == best else ""
+            geo_rows.append([sensor, f"simulated, ball {k} mm{mark}", *(f"{x:.1f}" for x in v),
+                             f"{errs[k]:.2f}"])
+        print(*(" | ".join(x) for x in geo_rows[-len(geo) - 1:]), sep="\n", flush=True)
         r = calibrate(sensor)
         p = get_preset(sensor)
         for j, q in enumerate(qs):
@@ -348,6 +407,18 @@ def main() -> int:
         "thickness) and at the preset's calibrated mid gain and reach, at the held-out "
         "(odd) contacts. Measured on real frames; the grain is weak (NCC peaks ~0.2-0.3), "
         "so the per-press rings are noisy; the profile pools 24 (GelSight) / 12 (Mini) presses.",
+        "", "Geometry: which ball made the presses (median colour change, grey levels, on rings "
+        "about the recorded contact, every 3rd press at capture size; the simulator's shading of "
+        "a ball of radius R pressed to the same contact radius, depth R - sqrt(R^2 - a^2); "
+        "`rel. error`: rms of the relative difference to the real profile). The best radius is "
+        f"`proxy.REAL_BALL_RADIUS_MM` = {proxy.REAL_BALL_RADIUS_MM}, used by the calibration "
+        "below and by the real frames + modelled field proxy (`make_contact_proxy`). Before "
+        "this, the radius was drawn U(max(2, 1.2 a), 6) mm as for the simulator's spheres, "
+        "i.e. presses 0.3-0.5 mm deep where the imprints show 1.0-1.7 mm, and the GelSight's "
+        "fitted gain was 14.554 (draw range 10.0-19.1): 3-4x the gel's motion per pressed "
+        "volume.", "",
+        table(["sensor", "profile", *(f"{q:g} a" for q in GEOMETRY_RINGS), "rel. error"],
+              geo_rows),
         "", "Calibration (even presses):", *notes_fit]
     if check:
         notes += ["", "Estimator check: the same real presses warped by a known outward bump "

@@ -156,9 +156,11 @@ def test_warp_dense_moves_a_dot_by_the_field() -> None:
 
 def test_simulator_gain_stays_near_its_calibration() -> None:
     """The rule's least-squares gain on the simulator's pure presses (``benches/
-    bench_motion_single.py --calibrate``, 40 per preset: 1.02 pooled over GelSight and Mini,
-    single-frame and with the reference) on the first few of them stays near 1. (The shipped
-    default and per-sensor gains are fitted on real presses instead: test_motion_calibration.)"""
+    bench_motion_single.py --calibrate``, 40 per preset: 0.35 pooled over GelSight and Mini,
+    single-frame and with the reference, since the press law is calibrated for the 4 mm ball
+    of the real presses; 1.02 with the earlier calibration) on the first few of them stays
+    near it, and near the gain fitted on real presses (0.25). (The shipped default and
+    per-sensor gains are fitted on real presses: test_motion_calibration.)"""
     from tacswitch.sim.indenters import CLASSES
     from tacswitch.sim.scene import Scene
 
@@ -173,4 +175,4 @@ def test_simulator_gain_stays_near_its_calibration() -> None:
                 p = mechanics_motion(f.image, r, scene.rest, gain=1.0)
                 num += float((p * f.displacement).sum())
                 den += float((p * p).sum())
-    assert 0.6 < num / den < 1.6, num / den
+    assert 0.2 < num / den < 0.7, num / den

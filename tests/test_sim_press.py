@@ -15,19 +15,19 @@ from tacswitch.sim.motion import ball_press, contact_displacement, sample_field
 def _rings(preset: str, a_px: float, qs: tuple[float, ...], dilation: float
            ) -> NDArray[np.float64]:
     """Mean outward motion (px) on the rings ``q a`` of a ball pressed at the frame centre to
-    contact radius ``a_px``, averaged over ball radii spread as the calibration drew them
-    (U(max(2, 1.2 a), 6) mm: its four quartile midpoints)."""
+    contact radius ``a_px``, the ball of taxim's real presses (``proxy.REAL_BALL_RADIUS_MM``,
+    the one the calibration used)."""
+    from tacswitch.motion.proxy import REAL_BALL_RADIUS_MM
+
     p = presets.get_preset(preset)
     c = ((p.width - 1) / 2, (p.height - 1) / 2)
-    lo = max(2.0, 1.2 * a_px * p.mm_per_px)
     ang = np.arange(32) * 2 * np.pi / 32
     unit = np.stack([np.cos(ang), np.sin(ang)], 1)
     out = np.zeros(len(qs))
-    for f in (0.125, 0.375, 0.625, 0.875):
-        fld, _, _, st = ball_press(p, c, a_px, lo + f * (6.0 - lo), dilation)
-        for j, q in enumerate(qs):
-            v = sample_field(fld, st, np.asarray(c) + q * a_px * unit + (0.5 - 0.5 * st))[0]
-            out[j] += float((v * unit).sum(1).mean()) / 4
+    fld, _, _, st = ball_press(p, c, a_px, REAL_BALL_RADIUS_MM[preset], dilation)
+    for j, q in enumerate(qs):
+        v = sample_field(fld, st, np.asarray(c) + q * a_px * unit + (0.5 - 0.5 * st))[0]
+        out[j] = float((v * unit).sum(1).mean())
     return out
 
 
@@ -43,16 +43,17 @@ def test_presets_carry_the_measured_press_law() -> None:
 
 
 def test_simulated_gelsight_press_moves_the_gel_as_the_real_one() -> None:
-    """Real GelSight presses (a ~62 px at 640 x 480) moved the gel outward by ~2.4-2.6 px at 2 a,
-    ~3 px at 3 a and ~0.6-0.7 px at 6 a (BENCHMARKS.md, held-out odd presses); the old law gave
-    0.05 px at 3 a."""
+    """Real GelSight presses (median contact a = 1.86 mm = 63 px at 640 x 480) moved the gel
+    outward by ~2.4-2.6 px at 2 a, ~3 px at 3 a and ~0.6-0.7 px at 6 a (BENCHMARKS.md, held-out
+    odd presses); the old law gave 0.05 px at 3 a. (With the 4 mm ball the depth, and so the
+    motion, grows steeply with a: 1.8 px at 2 a for a = 62 px, 2.7 px for 66 px.)"""
     mid = float(np.mean(presets.GELSIGHT_PRESS_DILATION))
-    at2, at3, at5 = _rings("gelsight", 62.0, (2.0, 3.0, 5.0), mid)
+    at2, at3, at5 = _rings("gelsight", 63.0, (2.0, 3.0, 5.0), mid)
     assert 1.8 < at2 < 3.2
     assert 1.8 < at3 < 3.8
     assert 0.4 < at5 < 2.0 and at5 < at3  # (5 a leaves the frame: read at its border)
     # The law is linear in its gain.
-    assert _rings("gelsight", 62.0, (2.0,), 2 * mid)[0] == pytest.approx(2 * at2, rel=1e-4)
+    assert _rings("gelsight", 63.0, (2.0,), 2 * mid)[0] == pytest.approx(2 * at2, rel=1e-4)
 
 
 def test_simulated_mini_press_barely_moves_the_gel() -> None:

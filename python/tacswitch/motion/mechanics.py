@@ -40,13 +40,18 @@ no-contact frame and a few markerless presses. :data:`MECHANICS_GAIN`, the defau
 sensor is named, is the least-squares gain pooled over both real sensors (0.25): the best single
 gain on real data across both (held-out real presses: e_rmse 1.61 px on the GelSight against
 2.22 for zero and 4.12 for the old gain; on the Mini ~0.3 px of false motion against ~1 px).
-The old default, 1.02, was the least-squares scale on the simulator's pure presses (pooled over
-both presets; ``python benches/bench_motion_single.py --calibrate``: GelSight 1.69 / 1.87 with
-the reference / single-frame, Mini 0.008 / 0.009). That the simulator's GelSight wants ~7x the
-real GelSight's gain is not explained yet (candidates: the rule's unit-gain output is smaller on
-simulated imprints than on real ones; the simulated scoring includes markers under the contact,
-the real one only markers >= 2 contact radii away). The direction, which the cosine scores, does
-not depend on the gain.
+The old default, 1.02, was the least-squares scale on the simulator's pure presses when its
+press law was calibrated for the wrong ball (pooled over both presets; GelSight 1.69 / 1.87 with
+the reference / single-frame, Mini 0.008 / 0.009). Why the simulator then wanted ~7x the real
+GelSight's gain: that calibration pressed a ball of radius drawn up to 6 mm to each recorded
+contact, 0.3-0.5 mm deep, where the real imprints show taxim's 4 mm ball pressed 1.0-1.7 mm
+deep (:data:`tacswitch.motion.proxy.REAL_BALL_RADIUS_MM`), so the fitted law moved the gel ~3x
+too far per pressed volume. With the law refitted for that ball
+(``python benches/bench_motion_single.py --calibrate``) the simulator's pure presses want
+0.57 / 0.64 on the GelSight, 0.35 pooled: within ~2x of the real gain, the rest being the
+simulator's deeper and wider contacts (cylinders, knurls, fabrics pressed up to 1.2 mm; the
+rule sees an imprint's shape, not its depth). The direction, which the cosine scores, does not
+depend on the gain.
 """
 
 from __future__ import annotations

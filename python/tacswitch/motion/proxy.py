@@ -56,7 +56,8 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["CONTACT_KINDS", "FIELD_KINDS", "SENSORS", "SETTINGS", "ContactSample", "Field",
+__all__ = ["CONTACT_KINDS", "FIELD_KINDS", "REAL_BALL_RADIUS_MM", "SENSORS", "SETTINGS",
+           "ContactSample", "Field",
            "ProxySample", "backward_map", "contact_fields", "dense_backward_map",
            "load_real_presses", "make_contact_proxy", "make_proxy", "marker_grid", "random_field",
            "warp", "warp_dense"]
@@ -401,6 +402,17 @@ def make_proxy(sensor: str = "gelsight", *, kinds: tuple[str, ...] = FIELD_KINDS
 #: Cases of :func:`make_contact_proxy`: the press alone (frame unchanged) or the press plus a
 #: stuck shear and / or twist of the same contact (frame warped by the shear's field).
 CONTACT_KINDS = ("press", "shear", "twist", "shear_twist")
+#: Radius (mm) of the ball that made taxim's real presses, per sensor, measured from their
+#: imprints: the simulator's shading of a ball of each candidate radius pressed to every recorded
+#: contact (depth ``R - sqrt(R^2 - a^2)`` from the recorded contact radius ``a``) against the
+#: real colour change on rings about the contact (``benches/bench_press_calibration.py``,
+#: "Geometry"; BENCHMARKS.md). GelSight: the smallest radius all its contacts allow (a ~1.86 mm,
+#: up to 1.98 mm), 2 mm, fits best (relative profile error 0.39 against 0.47-0.76 for
+#: 2.25-6 mm): a 4 mm ball pressed 1.0-1.7 mm deep, not the 0.3-0.5 mm that a radius drawn up to
+#: 6 mm gave before. GelSight Mini: 3 mm fits best, weakly (0.38 against 0.42-0.44 at 2.5 / 4
+#: mm; its real imprint peaks at the centre, the render at the rim), and its gel barely moves
+#: under a press anyway.
+REAL_BALL_RADIUS_MM: dict[str, float] = {"gelsight": 2.0, "gelsight_mini": 3.0}
 
 
 @dataclass
@@ -476,7 +488,7 @@ def dense_backward_map(v: NDArray[np.float32], max_iterations: int = 200, tol: f
 
 def contact_fields(sensor: str, centre: tuple[float, float], radius_px: float, kind: str,
                    rng: np.random.Generator, *, dilation: float | None = None,
-                   decay_mm: float | None = None
+                   decay_mm: float | None = None, ball_radius_mm: float | None = None
                    ) -> tuple[NDArray[np.float32], NDArray[np.float32], int, dict[str, float]]:
     """The simulator's coarse fields of a ball press at ``centre`` whose contact radius is
     ``radius_px`` (px at the sensor's working size): the press's own outward field and the
@@ -489,7 +501,9 @@ def contact_fields(sensor: str, centre: tuple[float, float], radius_px: float, k
     with its ``press_decay_mm`` reach (measured on real presses, :mod:`tacswitch.sim.presets`),
     stuck shear ``pitch * U(0, 0.9)^1.5`` in a random direction, load ratio U(0, 0.95), twist
     U(-0.08, 0.08) rad. ``dilation`` / ``decay_mm`` override the press law's gain (the draw is
-    still made, so the other draws do not change) and reach (calibration).
+    still made, so the other draws do not change) and reach (calibration); ``ball_radius_mm``
+    the ball's radius (mm, greater than the contact radius; the draw is still made), e.g.
+    :data:`REAL_BALL_RADIUS_MM` for taxim's real presses, whose ball is known.
     """
     from tacswitch.sim.motion import ball_press, contact_displacement
     from tacswitch.sim.presets import get_preset
@@ -499,6 +513,11 @@ def contact_fields(sensor: str, centre: tuple[float, float], radius_px: float, k
     p = get_preset(sensor)
     a_mm = radius_px * p.mm_per_px
     big_r = float(rng.uniform(max(2.0, 1.2 * a_mm), 6.0))
+    if ball_radius_mm is not None:
+        if not (np.isfinite(ball_radius_mm) and ball_radius_mm > a_mm):
+            raise ValueError(f"ball_radius_mm: must exceed the contact radius {a_mm:.3g} mm; "
+                             f"got {ball_radius_mm!r}")
+        big_r = float(ball_radius_mm)
     depth = big_r - float(np.sqrt(big_r ** 2 - a_mm ** 2))
     drawn = float(rng.uniform(*p.press_dilation))
     dilation = drawn if dilation is None else float(dilation)
@@ -528,8 +547,9 @@ def make_contact_proxy(sensor: str = "gelsight", *, kinds: tuple[str, ...] = CON
                        seed: int = 0, presses: RealPresses | None = None,
                        capture: bool = True) -> Iterator[ContactSample]:
     """Yields a sample per real press of ``sensor`` and case of ``kinds`` (module section doc):
-    the truth at the sensor's marker grid is the simulator's press field ``u_p`` of a ball
-    press at the recorded ``touch_center`` / ``touch_radius`` plus, for shear / twist cases, that
+    the truth at the sensor's marker grid is the simulator's press field ``u_p`` of taxim's ball
+    (:data:`REAL_BALL_RADIUS_MM`) pressed to the recorded ``touch_center`` / ``touch_radius``
+    (the press law calibrated on the same presses) plus, for shear / twist cases, that
     contact's shear field ``v`` read at the pressed positions: ``u_p(X) + v(X + u_p(X))``; the
     real press frame is then warped by ``v`` (its imprint and grain move with the stuck zone).
     The real press's own lateral motion is unknown: the modelled ``u_p`` stands for it.
@@ -545,8 +565,9 @@ def make_contact_proxy(sensor: str = "gelsight", *, kinds: tuple[str, ...] = CON
                 raise ValueError(f"kinds: unknown {kind!r}; choose from {list(CONTACT_KINDS)}")
             rng = np.random.default_rng([seed, i, CONTACT_KINDS.index(kind), 17])
             c = (float(data.centres[i, 0]), float(data.centres[i, 1]))
-            press, other, st, params = contact_fields(data.sensor, c, float(data.radii[i]),
-                                                      kind, rng)
+            press, other, st, params = contact_fields(
+                data.sensor, c, float(data.radii[i]), kind, rng,
+                ball_radius_mm=REAL_BALL_RADIUS_MM[data.sensor])
             up = _sample_coarse(press, st, rest)
             img = data.imgs[i]
             motion = up

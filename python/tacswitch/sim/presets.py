@@ -53,17 +53,21 @@ class SensorPreset:
 # The normal press law (``sim.motion.contact_displacement``: dilation gain and reach) measured
 # on taxim's real presses: block matching of the gel's grain between the real no-contact frame
 # and each press, a joint fit of a radial profile about the contact plus a per-press zoom /
-# shift (``motion.grainmatch.press_profile``), the law fitted to the even-index presses over
-# 1.5-6 contact radii and checked on the odd ones (``benches/bench_press_calibration.py``,
-# BENCHMARKS.md). The gain range is centred on the pooled least-squares gain, half-width the
-# distance to the 10th percentile of the per-press gains (a pooled gain of 0: up to their 90th
-# percentile). GelSight: the gel moves outward ~2.5-3 px (640 x 480) at 2-3 contact radii and
-# still ~0.7 px at 6 radii: reach 5 mm, gain 14.6 (the old law: 0.15-0.4 over 2 mm, 5-100x too
-# small). GelSight Mini: within +-0.15 px (320 x 240) at every radius, slightly inward next to
-# the contact: no measurable outward press field (pooled gain 0, per-press 90th percentile
-# 0.05; reach kept at the gel thickness). DIGIT / dense: not measured, the old draw U(0.15,
-# 0.4) over one gel thickness.
-GELSIGHT_PRESS_DILATION = (10.0, 19.1)
+# shift (``motion.grainmatch.press_profile``), the law (a ball of the radius the real imprints
+# show, ``motion.proxy.REAL_BALL_RADIUS_MM``, pressed to each recorded contact) fitted to the
+# even-index presses over 1.5-6 contact radii and checked on the odd ones
+# (``benches/bench_press_calibration.py``, BENCHMARKS.md). The gain range is centred on the
+# pooled least-squares gain, half-width the distance to the 10th percentile of the per-press
+# gains (a pooled gain of 0: up to their 90th percentile). GelSight: the gel moves outward
+# ~2.5-3 px (640 x 480) at 2-3 contact radii and still ~0.7 px at 6 radii: reach 5 mm, gain
+# 4.94 for the 4 mm ball pressed 1.0-1.7 mm deep that the imprints show (the first calibration,
+# 14.6, assumed a ball radius drawn up to 6 mm, i.e. presses 3-4x shallower, and so made the
+# simulated gel move ~3x too far per pressed volume; the old law before it: 0.15-0.4 over 2 mm,
+# far too small). GelSight Mini: within +-0.15 px (320 x 240) at every radius, slightly inward
+# next to the contact: no measurable outward press field (pooled gain 0, per-press 90th
+# percentile 0.05; reach kept at the gel thickness). DIGIT / dense: not measured, the old draw
+# U(0.15, 0.4) over one gel thickness.
+GELSIGHT_PRESS_DILATION = (3.0, 6.9)
 GELSIGHT_PRESS_DECAY_MM = 5.0
 MINI_PRESS_DILATION = (0.0, 0.05)
 MINI_PRESS_DECAY_MM: float | None = None

@@ -128,7 +128,7 @@ def grain_truth(sensor: str) -> list[Sample]:
 
 def sim_sets(root: Path, n: int) -> tuple[dict[str, tuple[list[Sample], float]],
                                           dict[str, list[float]]]:
-    from bench_motion_single import sim_sensors
+    from bench_motion_single import sim_sensors, split_by_gel
 
     d = held_out_motion_pairs(root, n)
     sensors, _ = sim_sensors(n)
@@ -139,8 +139,8 @@ def sim_sets(root: Path, n: int) -> tuple[dict[str, tuple[list[Sample], float]],
         smp = (d["image"][i], d["reference"][i], d["rest"][i][sel], d["displacement"][i][sel],
                sensors[i])
         (nc if np.abs(d["disp_reference"][i][sel]).max() == 0 else same).append(smp)
-    sets = {"simulated held-out, no-contact ref": (nc, 0.5),
-            "simulated held-out, same-contact ref": (same, 0.5)}
+    sets = split_by_gel({"simulated held-out, no-contact ref": (nc, 0.5),
+                         "simulated held-out, same-contact ref": (same, 0.5)})
     ratios = {k: [contact_energy_ratio(s[0], s[1]) for s in v] for k, (v, _) in sets.items()}
     return sets, ratios
 

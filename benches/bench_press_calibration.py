@@ -326,6 +326,7 @@ def main() -> int:
     args = ap.parse_args()
     qs = KNOTS[:-1]
     rows, notes_fit, check, rule_rows, geo_rows = [], [], [], [], []
+    geo_warn: list[str] = []
     tdata: dict[str, dict[str, list[np.ndarray]]] = {}
     selfcal: dict[str, Any] = {}
     for sensor in ("gelsight", "gelsight_mini"):
@@ -339,6 +340,11 @@ def main() -> int:
             geo_rows.append([sensor, f"simulated, ball {k} mm{mark}", *(f"{x:.1f}" for x in v),
                              f"{errs[k]:.2f}"])
         print(*(" | ".join(x) for x in geo_rows[-len(geo) - 1:]), sep="\n", flush=True)
+        if best != f"R={proxy.REAL_BALL_RADIUS_MM[sensor]:g}":
+            geo_warn.append(f"**{sensor}: the best radius here ({best} mm) is not "
+                            f"`REAL_BALL_RADIUS_MM` ({proxy.REAL_BALL_RADIUS_MM[sensor]:g} mm), "
+                            "which the calibration below used.**")
+            print(geo_warn[-1], flush=True)
         r = calibrate(sensor)
         p = get_preset(sensor)
         for j, q in enumerate(qs):
@@ -418,7 +424,7 @@ def main() -> int:
         "fitted gain was 14.554 (draw range 10.0-19.1): 3-4x the gel's motion per pressed "
         "volume.", "",
         table(["sensor", "profile", *(f"{q:g} a" for q in GEOMETRY_RINGS), "rel. error"],
-              geo_rows),
+              geo_rows), *geo_warn,
         "", "Calibration (even presses):", *notes_fit]
     if check:
         notes += ["", "Estimator check: the same real presses warped by a known outward bump "

@@ -73,8 +73,9 @@ def methods(with_ref: bool) -> dict[str, Predict]:
         MECH_DEFAULT: lambda i, r, c, s: mechanics_motion(i, r, c),
         "mechanics rule, per-sensor gain": lambda i, r, c, s: mechanics_motion(
             i, r, c, gain=MECHANICS_GAINS[s]),
-        # What predict_motion runs without a reference and against a no-contact one.
-        "ensemble (rule + single-frame model; predict_motion default)":
+        # What predict_motion runs without a reference, and against a reference it takes for a
+        # no-contact frame (``"auto"``; it runs flow on the others).
+        'ensemble (rule + single-frame model; method="ensemble")':
             lambda i, r, c, s: ensemble_motion(i, r, c),
         "ensemble, per-sensor gain": lambda i, r, c, s: ensemble_motion(
             i, r, c, gain=MECHANICS_GAINS[s]),
@@ -189,7 +190,9 @@ def split_by_gel(sets: dict[str, tuple[list, float]]) -> dict[str, tuple[list, f
     out = dict(sets)
     for key, (samples, min_px) in sets.items():
         for sensor, label in GEL_HALVES:
-            out[f"{key}, {label}"] = ([x for x in samples if x[4] == sensor], min_px)
+            half = [x for x in samples if x[4] == sensor]
+            if half:  # a small --n-sim can leave a half empty
+                out[f"{key}, {label}"] = (half, min_px)
     return out
 
 
@@ -237,8 +240,9 @@ def press_flow(every: int) -> list[list[str]]:
             shift = fb.mean(0)
             ub = (border - cc) / np.linalg.norm(border - cc, axis=1, keepdims=True)
             zoom.append(float(np.median(((fb - shift) * ub).sum(1))))
-            press, _, st, _ = proxy.contact_fields(sensor, (float(c[0]), float(c[1])), a,
-                                                    "press", rng)
+            press, _, st, _ = proxy.contact_fields(
+                sensor, (float(c[0]), float(c[1])), a, "press", rng,
+                ball_radius_mm=proxy.REAL_BALL_RADIUS_MM[sensor])
             for k in ks:
                 pts = c + k * a * unit
                 ok = ((pts >= 5) & (pts < np.array([w - 5, h - 5]))).all(1)
@@ -328,7 +332,8 @@ def main() -> int:
                  "itself expands about the image centre (a zoom between captures or a long-range "
                  "outward flow: the contacts lie near the image centre, the two cannot be told "
                  "apart). Beside it: the simulator's press field at the same contact "
-                 "(`proxy.contact_fields`, ball press, the preset's press law). Measured on "
+                 "(`proxy.contact_fields`, taxim's ball `proxy.REAL_BALL_RADIUS_MM`, the "
+                 "preset's press law). Measured on "
                  "real frames; not a ground truth. The grain block matching of "
                  "`benches/bench_press_calibration.py` (local, no coarse-to-fine propagation) "
                  "confirms the GelSight rings but finds the Mini's gel still (within +-0.15 px): "

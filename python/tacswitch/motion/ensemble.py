@@ -5,8 +5,9 @@ Two single-frame estimators of the gel's motion under a contact, with different 
 - the mechanics rule (:mod:`tacswitch.motion.mechanics`): the elastic law of a press applied
   to the imprint's *shape*, blind to anything but a symmetric press;
 - the learned single-frame model (``motion_single.onnx``, :class:`~.infer.MotionModel`):
-  trained on the calibrated simulator with the real sensors' optics; reads shading asymmetry
-  too (an off-axis press, a partial shear) but carries the simulator's appearance gap.
+  trained on the simulator (first press-law calibration) with the real sensors' optics; reads
+  shading asymmetry too (an off-axis press, a partial shear) but carries the simulator's
+  appearance gap.
 
 Their mean, with equal weights (not tuned), matches or beats the better of the two in error and
 cosine on the real GelSight and FOTS press measurements at hand

@@ -36,7 +36,8 @@ __all__ = ["METHODS", "SHIPPED", "MotionModel", "default_model_path", "load_mode
 DEFAULT_MODEL = "motion_unet.onnx"
 
 #: Shipped models by name (``model="single"``): the default consistent model (pair and single
-#: frame), and the single-frame model trained at scale on the calibrated simulator.
+#: frame), and the single-frame model trained at scale on the simulator (first press-law
+#: calibration).
 SHIPPED = {"default": DEFAULT_MODEL, "single": "motion_single.onnx"}
 
 

@@ -48,10 +48,12 @@ contact, 0.3-0.5 mm deep, where the real imprints show taxim's 4 mm ball pressed
 deep (:data:`tacswitch.motion.proxy.REAL_BALL_RADIUS_MM`), so the fitted law moved the gel ~3x
 too far per pressed volume. With the law refitted for that ball
 (``python benches/bench_motion_single.py --calibrate``) the simulator's pure presses want
-0.57 / 0.64 on the GelSight, 0.35 pooled: within ~2x of the real gain, the rest being the
-simulator's deeper and wider contacts (cylinders, knurls, fabrics pressed up to 1.2 mm; the
-rule sees an imprint's shape, not its depth). The direction, which the cosine scores, does not
-depend on the gain.
+0.57 / 0.64 on the GelSight, 0.35 pooled: within ~2x of the real gain. On ball presses alone
+they want what taxim's real frames with the modelled field want (0.37 both, every marker
+counted; the real 0.25 is fitted on markers >= 2 contact radii away); the simulator's other
+shapes (cylinders, edges, knurls, fabrics) displace more gel per imprint than a ball, and the
+rule sees an imprint's shape, not the volume it displaces. The direction, which the cosine
+scores, does not depend on the gain.
 """
 
 from __future__ import annotations

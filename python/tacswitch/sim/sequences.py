@@ -86,8 +86,9 @@ def grasp_sequence(
     direction = rng.normal(size=2)
     direction /= np.linalg.norm(direction)
     # The press: the preset's press law (measured on real presses, sim.presets) at its mean
-    # gain, for a gently curved object pressed 0.5 mm deep (about the depth of taxim's real
-    # calibration presses) to this contact radius: ball radius (a^2 + d^2) / (2 d).
+    # gain, for a gently curved object pressed 0.5 mm deep to this contact radius (a moderate
+    # press: taxim's 4 mm calibration ball went 1.0-1.7 mm deep): ball radius
+    # (a^2 + d^2) / (2 d).
     a_mm, d_mm = radius * p.mm_per_px, 0.5
     fld, _, _, st = ball_press(p, contact, radius, (a_mm ** 2 + d_mm ** 2) / (2 * d_mm),
                                float(np.mean(p.press_dilation)))

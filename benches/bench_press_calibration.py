@@ -89,8 +89,7 @@ def ball_geometry(sensor: str, every: int = 3) -> dict[str, np.ndarray]:
     where the ball is smaller than a contact), at capture size. Medians over the presses."""
     import cv2
 
-    from tacswitch.sim.deform import deform_gel
-    from tacswitch.sim.indenters import ObjectSpec
+    from tacswitch.sim.motion import pressed_ball
     from tacswitch.sim.optics import load_calibration, shade_taxim
 
     f0, imgs, cen, rad, _ = native(sensor)
@@ -106,15 +105,11 @@ def ball_geometry(sensor: str, every: int = 3) -> dict[str, np.ndarray]:
         real = np.linalg.norm(cv2.GaussianBlur(imgs[i].astype(np.float32), (0, 0), 2) - b0,
                               axis=2)
         out["real"].append([float(np.median(real[m])) for m in rings])
-        a_mm = a * cal.pixmm
         for big_r in BALL_RADII:
-            if big_r <= a_mm:
+            if big_r <= a * cal.pixmm:
                 out[f"R={big_r:g}"].append([np.nan] * len(rings))
                 continue
-            depth = big_r - float(np.sqrt(big_r ** 2 - a_mm ** 2))
-            z = ObjectSpec("sphere", {"radius": big_r}).surface(h, w, cal.pixmm, (cx, cy), 0.0,
-                                                                depth)
-            gel, _ = deform_gel(z, cal.pixmm)
+            gel, _, _ = pressed_ball(h, w, cal.pixmm, (cx, cy), a, big_r)
             sim = np.linalg.norm(shade_taxim(gel, cal.pixmm, cal), axis=2)
             out[f"R={big_r:g}"].append([float(np.median(sim[m])) for m in rings])
     return {k: np.nanmedian(np.array(v), 0) for k, v in out.items()}

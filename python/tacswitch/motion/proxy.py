@@ -514,14 +514,11 @@ def contact_fields(sensor: str, centre: tuple[float, float], radius_px: float, k
     a_mm = radius_px * p.mm_per_px
     big_r = float(rng.uniform(max(2.0, 1.2 * a_mm), 6.0))
     if ball_radius_mm is not None:
-        if not (np.isfinite(ball_radius_mm) and ball_radius_mm > a_mm):
-            raise ValueError(f"ball_radius_mm: must exceed the contact radius {a_mm:.3g} mm; "
-                             f"got {ball_radius_mm!r}")
-        big_r = float(ball_radius_mm)
-    depth = big_r - float(np.sqrt(big_r ** 2 - a_mm ** 2))
+        big_r = float(ball_radius_mm)  # ball_press checks it against the contact radius
     drawn = float(rng.uniform(*p.press_dilation))
     dilation = drawn if dilation is None else float(dilation)
     press, pres, _, st = ball_press(p, centre, radius_px, big_r, dilation, decay_mm)
+    depth = big_r - float(np.sqrt(big_r ** 2 - a_mm ** 2))
     params = {"ball_radius_mm": big_r, "depth_mm": depth, "dilation": dilation}
     shear = (0.0, 0.0)
     twist = 0.0

@@ -228,13 +228,35 @@ def sample_field(field: NDArray, step_px: float, pts: NDArray
     return val.astype(np.float32), jac.astype(np.float32)
 
 
+def pressed_ball(height: int, width: int, mm_per_px: float, centre: tuple[float, float],
+                 radius_px: float, ball_radius_mm: float
+                 ) -> tuple[NDArray[np.float32], NDArray[np.bool_], float]:
+    """A ball of radius ``ball_radius_mm`` pressed into a flat gel (``height x width`` px of
+    ``mm_per_px``) at ``centre`` ``(x, y)`` px until its contact radius is ``radius_px``: the gel
+    surface (mm, :func:`tacswitch.sim.deform.deform_gel`), the contact mask and the depth
+    ``R - sqrt(R^2 - a^2)`` (mm). ``ValueError`` naming ``ball_radius_mm`` unless it exceeds
+    the contact radius."""
+    from tacswitch.sim.deform import deform_gel
+    from tacswitch.sim.indenters import ObjectSpec
+
+    a_mm = radius_px * mm_per_px
+    if not (np.isfinite(ball_radius_mm) and ball_radius_mm > a_mm):
+        raise ValueError(f"ball_radius_mm: must be finite and exceed the contact radius "
+                         f"{a_mm:.3g} mm; got {ball_radius_mm!r}")
+    depth = ball_radius_mm - float(np.sqrt(ball_radius_mm ** 2 - a_mm ** 2))
+    z = ObjectSpec("sphere", {"radius": ball_radius_mm}).surface(height, width, mm_per_px,
+                                                                 centre, 0.0, depth)
+    gel, contact = deform_gel(z, mm_per_px)
+    return gel, contact, depth
+
+
 def ball_press(preset: SensorPreset, centre: tuple[float, float], radius_px: float,
                ball_radius_mm: float, dilation: float, decay_mm: float | None = None
                ) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32], int]:
     """The press field of a ball of radius ``ball_radius_mm`` pressed into ``preset``'s gel at
-    ``centre`` ``(x, y)`` px until its contact radius is ``radius_px`` (depth
-    ``R - sqrt(R^2 - a^2)``), with the press law's ``dilation`` gain and reach ``decay_mm``
-    (None: the preset's measured ``press_decay_mm``).
+    ``centre`` ``(x, y)`` px until its contact radius is ``radius_px`` (:func:`pressed_ball`),
+    with the press law's ``dilation`` gain and reach ``decay_mm`` (None: the preset's measured
+    ``press_decay_mm``).
 
     Returns ``(field, pressure, gel, step)``: the coarse ``gh x gw x 2`` outward field (px; cell
     ``(i, j)`` centred on pixel ``((j + 0.5) step - 0.5, (i + 0.5) step - 0.5)``), the coarse
@@ -242,19 +264,9 @@ def ball_press(preset: SensorPreset, centre: tuple[float, float], radius_px: flo
     contact), and the grid step ``step`` px."""
     import cv2
 
-    from tacswitch.sim.deform import deform_gel
-    from tacswitch.sim.indenters import ObjectSpec
-
     p = preset
     h, w = p.height, p.width
-    a_mm = radius_px * p.mm_per_px
-    if not ball_radius_mm > a_mm:
-        raise ValueError(f"ball_radius_mm: must exceed the contact radius {a_mm:.3g} mm; got "
-                         f"{ball_radius_mm!r}")
-    depth = ball_radius_mm - float(np.sqrt(ball_radius_mm ** 2 - a_mm ** 2))
-    z = ObjectSpec("sphere", {"radius": ball_radius_mm}).surface(h, w, p.mm_per_px, centre, 0.0,
-                                                                 depth)
-    gel, contact = deform_gel(z, p.mm_per_px)
+    gel, contact, _ = pressed_ball(h, w, p.mm_per_px, centre, radius_px, ball_radius_mm)
     st = max(2, round(w / 80))
     gh, gw = -(-h // st), -(-w // st)
     pen = np.where(contact, np.maximum(gel, 0), 0).astype(np.float32)

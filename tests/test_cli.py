@@ -69,8 +69,10 @@ def test_markers_command_writes_csv_json_and_overlay(tmp_path: Path, grasp) -> N
 
 def test_slip_on_a_folder_detects_the_slip(tmp_path: Path, frame_folder: Path, grasp) -> None:
     log = tmp_path / "log.csv"
-    # The folder starts in the established grasp (no contact onset to find): --start 0.
-    assert main(["slip", str(frame_folder), "--log", str(log), "-q", "--start", "0"]) == 0
+    # The folder starts in the established grasp (no contact onset to find): --start 0; the
+    # paper's rule (its detection delay is what is checked).
+    assert main(["slip", str(frame_folder), "--log", str(log), "-q", "--start", "0",
+                 "--rule", "paper"]) == 0
     with open(log) as fh:
         rows = list(csv.DictReader(fh))
     assert len(rows) == len(grasp.frames) - grasp.grasp_start + 1

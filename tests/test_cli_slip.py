@@ -16,7 +16,7 @@ import pytest
 
 from tacswitch import sim
 from tacswitch.cli import main
-from tacswitch.cli.contact import GRASP, NO_CONTACT, PRESSING, GraspSegmenter, top_statistic
+from tacswitch.grasp.phases import GRASP, NO_CONTACT, PRESSING, GraspSegmenter, top_statistic
 from tacswitch.sim.sequences import Kind
 
 LEAD = 4  # no-contact frames before the press
@@ -52,10 +52,11 @@ def _rows(folder: Path, log: Path, *extra: str) -> tuple[list[dict], str]:
         return list(csv.DictReader(fh)), buf.getvalue()
 
 
+@pytest.mark.parametrize("rule", ["learned", "paper"])
 @pytest.mark.parametrize("seed", [4, 7])
-def test_a_press_recording_is_not_flagged_as_slip(tmp_path: Path, seed: int) -> None:
+def test_a_press_recording_is_not_flagged_as_slip(tmp_path: Path, seed: int, rule: str) -> None:
     frames, start, _ = recording("hold", seed, release=True)
-    rows, out = run_slip(tmp_path, frames)
+    rows, out = run_slip(tmp_path, frames, "--rule", rule)
     assert len(rows) == len(frames)
     flagged = [int(r["frame"]) for r in rows if r["slip"] == "1"]
     # Frame 0 as the start flagged the whole press and hold; now only (part of) the release.
@@ -77,11 +78,11 @@ def test_a_press_recording_is_not_flagged_as_slip(tmp_path: Path, seed: int) -> 
 def test_slip_after_a_no_contact_lead_in_is_detected(tmp_path: Path) -> None:
     frames, start, onset = recording("slip", 9, release=False)
     assert onset is not None
-    rows, _ = run_slip(tmp_path, frames)
+    rows, _ = run_slip(tmp_path, frames, "--rule", "paper")
     first = next(int(r["frame"]) for r in rows if r["slip"] == "1")
     assert onset <= first <= onset + 2
     # The same recording from frame 0 (the old behaviour): the press itself is "slip".
-    rows0, out0 = run_slip(tmp_path, frames, "--start", "0")
+    rows0, out0 = run_slip(tmp_path, frames, "--start", "0", "--rule", "paper")
     first0 = next(int(r["frame"]) for r in rows0 if r["slip"] == "1")
     assert first0 < start
     assert "grasp start: frame 0 (--start)" in out0
@@ -90,7 +91,7 @@ def test_slip_after_a_no_contact_lead_in_is_detected(tmp_path: Path) -> None:
 
 def test_explicit_start(tmp_path: Path) -> None:
     frames, start, _ = recording("slip", 9, release=False)
-    rows, out = run_slip(tmp_path, frames, "--start", str(start))
+    rows, out = run_slip(tmp_path, frames, "--start", str(start), "--rule", "paper")
     assert [r["phase"] for r in rows[:start]] == ["before start"] * start
     assert all(r["slip"] == "0" for r in rows[:start])
     assert rows[start]["grasp_start"] == str(start) and rows[start]["slip"] == "0"
@@ -104,7 +105,7 @@ def test_explicit_start(tmp_path: Path) -> None:
 def test_smooth_frames_flag(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     frames, start, onset = recording("slip", 9, release=False)
     assert onset is not None
-    rows, _ = run_slip(tmp_path, frames, "--start", str(start))
+    rows, _ = run_slip(tmp_path, frames, "--start", str(start), "--rule", "paper")
     first = next(int(r["frame"]) for r in rows if r["slip"] == "1")
     rows3, _ = run_slip(tmp_path, frames, "--start", str(start), "--smooth-frames", "3")
     first3 = next(int(r["frame"]) for r in rows3 if r["slip"] == "1")
@@ -156,3 +157,26 @@ def test_segmenter_noise_floor_raises_the_onset_level() -> None:
     assert top_statistic(np.array([])) == 0.0
     with pytest.raises(ValueError, match="threshold_px"):
         GraspSegmenter(0.0)
+
+
+def test_learned_rule_options(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    frames, _, _ = recording("hold", 4, release=True)
+    rows, out = run_slip(tmp_path, frames)  # the learned rule is the default
+    assert "(learned rule)" in out
+    scored = [r for r in rows if r["score"] != ""]
+    assert scored and all(r["phase"] in (PRESSING, GRASP) for r in scored)
+    # A threshold below every score flags every scored frame, and only those.
+    rows_low, _ = run_slip(tmp_path, frames, "--score-threshold=-1e9")
+    assert [r["slip"] == "1" for r in rows_low] == [r["score"] != "" for r in rows_low]
+    capsys.readouterr()
+    rec = str(tmp_path / "rec")
+    log = str(tmp_path / "l.csv")
+    for extra, msg in ((["--rule", "learned", "--threshold-px", "2"],
+                        "--threshold-px: applies to --rule paper only"),
+                       (["--rule", "paper", "--score-threshold", "1"],
+                        "--score-threshold: applies to --rule learned only"),
+                       (["--score-threshold", "nan"], "--score-threshold: must be finite"),
+                       (["--slip-model", str(tmp_path / "none.onnx")], "--slip-model")):
+        assert main(["slip", rec, "--log", log, "-q", *extra]) == 2
+        err = capsys.readouterr().err
+        assert msg in err and err.count("\n") == 1, err

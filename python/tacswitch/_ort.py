@@ -34,7 +34,8 @@ def session_options(threads: int | None = None) -> Any:
 
 
 #: What each export writes as ``tacswitch.kind``, for the error messages.
-KINDS = {"tacdiff": "a TacDiff marker-removal model", "motion": "a marker-motion model"}
+KINDS = {"tacdiff": "a TacDiff marker-removal model", "motion": "a marker-motion model",
+         "slip": "a slip scorer"}
 
 
 def model_kind(meta: dict[str, str]) -> str | None:

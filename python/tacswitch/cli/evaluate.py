@@ -7,7 +7,7 @@ import argparse
 import json
 from pathlib import Path
 
-from tacswitch.cli import downstream_cmds, tacdiff_cmds
+from tacswitch.cli import downstream_cmds, slip_cmds, tacdiff_cmds
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -28,6 +28,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     m.add_argument("-q", "--quiet", action="store_true")
     m.set_defaults(run=run)
     tacdiff_cmds.add_evaluate_parser(what)
+    slip_cmds.add_evaluate_parser(what)
     downstream_cmds.add_evaluate_parser(what)
 
 

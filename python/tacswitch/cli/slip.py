@@ -30,8 +30,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("source", help="video file, folder of images, or camera index (0, 1, ...)")
     p.add_argument("--log", default="slip-log.csv", help="CSV log (default: %(default)s)")
+    p.add_argument("--rule", choices=RULES, default=None,
+                   help="'learned' (default): a classifier of how the marker field moves over "
+                        "time, trained on real lifted and shaken grasps, run from the contact "
+                        "onset to the release; 'paper': the paper's displacement rule from the "
+                        "grasp start (implied by --threshold-px, --rigid-threshold-px, "
+                        "--rigid-only and --smooth-frames)")
+    p.add_argument("--slip-model", default=None, metavar="ONNX",
+                   help="scorer for --rule learned (default: the shipped one; make your own "
+                        "with `tacswitch train slip`)")
+    p.add_argument("--score-threshold", type=float, default=None, metavar="LOGIT",
+                   help="--rule learned flags a frame whose score exceeds this (default: the "
+                        "model's, 0); higher: fewer false alarms, later and fewer detections")
     p.add_argument("--threshold-px", type=float, default=None,
-                   help="displacement threshold (default: 3.25 px scaled to the frame width)")
+                   help="--rule paper: displacement threshold (default: 3.25 px scaled to the "
+                        "frame width)")
     p.add_argument("--rigid-threshold-px", type=_px_or_auto, default=None, metavar="PX|auto",
                    help="also flag deviation from a rigid contact motion above this (pixels, or "
                    "'auto': half the displacement threshold)")
@@ -69,6 +82,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
+RULES = ("learned", "paper")
+#: Options of the paper rule only: giving one selects it when --rule is not given.
+PAPER_OPTIONS = ("threshold_px", "rigid_threshold_px", "smooth_frames")
+
+
 def _px_or_auto(text: str) -> float | str:
     if text == "auto":
         return text
@@ -79,7 +97,8 @@ def _px_or_auto(text: str) -> float | str:
 
 
 LOG_COLUMNS = ["frame", "phase", "grasp", "grasp_start", "slip", "criterion",
-               "max_displacement_px", "marker", "rigid_residual_px", "valid_markers", "time_s"]
+               "max_displacement_px", "marker", "rigid_residual_px", "score", "valid_markers",
+               "time_s"]
 
 
 def _check(args: argparse.Namespace) -> None:
@@ -101,6 +120,19 @@ def _check(args: argparse.Namespace) -> None:
                             ("--model", args.model), ("--all-markers", args.all_markers or None)):
             if value is not None:
                 raise UsageError(f"{flag}: applies to --markerless only")
+    paper_given = [o for o in PAPER_OPTIONS if getattr(args, o) is not None] + (
+        ["rigid_only"] if args.rigid_only else [])
+    if args.rule is None:
+        args.rule = "paper" if paper_given else "learned"
+    if args.rule == "learned" and paper_given:
+        raise UsageError(f"--{paper_given[0].replace('_', '-')}: applies to --rule paper only")
+    if args.rule == "paper":
+        for flag, value in (("--slip-model", args.slip_model),
+                            ("--score-threshold", args.score_threshold)):
+            if value is not None:
+                raise UsageError(f"{flag}: applies to --rule learned only")
+    if args.score_threshold is not None and not np.isfinite(args.score_threshold):
+        raise UsageError(f"--score-threshold: must be finite; got {args.score_threshold}")
     if args.rigid_only and args.rigid_threshold_px is None:
         raise UsageError("--rigid-only: needs --rigid-threshold-px (pixels or 'auto'), or "
                          "nothing is checked")
@@ -108,13 +140,15 @@ def _check(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     import tacswitch as ts
-    from tacswitch.cli.contact import GRASP, GraspSegmenter
     from tacswitch.cli.options import output_file
     from tacswitch.cli.progress import progress
+    from tacswitch.grasp.phases import GRASP, GraspSegmenter
 
     _check(args)
     if args.markerless:
         _warn_inter_frame_codec(args.source)
+    if args.rule == "learned":
+        return _run_learned(args)
     show = args.show and (sys.platform == "win32" or bool(os.environ.get("DISPLAY")))
     tracker: ts.MarkerTracker | MarkerlessMotion | None = None
     detector: ts.SlipDetector | None = None
@@ -185,6 +219,121 @@ def run(args: argparse.Namespace) -> int:
         print(f"{n} frames ({skipped} skipped), {_starts_text(starts, args, segmenter)}, "
               f"{slips} with slip, {n / elapsed:.0f} frames/s; log: {log_path}")
     return status
+
+
+def _run_learned(args: argparse.Namespace) -> int:
+    """The slip loop with the learned rule: every frame's field since the first frame goes to
+    :class:`tacswitch.grasp.GraspSlipDetector`, which follows the grasp phases itself."""
+    import tacswitch as ts
+    from tacswitch.cli.options import input_file, output_file
+    from tacswitch.cli.progress import progress
+    from tacswitch.grasp.detector import GraspSlipDetector
+
+    model = str(input_file(args.slip_model, "--slip-model")) if args.slip_model else None
+    show = args.show and (sys.platform == "win32" or bool(os.environ.get("DISPLAY")))
+    tracker: ts.MarkerTracker | MarkerlessSequence | None = None
+    detector: GraspSlipDetector | None = None
+    n = skipped = slips = 0
+    starts: list[int] = []
+    t0 = time.perf_counter()
+    log_path = output_file(args.log, "--log")
+    status = 0
+    total = frame_count(args.source, args.max_frames)
+    with open(log_path, "w", newline="") as fh, \
+            progress(total=total, desc="slip", unit="frame", quiet=args.quiet or show) as bar:
+        writer = csv.writer(fh)
+        writer.writerow(LOG_COLUMNS)
+        try:
+            for frame in frames(args.source):
+                if args.max_frames is not None and n >= args.max_frames:
+                    break
+                bar.update()
+                if frame is None or frame.ndim != 3:
+                    skipped += 1
+                    continue
+                if tracker is None:
+                    tracker = (MarkerlessSequence(frame, args) if args.markerless
+                               else ts.MarkerTracker(frame))
+                    if len(tracker) == 0:
+                        raise ValueError(f"source: no markers found in the first frame of "
+                                         f"{args.source!r} (a blank or markerless frame?)")
+                    try:
+                        detector = GraspSlipDetector(
+                            tracker.reference, image_width=frame.shape[1], model=model,
+                            threshold=args.score_threshold, start=args.start)
+                    except (ValueError, FileNotFoundError) as exc:
+                        raise ValueError(str(exc).replace("model:", "--slip-model:", 1)
+                                         ) from None
+                elif frame.shape[:2] != tracker.reference_shape:
+                    skipped += 1
+                    continue
+                assert detector is not None
+                motion, valid = tracker.update(frame)
+                st = detector.update(motion, valid)
+                if st.grasp_start == st.frame:
+                    starts.append(n)
+                    bar.set_postfix_str(f"grasp start at frame {n}", refresh=False)
+                if st.slip and not slips:
+                    bar.set_postfix_str(f"slip at frame {n}", refresh=False)
+                slips += st.slip
+                writer.writerow(_learned_row(n, st, time.perf_counter() - t0))
+                fh.flush()
+                n += 1
+                if show:
+                    _show(frame, tracker, st)
+        except ConnectionError as exc:
+            print(f"tacswitch slip: {exc}; log kept at {log_path}", file=sys.stderr)
+            status = 1
+    elapsed = time.perf_counter() - t0
+    if n == 0:
+        raise ValueError(f"source: no readable frames in {args.source!r}")
+    if not args.quiet:
+        seg = detector.segmenter if detector is not None else None
+        print(f"{n} frames ({skipped} skipped), {_starts_text(starts, args, seg)}, "
+              f"{slips} with slip (learned rule), {n / elapsed:.0f} frames/s; log: {log_path}")
+    return status
+
+
+def _learned_row(n: int, st, t: float) -> list:  # type: ignore[no-untyped-def]
+    """One log row of the learned rule (its score; the paper rule's columns stay empty)."""
+    score = "" if st.score != st.score else f"{st.score:.3f}"  # NaN: the scorer did not run
+    return [n, st.phase, st.grasp or "", "" if st.grasp_start is None else st.grasp_start,
+            int(st.slip), st.criterion or "", "", "", "", score, st.n_valid, f"{t:.4f}"]
+
+
+class MarkerlessSequence:
+    """Stands in for the marker tracker on a markerless sensor for the learned rule: every
+    frame's marker motion since the first frame from :class:`tacswitch.MarkerlessTracker`
+    (``--ref``: the no-contact frame, default none: the first frame is the anchor) at
+    ``--centres`` or the motion model's grid; no marker is ever lost."""
+
+    def __init__(self, first: np.ndarray, args: argparse.Namespace) -> None:
+        import tacswitch as ts
+        from tacswitch._io import read_image
+        from tacswitch.cli.motion import _read_centres
+        from tacswitch.cli.options import input_file, load_model_option
+        from tacswitch.motion.infer import load_model
+
+        ref = (read_image(input_file(args.ref, "--ref"), "--ref", quiet=True) if args.ref
+               else None)
+        if ref is not None and ref.shape != first.shape:
+            raise ValueError(f"--ref: shape {ref.shape} does not match the frames "
+                             f"{first.shape}")
+        self.reference_shape = first.shape[:2]
+        self.reference = (_read_centres(str(input_file(args.centres, "--centres")))
+                          if args.centres else
+                          load_model_option(load_model, args.model).centres_for(
+                              *first.shape[:2]))
+        self.positions = self.reference.copy()
+        self._tracker = ts.MarkerlessTracker(ref, self.reference)
+
+    def __len__(self) -> int:
+        return len(self.reference)
+
+    def update(self, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        motion = np.asarray(self._tracker.update(frame), np.float32)
+        self.positions = self.reference + motion
+        return motion, np.ones(len(motion), bool)
 
 
 class MarkerlessMotion:
@@ -299,9 +448,9 @@ def _row(n: int, step, state, n_valid: int, t: float) -> list:  # type: ignore[n
     """One log row; the rule's columns are empty outside a grasp (the rule did not run)."""
     head = [n, step.phase, step.grasp or "", "" if step.start is None else step.start]
     if state is None:
-        return [*head, 0, "", "", "", "", n_valid, f"{t:.4f}"]
+        return [*head, 0, "", "", "", "", "", n_valid, f"{t:.4f}"]
     return [*head, int(state.slip), state.criterion or "", f"{state.max_displacement:.3f}",
-            state.marker, f"{state.rigid_residual:.3f}", state.n_compared, f"{t:.4f}"]
+            state.marker, f"{state.rigid_residual:.3f}", "", state.n_compared, f"{t:.4f}"]
 
 
 def _starts_text(starts: list[int], args: argparse.Namespace, segmenter) -> str:  # type: ignore[no-untyped-def]
@@ -325,8 +474,14 @@ def _show(frame: np.ndarray, tracker, state) -> None:  # type: ignore[no-untyped
 
     motion = tracker.positions - tracker.reference
     vis = viz.draw_motion(frame, tracker.reference, motion, scale=2.0)
-    text = ("no grasp" if state is None else f"SLIP ({state.criterion})" if state.slip
-            else f"max {state.max_displacement:.1f} px")
+    if state is None:
+        text = "no grasp"
+    elif state.slip:
+        text = f"SLIP ({state.criterion})"
+    elif hasattr(state, "score"):  # the learned rule: its score, or the phase when it is off
+        text = f"score {state.score:.2f}" if state.score == state.score else state.phase
+    else:
+        text = f"max {state.max_displacement:.1f} px"
     cv2.putText(vis, text, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.7,
                 (0, 0, 255) if state is not None and state.slip else (0, 200, 0), 2, cv2.LINE_AA)
     cv2.imshow("tacswitch slip", vis)

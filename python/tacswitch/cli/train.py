@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from tacswitch.cli import tacdiff_cmds
+from tacswitch.cli import slip_cmds, tacdiff_cmds
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -54,6 +54,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     m.add_argument("-q", "--quiet", action="store_true")
     m.set_defaults(run=run)
     tacdiff_cmds.add_train_parser(what)
+    slip_cmds.add_train_parser(what)
 
 
 def run(args: argparse.Namespace) -> int:

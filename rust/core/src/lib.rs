@@ -18,6 +18,7 @@ pub mod matching;
 pub mod merge;
 mod simd;
 pub mod slip;
+pub mod slip_features;
 pub mod telea;
 pub mod tracker;
 

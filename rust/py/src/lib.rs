@@ -11,6 +11,7 @@ mod extract;
 mod matching;
 mod merge;
 mod slip;
+mod slip_features;
 mod telea;
 mod tracker;
 
@@ -23,6 +24,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     matching::register(m)?;
     tracker::register(m)?;
     slip::register(m)?;
+    slip_features::register(m)?;
     telea::register(m)?;
     biharmonic::register(m)?;
     merge::register(m)?;

@@ -29,6 +29,7 @@ markers move and settle, or never; pass an explicit start (``--start``) for such
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,6 +41,8 @@ ON_FRACTION = 0.25
 ON_FRAMES = 2
 #: Established: per-frame motion below this fraction of the slip threshold.
 SETTLE_FRACTION = 0.1
+#: No-contact frames whose jitter sets the levels (the latest; 10 s at 25 frames/s).
+NOISE_FRAMES = 250
 
 NO_CONTACT, PRESSING, GRASP, BEFORE_START = "no contact", "pressing", "grasp", "before start"
 
@@ -105,12 +108,14 @@ class GraspSegmenter:
         self.start: int | None = None
         self.onset: int | None = None
         self._above = 0  # frames in a row above the onset level (no contact) or below it (grasp)
-        self._noise_v: list[float] = []  # per-frame motion statistics without contact
+        # Per-frame motion statistics without contact: the last NOISE_FRAMES of them, so a
+        # long stream costs the same per frame.
+        self._noise_v: deque[float] = deque(maxlen=NOISE_FRAMES)
         self._prev: NDArray[np.float64] | None = None
 
     def _jitter(self, extra: float | None = None) -> float:
         """Median per-frame motion statistic of the no-contact frames (and ``extra``), px."""
-        values = self._noise_v + ([] if extra is None else [extra])
+        values = [*self._noise_v] + ([] if extra is None else [extra])
         return float(np.median(values)) if values else 0.0
 
     @property

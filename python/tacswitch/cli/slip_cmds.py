@@ -1,0 +1,143 @@
+"""``tacswitch evaluate slip`` and ``tacswitch train slip``: slip detection on a user's own
+labelled grasp recordings.
+
+A folder ``DIR`` holds ``labels.csv`` (columns ``object, experiment, slip``; slip 1 or 0 for the
+whole experiment) and ``OBJECT/EXPERIMENT/*.avi`` (or .mp4, ...), one video per sensor. Each video
+is tracked once (cached in ``--cache``, resumable). An experiment counts as slip when any frame of
+any of its videos is flagged.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("data", help="folder with labels.csv and OBJECT/EXPERIMENT/*.avi videos")
+    p.add_argument("--labels", default=None, help="labels CSV (default: DATA/labels.csv)")
+    p.add_argument("--cache", default=None,
+                   help="folder for the tracked clips (default: DATA/.tacswitch-cache)")
+    p.add_argument("--workers", type=int, default=1, help="tracking processes (default: 1)")
+    p.add_argument("--markerless", action="store_true",
+                   help="remove the markers first and predict their motion "
+                        "(MarkerlessTracker): the markerless sensor these videos would be")
+    p.add_argument("-q", "--quiet", action="store_true")
+
+
+def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
+    p = what.add_parser("slip", help="slip detection on your labelled grasp videos",
+                        description=__doc__)
+    _common(p)
+    p.add_argument("--rule", choices=("learned", "paper"), default="learned")
+    p.add_argument("--model", default=None, help="ONNX scorer (default: the shipped one)")
+    p.add_argument("--score-threshold", type=float, default=None, metavar="LOGIT")
+    p.add_argument("--rigid-threshold-px", default=None, metavar="PX|auto",
+                   help="--rule paper: add the rigid criterion")
+    p.add_argument("--cv", type=int, default=0, metavar="K",
+                   help="instead of the model: train and score K folds grouped by object "
+                        "(needs tacswitch[train])")
+    p.add_argument("--json", default=None, help="also write the scores and each experiment's "
+                                                "decision to this JSON file")
+    p.set_defaults(run=run_evaluate)
+
+
+def add_train_parser(what: argparse._SubParsersAction) -> None:
+    p = what.add_parser("slip", help="the slip scorer, on your labelled grasp videos",
+                        description=__doc__)
+    _common(p)
+    p.add_argument("--out", required=True, help="ONNX file to write")
+    p.add_argument("--epochs", type=int, default=None, help="passes over the experiments "
+                                                            "(default: 60)")
+    p.add_argument("--seed", type=int, default=0)
+    p.set_defaults(run=run_train)
+
+
+def _load(args: argparse.Namespace):  # type: ignore[no-untyped-def]
+    from tacswitch.grasp.dataset import experiment_clips, read_labels
+
+    if args.workers < 1:
+        raise ValueError(f"--workers: must be >= 1; got {args.workers}")
+    try:
+        exps = read_labels(args.data, args.labels)
+    except ValueError as exc:
+        msg = str(exc)
+        raise ValueError(msg.replace("root:", "data:", 1)
+                         .replace("labels:", "--labels:", 1)) from None
+    cache = Path(args.cache) if args.cache else Path(args.data) / ".tacswitch-cache"
+    clips = experiment_clips(exps, cache, markerless=args.markerless, workers=args.workers,
+                             progress=not args.quiet)
+    return exps, clips
+
+
+def run_evaluate(args: argparse.Namespace) -> int:
+    from tacswitch.grasp.crossval import clip_flags, cross_validated_flags
+    from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
+
+    rigid = args.rigid_threshold_px
+    if rigid is not None and rigid != "auto":
+        try:
+            rigid = float(rigid)
+        except ValueError:
+            raise ValueError(f"--rigid-threshold-px: pixels or 'auto'; got {rigid!r}") from None
+    if args.rule == "learned" and rigid is not None:
+        raise ValueError("--rigid-threshold-px: applies to --rule paper only")
+    if args.cv and args.cv < 2:
+        raise ValueError(f"--cv: at least 2 folds; got {args.cv}")
+    exps, clips = _load(args)
+    labels = [e.slip for e in exps]
+    if args.cv:
+        flags = cross_validated_flags(clips, labels, [e.object for e in exps], folds=args.cv,
+                                      quiet=args.quiet)["train"]
+        name = f"learned, {args.cv} folds grouped by object"
+    elif args.rule == "paper":
+        opts = {} if rigid is None else {"rigid_threshold_px": rigid}
+        flags = [[clip_flags(c, rule="paper", **opts) for c in exp] for exp in clips]
+        name = "paper rule" + ("" if rigid is None else f" + rigid ({rigid})")
+    else:
+        model = args.model
+        flags = [[clip_flags(c, model=model, threshold=args.score_threshold) for c in exp]
+                 for exp in clips]
+        name = f"learned ({model or 'shipped model'})"
+    scores = score_experiments(labels, flags)
+    print(TABLE_HEADER)
+    print(format_scores(("markerless: " if args.markerless else "markers: ") + name, scores))
+    if args.json:
+        from dataclasses import asdict
+
+        from tacswitch._io import atomic_open
+
+        per = [{"object": e.object, "experiment": e.name, "slip": e.slip,
+                "called": any(bool(f.any()) for f in fl),
+                "first_flag": [int(f.argmax()) if f.any() else None for f in fl],
+                "videos": [str(v) for v in e.videos]} for e, fl in zip(exps, flags, strict=False)]
+        with atomic_open(args.json, "w") as fh:
+            json.dump({"detector": name, "scores": asdict(scores), "experiments": per}, fh,
+                      indent=1)
+    return 0
+
+
+def run_train(args: argparse.Namespace) -> int:
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        raise ValueError("train slip: needs torch: pip install 'tacswitch[train]'") from None
+    from tacswitch.cli.options import output_file
+    from tacswitch.grasp.train import EPOCHS, export_scorer, train_scorer
+
+    out = output_file(args.out, "--out")
+    epochs = args.epochs if args.epochs is not None else EPOCHS
+    if epochs < 1:
+        raise ValueError(f"--epochs: must be >= 1; got {epochs}")
+    exps, clips = _load(args)
+    labels = [e.slip for e in exps]
+    log = None if args.quiet else (lambda s: print(s, file=sys.stderr))
+    res = train_scorer([[c.features() for c in exp] for exp in clips], labels, epochs=epochs,
+                       seed=args.seed, log=log)
+    export_scorer(res, out, extra={"trained_on": f"{Path(args.data).name}: {len(exps)} "
+                                                 f"experiments, {sum(labels)} slip"})
+    if not args.quiet:
+        print(f"wrote {out} ({len(exps)} experiments, {sum(labels)} slip, {epochs} epochs)")
+    return 0

@@ -1,0 +1,199 @@
+"""Labelled grasp recordings: reading a folder of videos with per-experiment slip labels, tracking
+each clip once and caching its features.
+
+Layout (the one of the public GelSight Mini slip study, and what ``tacswitch evaluate slip`` /
+``tacswitch train slip`` read)::
+
+    DIR/labels.csv                      object,experiment,slip[,...]  (slip: 1 or 0)
+    DIR/OBJECT/EXPERIMENT/*.avi|mp4     one video per sensor (finger) of that experiment
+
+An experiment counts as slip when any of its videos fires. The labels say whether the object
+slipped at some point, not when. Validation splits are by ``object`` (two experiments of one
+object are not independent).
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tacswitch.grasp.features import sequence_features
+
+VIDEO_SUFFIXES = (".avi", ".mp4", ".mkv", ".mov")
+#: Marker pitch (px) assumed when a first frame shows fewer than two markers.
+FALLBACK_PITCH_PX = 30.0
+
+
+@dataclass
+class Experiment:
+    """One labelled experiment: its object, name, label and video files (one per sensor)."""
+
+    object: str
+    name: str
+    slip: bool
+    videos: list[Path] = field(default_factory=list)
+
+
+def read_labels(root: str | os.PathLike[str], labels: str | os.PathLike[str] | None = None
+                ) -> list[Experiment]:
+    """Experiments of a labelled folder (see the module doc). ``labels`` defaults to
+    ``root/labels.csv``. One-line ``ValueError`` naming the argument on a missing file, missing
+    columns, a label other than 0/1, or an experiment without videos."""
+    base = Path(root)
+    if not base.is_dir():
+        raise ValueError(f"root: not a folder: {str(root)!r}")
+    path = Path(labels) if labels is not None else base / "labels.csv"
+    if not path.is_file():
+        raise ValueError(f"labels: no such file: {str(path)!r}")
+    with open(path, newline="") as fh:
+        reader = csv.DictReader(fh)
+        missing = {"object", "experiment", "slip"} - set(reader.fieldnames or [])
+        if missing:
+            raise ValueError(f"labels: {str(path)!r} lacks column(s) {sorted(missing)} "
+                             "(needs object, experiment, slip)")
+        out = []
+        for line, row in enumerate(reader, start=2):
+            label = (row["slip"] or "").strip()
+            if label not in ("0", "1"):
+                raise ValueError(f"labels: line {line}: slip must be 0 or 1; got {label!r}")
+            folder = base / row["object"] / row["experiment"]
+            videos = sorted(p for p in folder.glob("*") if p.suffix.lower() in VIDEO_SUFFIXES)
+            if not videos:
+                raise ValueError(f"labels: line {line}: no video (*.avi, *.mp4, ...) in "
+                                 f"{str(folder)!r}")
+            out.append(Experiment(row["object"], row["experiment"], label == "1", videos))
+    if not out:
+        raise ValueError(f"labels: {str(path)!r} lists no experiment")
+    return out
+
+
+def read_video(path: str | os.PathLike[str]) -> Iterator[NDArray[np.uint8]]:
+    """Decoded BGR frames of a video (unreadable frames skipped)."""
+    from tacswitch.cli.sources import video_frames
+
+    for frame in video_frames(path, "video"):
+        if frame is not None and frame.ndim == 3:
+            yield frame
+
+
+@dataclass
+class TrackedClip:
+    """A clip's tracked marker field: ``motion`` ``T x N x 2`` px since the first frame,
+    ``valid`` ``T x N``, reference ``points`` ``N x 2``, marker ``pitch`` px and frame
+    ``width`` px."""
+
+    motion: NDArray[np.float32]
+    valid: NDArray[np.bool_]
+    points: NDArray[np.float32]
+    pitch: float
+    width: int
+
+    def features(self) -> NDArray[np.float32]:
+        """``T x N_FEATURES`` online features (:func:`sequence_features`)."""
+        return sequence_features(self.motion, self.valid, self.points, self.pitch)
+
+
+def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
+               ) -> TrackedClip:
+    """Tracks markers through ``frames`` (the first frame is the reference). ``markerless``:
+    the markers are removed from every frame first (:func:`tacswitch.remove_markers`) and the
+    motion predicted by :class:`tacswitch.MarkerlessTracker` at the first frame's marker
+    centres: the markerless sensor this recording would have been."""
+    import tacswitch as ts
+
+    motions: list[NDArray[np.float32]] = []
+    valids: list[NDArray[np.bool_]] = []
+    tracker = None
+    mtracker = None
+    points = np.zeros((0, 2), np.float32)
+    width = 0
+    for frame in frames:
+        if tracker is None and mtracker is None:
+            width = int(frame.shape[1])
+            points = ts.extract_markers(frame).centres
+            if markerless:
+                mtracker = ts.MarkerlessTracker(None, points)
+            else:
+                tracker = ts.MarkerTracker(points)
+        if len(points) == 0:
+            motions.append(np.zeros((0, 2), np.float32))
+            valids.append(np.zeros(0, bool))
+            continue
+        if mtracker is not None:
+            m = mtracker.update(ts.remove_markers(frame))
+            motions.append(np.asarray(m, np.float32))
+            valids.append(np.ones(len(m), bool))
+        else:
+            assert tracker is not None
+            m, v = tracker.update(frame)
+            motions.append(np.array(m, np.float32))
+            valids.append(np.array(v, bool))
+    if not motions:
+        raise ValueError("frames: no readable frame")
+    pitch = ts.estimate_pitch(points) if len(points) >= 2 else None
+    return TrackedClip(np.stack(motions), np.stack(valids), points,
+                       float(pitch) if pitch else FALLBACK_PITCH_PX, width)
+
+
+def cached_clip(video: Path, cache: Path | None, *, markerless: bool = False) -> TrackedClip:
+    """The :class:`TrackedClip` of one video, from ``cache`` when there (written atomically,
+    so an interrupted run resumes where it stopped)."""
+    from tacswitch._io import atomic_open
+
+    target = None
+    if cache is not None:
+        tag = "markerless" if markerless else "markers"
+        key = f"{video.parent.parent.name}__{video.parent.name}__{video.stem}__{tag}.npz"
+        target = cache / key
+        if target.is_file():
+            with np.load(target) as z:
+                return TrackedClip(z["motion"], z["valid"], z["points"], float(z["pitch"]),
+                                   int(z["width"]))
+    clip = track_clip(read_video(video), markerless=markerless)
+    if target is not None:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_open(target, "wb") as fh:
+            np.savez_compressed(fh, motion=clip.motion, valid=clip.valid, points=clip.points,
+                                pitch=clip.pitch, width=clip.width)
+    return clip
+
+
+def experiment_clips(experiments: list[Experiment], cache: Path | None = None, *,
+                     markerless: bool = False, workers: int = 1,
+                     progress: bool = False) -> list[list[TrackedClip]]:
+    """Tracked clips of every video of every experiment (a list per experiment), computed in
+    ``workers`` processes (the caller's main module must be import-safe for ``workers > 1``)."""
+    jobs = [(v, cache, markerless) for e in experiments for v in e.videos]
+    flat: list[TrackedClip] = []
+    if workers > 1:
+        from multiprocessing import get_context
+
+        with get_context("spawn").Pool(workers) as pool:
+            for i, clip in enumerate(pool.imap(_job, jobs, chunksize=1)):
+                flat.append(clip)
+                if progress:
+                    print(f"\r{i + 1}/{len(jobs)} videos", end="", flush=True, file=sys.stderr)
+    else:
+        for i, job in enumerate(jobs):
+            flat.append(_job(job))
+            if progress:
+                print(f"\r{i + 1}/{len(jobs)} videos", end="", flush=True, file=sys.stderr)
+    if progress:
+        print(file=sys.stderr)
+    out: list[list[TrackedClip]] = []
+    k = 0
+    for e in experiments:
+        out.append(flat[k:k + len(e.videos)])
+        k += len(e.videos)
+    return out
+
+
+def _job(job: tuple[Path, Path | None, bool]) -> TrackedClip:
+    return cached_clip(job[0], job[1], markerless=job[2])

@@ -1,0 +1,234 @@
+"""The grasp slip detector: grasp phases, and slip by a learned scorer or by the paper's rule.
+
+:class:`GraspSlipDetector` is what ``tacswitch slip`` runs on every frame. It follows the grasp
+(:class:`tacswitch.grasp.phases.GraspSegmenter`: contact onset, established contact, release)
+and decides slip with one of two rules:
+
+- ``"learned"`` (default): a small classifier over causal features of the tracked field
+  (:mod:`tacswitch.grasp.features`), trained on real GelSight Mini grasps that were lifted and
+  shaken, some slipping (``MODEL_CARD_slip.md``). It runs only while the markers show a contact
+  (from the onset to the release); nothing is flagged before the onset or after the release.
+- ``"paper"``: the paper's displacement rule from the grasp start, optionally with the rigid
+  criterion (:class:`tacswitch.SlipDetector`).
+
+Elastic shear and rotation of a firmly held, shaken object move the markers as far as a slip
+does (7-24 px on real Mini grasps against the rule's 1.6 px), so the displacement rule calls most
+shaken grasps slipping; the learned rule reads how the field moves over time instead.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tacswitch._checks import as_motion, as_points, as_valid
+from tacswitch.grasp.features import N_FEATURES, FieldFeatures
+from tacswitch.grasp.phases import GRASP, PRESSING, GraspSegmenter, Step
+
+#: The shipped scorer (``python/tacswitch/models``).
+DEFAULT_SLIP_MODEL = "slip_scorer.onnx"
+RULES = ("learned", "paper")
+#: Marker pitch (px) assumed when the reference has fewer than two markers.
+FALLBACK_PITCH_PX = 30.0
+
+Scorer = Callable[[NDArray[np.float32]], NDArray[np.float32]]
+
+
+def slip_model_path(path: str | os.PathLike[str] | None = None) -> Path:
+    """The scorer file: ``path``, else the shipped one."""
+    if path is not None:
+        return Path(path)
+    return Path(__file__).resolve().parent.parent / "models" / DEFAULT_SLIP_MODEL
+
+
+class OnnxScorer:
+    """A slip scorer exported by ``tacswitch train slip``: ``B x N_FEATURES`` -> ``B`` logits,
+    run on one onnxruntime thread (the slip loop is single-threaded)."""
+
+    def __init__(self, path: Path) -> None:
+        import json
+
+        from tacswitch._ort import open_session
+
+        self.session, meta = open_session(path, threads=1, kind="slip")
+        self.path = path
+        self.threshold = float(json.loads(meta.get("tacswitch.threshold", "0")))
+        self.warmup = int(json.loads(meta.get("tacswitch.warmup", "3")))
+        n = int(json.loads(meta.get("tacswitch.n_features", str(N_FEATURES))))
+        if n != N_FEATURES:
+            raise ValueError(f"model: {str(path)!r} takes {n} features; this tacswitch "
+                             f"computes {N_FEATURES} (retrain it with `tacswitch train slip`)")
+
+    def __call__(self, features: NDArray[np.float32]) -> NDArray[np.float32]:
+        x = np.ascontiguousarray(features, np.float32).reshape(-1, N_FEATURES)
+        return self.session.run(None, {"features": x})[0]  # type: ignore[no-any-return]
+
+
+def load_scorer(path: str | os.PathLike[str] | None = None) -> OnnxScorer:
+    """The cached :class:`OnnxScorer` of ``path`` (default: the shipped model)."""
+    from tacswitch._ort import cached
+
+    return cached(OnnxScorer, slip_model_path(path))
+
+
+@dataclass(frozen=True)
+class GraspSlipState:
+    """What :meth:`GraspSlipDetector.update` concluded for one frame.
+
+    Attributes:
+        frame: frame index (0 = the first frame fed).
+        phase: ``"no contact"``, ``"pressing"``, ``"grasp"`` or ``"before start"``.
+        grasp: 1-based number of the current grasp, 0 before the first.
+        grasp_start: frame where the current grasp started, None outside a grasp.
+        slip: slip in this frame.
+        score: the learned rule's logit (NaN when it did not run: other rule, warm-up, or
+            outside a contact).
+        criterion: ``"learned"``, ``"displacement"``, ``"rigid"``, ``"both"`` or None.
+        max_displacement: largest marker displacement since the grasp start, px (paper rule;
+            NaN with the learned rule).
+        marker: index of that marker, -1 if none.
+        rigid_residual: the rigid criterion's residual, px (NaN when not evaluated).
+        n_valid: markers tracked in this frame.
+    """
+
+    frame: int
+    phase: str
+    grasp: int
+    grasp_start: int | None
+    slip: bool
+    score: float
+    criterion: str | None
+    max_displacement: float
+    marker: int
+    rigid_residual: float
+    n_valid: int
+
+
+class GraspSlipDetector:
+    """Online slip detection over a recording of grasps, one motion field per frame.
+
+    Feed :meth:`update` the motion of every reference marker since the first frame of the
+    recording (from :class:`tacswitch.MarkerTracker`, or predicted on a markerless sensor).
+
+    Args:
+        points: ``N x 2`` reference marker centres ``(x, y)``, pixels.
+        image_width: frame width, pixels (scales the contact levels and the paper's threshold;
+            default: estimated from the markers' extent).
+        rule: ``"learned"`` (default) or ``"paper"``.
+        model: ONNX scorer for the learned rule (default: the shipped one), or a callable
+            ``B x N_FEATURES`` -> ``B`` logits.
+        threshold: the learned rule's logit threshold (default: the model's).
+        threshold_px: the paper rule's displacement threshold (default 3.25 px at 640 wide,
+            scaled to ``image_width``).
+        rigid_threshold_px: the paper rule's rigid criterion (pixels or ``"auto"``).
+        rigid_only: the paper rule with the rigid criterion alone.
+        smooth_frames: the paper rule on the mean motion of the last frames (markerless input).
+        start: an explicit grasp start (frame index) instead of the detected one.
+    """
+
+    def __init__(self, points: Any, *, image_width: int | None = None, rule: str = "learned",
+                 model: str | os.PathLike[str] | Scorer | None = None,
+                 threshold: float | None = None, threshold_px: float | None = None,
+                 rigid_threshold_px: float | str | None = None, rigid_only: bool = False,
+                 smooth_frames: int = 1, start: int | None = None) -> None:
+        from tacswitch.slip import SlipDetector, scaled_threshold
+        from tacswitch.tracking import estimate_pitch
+
+        if rule not in RULES:
+            raise ValueError(f"rule: one of {RULES}; got {rule!r}")
+        self.points = as_points(points, "points")
+        if image_width is None:
+            xs = self.points[:, 0]
+            image_width = round(float(xs.max() + xs.min())) if len(xs) else 640
+        if image_width < 1:
+            raise ValueError(f"image_width: must be >= 1; got {image_width}")
+        self.image_width = int(image_width)
+        self.rule = rule
+        if threshold_px is not None and not threshold_px > 0:
+            raise ValueError(f"threshold_px: must be > 0; got {threshold_px!r}")
+        epsilon = float(threshold_px) if threshold_px else scaled_threshold(self.image_width)
+        self.segmenter = GraspSegmenter(epsilon, start=start)
+        self.frame = -1
+        self.first_slip: int | None = None
+        self._paper: SlipDetector | None = None
+        self._features: FieldFeatures | None = None
+        self._scorer: Scorer | None = None
+        self.threshold = 0.0
+        self.warmup = 3
+        if rule == "paper":
+            self._paper = SlipDetector(epsilon, rigid_threshold_px=rigid_threshold_px,
+                                       use_displacement=not rigid_only, points=self.points,
+                                       image_width=self.image_width,
+                                       smooth_frames=smooth_frames)
+        else:
+            if rigid_threshold_px is not None or rigid_only:
+                raise ValueError("rigid_threshold_px: applies to rule='paper' only")
+            pitch = estimate_pitch(self.points) if len(self.points) >= 2 else None
+            self.pitch = float(pitch) if pitch else FALLBACK_PITCH_PX
+            self._features = FieldFeatures(self.points, self.pitch)
+            if callable(model) and not isinstance(model, (str, os.PathLike)):
+                self._scorer = model
+            else:
+                onnx = load_scorer(model)
+                self._scorer = onnx
+                self.threshold, self.warmup = onnx.threshold, onnx.warmup
+            if threshold is not None:
+                if not np.isfinite(threshold):
+                    raise ValueError(f"threshold: must be finite; got {threshold!r}")
+                self.threshold = float(threshold)
+
+    def update(self, motion: Any, valid: Any = None) -> GraspSlipState:
+        """Feeds the next frame's motion (``N x 2`` px since the first frame; NaN = lost) and
+        its ``N`` valid flags (default: rows without NaN); returns its state."""
+        m = as_motion(motion, "motion")
+        if len(m) != len(self.points):
+            raise ValueError(f"motion: expected {len(self.points)} rows (one per reference "
+                             f"marker); got {len(m)}")
+        v = (~np.isnan(m).any(axis=1)) if valid is None else as_valid(valid, len(m))
+        self.frame += 1
+        step = self.segmenter.update(m, v)
+        if self._paper is not None:
+            return self._paper_step(step, m, v)
+        assert self._features is not None and self._scorer is not None
+        feats = self._features.update(m, v)
+        score = float("nan")
+        contact = step.phase in (PRESSING, GRASP)
+        if contact and self.frame >= self.warmup:
+            # The scene decides: the scorer runs only while a contact is on the gel.
+            score = float(self._scorer(feats[None, :])[0])
+        slip = bool(score > self.threshold)
+        if slip and self.first_slip is None:
+            self.first_slip = self.frame
+        return GraspSlipState(self.frame, step.phase, step.grasp, step.start, slip, score,
+                              "learned" if slip else None, float("nan"), -1, float("nan"),
+                              int(v.sum()))
+
+    def _paper_step(self, step: Step, m: NDArray[np.float32], v: NDArray[np.bool_]
+                    ) -> GraspSlipState:
+        assert self._paper is not None
+        if step.starts:
+            self._paper.reset()
+        if step.phase != GRASP:
+            return GraspSlipState(self.frame, step.phase, step.grasp, step.start, False,
+                                  float("nan"), None, float("nan"), -1, float("nan"),
+                                  int(v.sum()))
+        st = self._paper.update(m, v)
+        if st.slip and self.first_slip is None:
+            self.first_slip = self.frame
+        return GraspSlipState(self.frame, step.phase, step.grasp, step.start, st.slip,
+                              float("nan"), st.criterion, st.max_displacement, st.marker,
+                              st.rigid_residual, int(v.sum()))
+
+
+def run_clip(motions: NDArray[np.floating], valids: NDArray[np.bool_], points: Any, *,
+             image_width: int | None = None, **options: Any) -> list[GraspSlipState]:
+    """A :class:`GraspSlipDetector` over a whole tracked clip (``T x N x 2`` motions since the
+    first frame, ``T x N`` valid): the states of every frame, as the online loop sees them."""
+    det = GraspSlipDetector(points, image_width=image_width, **options)
+    return [det.update(m, v) for m, v in zip(motions, valids, strict=False)]

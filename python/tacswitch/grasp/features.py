@@ -1,0 +1,89 @@
+"""Causal features of a tracked marker field over time, for the learned slip detector.
+
+One feature vector per frame, computed from that frame and the ones before it only (the detector
+decides online). Every length is divided by the marker pitch, so a 640x480 GelSight and a 320x240
+GelSight Mini give the same numbers for the same gel motion, and every feature is invariant to
+rotating or mirroring the image (a sensor mounted the other way round reads the same).
+
+Per frame (the motion ``m`` of each marker since the first frame):
+
+- the state of the field: median and 90th-percentile ``|m|``, the length of the mean motion,
+  the 90th-percentile residual of the best affine fit (how far the field is from one elastic
+  load) and the fit's dilation and absolute rotation;
+- its change over 1 and 4 frames (velocity and short-term motion): the same magnitude
+  statistics, the affine residual of the change and that residual relative to the change
+  (stick moves the contact coherently; slip starts at the edge and spreads);
+- the share of markers lost; the relaxation: how far the median ``|m|`` fell below its largest
+  value of the last second (the gel snapping back as the contact slides away or lets go); the
+  median change over the last second.
+
+The vector of a frame is those values, their largest and smallest over the last :data:`WINDOW`
+frames and their change over the last :data:`LONG` frames. Computed in the Rust core
+(``rust/core/src/slip_features.rs``, a few microseconds a frame).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tacswitch import _native
+from tacswitch._checks import as_motion, as_points, as_valid
+
+#: Frames over which the window maximum and minimum are taken (0.32 s at 25 frames/s).
+WINDOW = 8
+#: Frames of the long-term change and relaxation features (1 s at 25 frames/s).
+LONG = 25
+#: Names of the per-frame features, in order.
+FRAME_FEATURES = (
+    "median_disp", "p90_disp", "mean_vector", "affine_residual", "dilation", "rotation",
+    "v1_p90", "v1_median", "v1_affine_residual", "v1_incoherence",
+    "v4_p90", "v4_median", "v4_affine_residual", "v4_incoherence",
+    "lost", "relaxation", "long_change",
+)
+N_FRAME = len(FRAME_FEATURES)
+#: Length of a frame's feature vector: the per-frame values, window max, window min, change.
+N_FEATURES = 4 * N_FRAME
+#: Names of the whole vector, in order.
+FEATURE_NAMES = tuple(f"{n}{s}" for s in ("", "_wmax", "_wmin", "_change")
+                      for n in FRAME_FEATURES)
+assert N_FEATURES == _native.SLIP_N_FEATURES and N_FRAME == _native.SLIP_N_FRAME
+
+
+class FieldFeatures:
+    """Streaming features of one marker field, one :data:`N_FEATURES` vector per frame.
+
+    Args:
+        points: ``N x 2`` reference marker centres ``(x, y)``, pixels.
+        pitch: marker pitch, pixels (the unit of every length feature).
+    """
+
+    def __init__(self, points: Any, pitch: float) -> None:
+        pts = as_points(points, "points")
+        if not (isinstance(pitch, (int, float, np.floating, np.integer))
+                and np.isfinite(pitch) and pitch > 0):
+            raise ValueError(f"pitch: must be a finite number > 0; got {pitch!r}")
+        self._native = _native.SlipFeatures(pts, float(pitch))
+        self.n_markers = len(pts)
+
+    def update(self, motion: Any, valid: Any = None) -> NDArray[np.float32]:
+        """Features of the next frame: ``motion`` ``N x 2`` px since the first frame (NaN rows
+        are lost markers), ``valid`` ``N`` bool (default: rows without NaN)."""
+        m = as_motion(motion, "motion")
+        v = (~np.isnan(m).any(axis=1)) if valid is None else as_valid(valid, len(m))
+        return self._native.update(m, np.ascontiguousarray(v, bool))
+
+    def reset(self) -> None:
+        """Forgets the history: the next frame is treated as the first."""
+        self._native.reset()
+
+
+def sequence_features(motions: Any, valids: Any, points: Any, pitch: float
+                      ) -> NDArray[np.float32]:
+    """``T x N_FEATURES`` features of a tracked sequence (``T x N x 2`` motions since the first
+    frame, ``T x N`` valid), frame by frame as the online detector computes them."""
+    ff = FieldFeatures(points, pitch)
+    rows = [ff.update(m, v) for m, v in zip(motions, valids, strict=False)]
+    return np.stack(rows) if rows else np.zeros((0, N_FEATURES), np.float32)

@@ -1,0 +1,180 @@
+"""Training the learned slip scorer on labelled grasps (needs ``tacswitch[train]``: torch, onnx).
+
+Labels are per experiment (did the object slip at some point), not per frame, so the scorer is
+trained as a multiple-instance classifier: it scores every frame from the online features of
+that frame (:mod:`tacswitch.grasp.features`), an experiment's score is the largest frame score
+over all its videos (after :data:`WARMUP` frames), and the loss is the binary cross-entropy of
+that score against the experiment's label. A held grasp therefore has to stay below the
+threshold on every frame of every finger, the way the online detector is judged.
+
+The scorer is a small MLP (signed ``log1p`` of the features, standardised with the training set's
+statistics, two hidden layers); :data:`N_MEMBERS` of them trained from different seeds are
+averaged. Everything, the input transform included, is exported into one ONNX file.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tacswitch.grasp.features import N_FEATURES
+
+#: Frames at the start of a video that are never scored (the windows are still filling).
+WARMUP = 3
+#: Members of the averaged ensemble.
+N_MEMBERS = 3
+HIDDEN = (32, 16)
+EPOCHS = 150
+#: Experiments per optimisation step.
+BATCH = 8
+LEARNING_RATE = 2e-3
+WEIGHT_DECAY = 1e-4
+
+
+@dataclass
+class SlipTrainResult:
+    """A trained scorer (a torch module) and what it was trained on."""
+
+    net: Any
+    n_experiments: int
+    n_slip: int
+    epochs: int
+    seed: int
+
+
+def _transform(x: Any) -> Any:
+    import torch
+
+    return torch.sign(x) * torch.log1p(torch.abs(x))
+
+
+def build_scorer(mean: NDArray[np.floating], std: NDArray[np.floating],
+                 members: int = N_MEMBERS, seed: int = 0) -> Any:
+    """The torch scorer: ``B x N_FEATURES`` raw features -> ``B`` logits."""
+    import torch
+    from torch import nn
+
+    class Scorer(nn.Module):
+        def __init__(self) -> None:
+            super().__init__()
+            self.register_buffer("mean", torch.tensor(np.asarray(mean), dtype=torch.float32))
+            self.register_buffer("std", torch.tensor(np.asarray(std), dtype=torch.float32))
+            torch.manual_seed(seed)
+            self.members = nn.ModuleList(
+                nn.Sequential(nn.Linear(N_FEATURES, HIDDEN[0]), nn.ReLU(),
+                              nn.Linear(HIDDEN[0], HIDDEN[1]), nn.ReLU(),
+                              nn.Linear(HIDDEN[1], 1))
+                for _ in range(members))
+
+        def forward(self, x: Any) -> Any:
+            z = (_transform(x) - self.mean) / self.std
+            return torch.stack([m(z)[:, 0] for m in self.members]).mean(dim=0)
+
+    return Scorer()
+
+
+def train_scorer(features: list[list[NDArray[np.float32]]], labels: list[bool], *,
+                 epochs: int = EPOCHS, seed: int = 0, members: int = N_MEMBERS,
+                 log: Any = None) -> SlipTrainResult:
+    """Trains a scorer on experiments (``features[i]``: one ``T x N_FEATURES`` array per video
+    of experiment ``i``; ``labels[i]``: it slipped). Mini-batches of :data:`BATCH` experiments,
+    their videos padded to one length and masked. Deterministic for a seed."""
+    import torch
+
+    if len(features) != len(labels) or not features:
+        raise ValueError("features: one list of videos per label, at least one experiment")
+    y = np.asarray(labels, bool)
+    if y.all() or not y.any():
+        raise ValueError("labels: training needs both slip and non-slip experiments")
+    # Small matrices: one thread is fastest, and leaves the other cores to tracking.
+    torch.set_num_threads(1)
+    videos = [(i, np.asarray(v, np.float32)) for i, exp in enumerate(features) for v in exp
+              if len(v) > WARMUP]
+    if not videos:
+        raise ValueError("features: no video longer than the warm-up")
+    length = max(len(v) for _, v in videos)
+    x = torch.zeros(len(videos), length, N_FEATURES)
+    mask = torch.zeros(len(videos), length, dtype=torch.bool)
+    for k, (_, v) in enumerate(videos):
+        x[k, :len(v)] = torch.from_numpy(v)
+        mask[k, WARMUP:len(v)] = True
+    owner = torch.tensor([i for i, _ in videos])
+    t = _transform(x[mask])
+    net = build_scorer(t.mean(0).numpy(), (t.std(0) + 1e-3).numpy(), members, seed)
+    opt = torch.optim.Adam(net.parameters(), LEARNING_RATE, weight_decay=WEIGHT_DECAY)
+    pos_weight = torch.tensor(float((~y).sum()) / float(y.sum()))
+    target = torch.tensor(y, dtype=torch.float32)
+    rng = np.random.RandomState(seed)
+    exps = np.unique(owner.numpy())
+    for epoch in range(epochs):
+        total = 0.0
+        order = rng.permutation(exps)
+        for start in range(0, len(order), BATCH):
+            batch = torch.from_numpy(order[start:start + BATCH])
+            sel = torch.isin(owner, batch).nonzero()[:, 0]
+            score = _experiment_scores(net, x[sel], mask[sel], owner[sel], batch)
+            loss = torch.nn.functional.binary_cross_entropy_with_logits(
+                score, target[batch], pos_weight=pos_weight)
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            total += float(loss.detach()) * len(batch)
+        if log is not None:
+            log(f"epoch {epoch + 1}/{epochs}: loss {total / len(exps):.4f}")
+    net.eval()
+    return SlipTrainResult(net, len(features), int(y.sum()), epochs, seed)
+
+
+def _experiment_scores(net: Any, x: Any, mask: Any, owner: Any, batch: Any) -> Any:
+    """Largest frame logit of each experiment in ``batch`` over its videos' masked frames."""
+    import torch
+
+    v, t, f = x.shape
+    logits = net(x.reshape(v * t, f)).reshape(v, t).masked_fill(~mask, float("-inf"))
+    per_video = logits.max(dim=1).values
+    slot = torch.searchsorted(batch.sort().values, owner)
+    out = torch.full((len(batch),), float("-inf")).scatter_reduce(
+        0, slot, per_video, reduce="amax")
+    # Back to the order of ``batch`` (the slots follow its sorted order).
+    return out[torch.argsort(torch.argsort(batch))]
+
+
+def frame_scores(net: Any, features: NDArray[np.float32]) -> NDArray[np.float32]:
+    """Per-frame logits of one video with a torch scorer (no gradient)."""
+    import torch
+
+    with torch.no_grad():
+        return net(torch.tensor(np.asarray(features, np.float32))).numpy()
+
+
+def export_scorer(result: SlipTrainResult, path: str | os.PathLike[str],
+                  threshold: float = 0.0, extra: dict[str, object] | None = None) -> None:
+    """Writes the scorer as ONNX (input ``features`` ``B x N_FEATURES`` float32, output
+    ``logit`` ``B``) with its decision threshold and training summary as metadata."""
+    import tempfile
+    from pathlib import Path
+
+    import torch
+
+    from tacswitch._io import write_onnx
+    from tacswitch.grasp.features import FRAME_FEATURES, LONG, WINDOW
+
+    with tempfile.TemporaryDirectory() as tmpdir:
+        tmp = Path(tmpdir) / "slip.onnx"
+        torch.onnx.export(result.net, (torch.zeros(2, N_FEATURES),), str(tmp),
+                          input_names=["features"], output_names=["logit"],
+                          dynamic_axes={"features": {0: "frames"}, "logit": {0: "frames"}},
+                          opset_version=17, dynamo=False)
+        meta = {"tacswitch.kind": "slip"}
+        info: dict[str, object] = {
+            "threshold": float(threshold), "warmup": WARMUP, "window": WINDOW, "long": LONG,
+            "frame_features": list(FRAME_FEATURES), "n_features": N_FEATURES,
+            "experiments": result.n_experiments, "slip_experiments": result.n_slip,
+            "epochs": result.epochs, "seed": result.seed,
+        }
+        info.update(extra or {})
+        write_onnx(tmp, path, meta, info)

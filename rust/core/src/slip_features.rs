@@ -1,0 +1,407 @@
+//! Causal features of a tracked marker field over time, for the learned slip detector.
+//!
+//! One vector of [`N_FEATURES`] values per frame, from that frame and earlier ones only. Lengths
+//! are in marker pitches (the same gel motion reads the same on a 640x480 GelSight and a 320x240
+//! GelSight Mini) and every feature is invariant to rotating or mirroring the image.
+//!
+//! Per frame, from the motion `m` of each valid marker since the first frame ([`N_FRAME`]):
+//! 0-5 the field's state: median and 90th-percentile `|m|`, length of the mean motion, 90th
+//! percentile residual of the least-squares affine fit, the fit's dilation and absolute rotation;
+//! 6-9 and 10-13 its change over 1 and 4 frames: 90th-percentile and median length, affine
+//! residual of the change, and that residual over (90th percentile + [`INCOHERENCE_FLOOR`]);
+//! 14 the share of markers lost; 15 relaxation: the largest median `|m|` of the last [`LONG`]
+//! frames minus the current one; 16 the median change over the last [`LONG`] frames.
+//! The vector is those 17 values, their maximum and minimum over the last [`WINDOW`] frames, and
+//! their change since [`LONG`] frames ago (the oldest kept while fewer have been seen).
+//! Percentiles interpolate linearly between order statistics (numpy's default).
+
+use std::collections::VecDeque;
+
+use crate::error::{CoreError, Result};
+
+/// Per-frame features.
+pub const N_FRAME: usize = 17;
+/// Length of the feature vector of a frame.
+pub const N_FEATURES: usize = 4 * N_FRAME;
+/// Frames of the window maximum and minimum.
+pub const WINDOW: usize = 8;
+/// Frames of the long-term change and the relaxation.
+pub const LONG: usize = 25;
+/// Fits need this many valid markers; with fewer their features are 0.
+pub const MIN_MARKERS: usize = 6;
+/// Added to a change's 90th-percentile length (pitches) before dividing by it.
+pub const INCOHERENCE_FLOOR: f64 = 0.02;
+
+/// Linear-interpolation percentile (`q` in 0..=100) of `v`, which it sorts; 0 when empty.
+fn percentile(v: &mut [f64], q: f64) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_unstable_by(|a, b| a.total_cmp(b));
+    let pos = q / 100.0 * (v.len() - 1) as f64;
+    let lo = pos.floor() as usize;
+    let hi = pos.ceil() as usize;
+    v[lo] + (v[hi] - v[lo]) * (pos - lo as f64)
+}
+
+/// Solves the 3x3 system `a x = b` by Gaussian elimination with partial pivoting; None when
+/// singular.
+fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
+    for col in 0..3 {
+        let piv = (col..3).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
+        if a[piv][col].abs() < 1e-12 {
+            return None;
+        }
+        a.swap(col, piv);
+        b.swap(col, piv);
+        for row in col + 1..3 {
+            let f = a[row][col] / a[col][col];
+            for k in col..3 {
+                a[row][k] -= f * a[col][k];
+            }
+            b[row] -= f * b[col];
+        }
+    }
+    let mut x = [0.0; 3];
+    for row in (0..3).rev() {
+        let mut s = b[row];
+        for k in row + 1..3 {
+            s -= a[row][k] * x[k];
+        }
+        x[row] = s / a[row][row];
+    }
+    Some(x)
+}
+
+/// 90th-percentile residual, dilation and absolute rotation of the least-squares affine field
+/// through `(p, v)` pairs; zeros when the points do not determine one (collinear).
+fn affine(pts: &[[f64; 2]], vec: &[[f64; 2]], scratch: &mut Vec<f64>) -> [f64; 3] {
+    let mut s = [[0.0; 3]; 3];
+    let mut bx = [0.0; 3];
+    let mut by = [0.0; 3];
+    for (p, v) in pts.iter().zip(vec) {
+        let a = [p[0], p[1], 1.0];
+        for i in 0..3 {
+            for j in 0..3 {
+                s[i][j] += a[i] * a[j];
+            }
+            bx[i] += a[i] * v[0];
+            by[i] += a[i] * v[1];
+        }
+    }
+    let (Some(cx), Some(cy)) = (solve3(s, bx), solve3(s, by)) else {
+        return [0.0; 3];
+    };
+    scratch.clear();
+    scratch.extend(pts.iter().zip(vec).map(|(p, v)| {
+        let rx = cx[0] * p[0] + cx[1] * p[1] + cx[2] - v[0];
+        let ry = cy[0] * p[0] + cy[1] * p[1] + cy[2] - v[1];
+        (rx * rx + ry * ry).sqrt()
+    }));
+    let resid = percentile(scratch, 90.0);
+    // Jacobian [[cx0, cx1], [cy0, cy1]]: dilation = trace, rotation = d(vy)/dx - d(vx)/dy.
+    [resid, cx[0] + cy[1], (cy[0] - cx[1]).abs()]
+}
+
+/// Streaming feature extractor of one marker field.
+#[derive(Debug, Clone)]
+pub struct SlipFeatures {
+    pts: Vec<[f64; 2]>,
+    pitch: f64,
+    hist: VecDeque<(Vec<[f64; 2]>, Vec<bool>)>,
+    medians: VecDeque<f64>,
+    recent: VecDeque<[f64; N_FRAME]>,
+    long: VecDeque<[f64; N_FRAME]>,
+    // Scratch buffers reused every frame.
+    sel_p: Vec<[f64; 2]>,
+    sel_v: Vec<[f64; 2]>,
+    lens: Vec<f64>,
+    scratch: Vec<f64>,
+}
+
+impl SlipFeatures {
+    /// An extractor for markers at `points` (`x, y` px) with the given pitch (px).
+    pub fn new(points: &[[f32; 2]], pitch: f32) -> Result<Self> {
+        if !(pitch.is_finite() && pitch > 0.0) {
+            return Err(CoreError::invalid("pitch", format!("must be > 0; got {pitch}")));
+        }
+        crate::geometry::check_finite(points, "points")?;
+        let n = points.len().max(1) as f64;
+        let cx = points.iter().map(|p| p[0] as f64).sum::<f64>() / n;
+        let cy = points.iter().map(|p| p[1] as f64).sum::<f64>() / n;
+        let pitch = pitch as f64;
+        let pts = points
+            .iter()
+            .map(|p| [(p[0] as f64 - cx) / pitch, (p[1] as f64 - cy) / pitch])
+            .collect();
+        Ok(Self {
+            pts,
+            pitch,
+            hist: VecDeque::with_capacity(LONG + 1),
+            medians: VecDeque::with_capacity(LONG),
+            recent: VecDeque::with_capacity(WINDOW),
+            long: VecDeque::with_capacity(LONG + 1),
+            sel_p: Vec::new(),
+            sel_v: Vec::new(),
+            lens: Vec::new(),
+            scratch: Vec::new(),
+        })
+    }
+
+    /// Number of markers.
+    pub fn len(&self) -> usize {
+        self.pts.len()
+    }
+
+    /// Whether there are no markers.
+    pub fn is_empty(&self) -> bool {
+        self.pts.is_empty()
+    }
+
+    /// Forgets the history (the next frame is treated as the first).
+    pub fn reset(&mut self) {
+        self.hist.clear();
+        self.medians.clear();
+        self.recent.clear();
+        self.long.clear();
+    }
+
+    /// Change statistics (p90, median, affine residual, incoherence) between now and `lag`
+    /// frames ago over markers valid in both; zeros when too few.
+    fn change(&mut self, lag: usize) -> [f64; 4] {
+        let n_hist = self.hist.len();
+        if n_hist <= lag {
+            return [0.0; 4];
+        }
+        let (cur, cur_ok) = &self.hist[n_hist - 1];
+        let (old, old_ok) = &self.hist[n_hist - 1 - lag];
+        self.sel_p.clear();
+        self.sel_v.clear();
+        for i in 0..cur.len() {
+            if cur_ok[i] && old_ok[i] {
+                self.sel_p.push(self.pts[i]);
+                self.sel_v.push([cur[i][0] - old[i][0], cur[i][1] - old[i][1]]);
+            }
+        }
+        if self.sel_v.len() < MIN_MARKERS {
+            return [0.0; 4];
+        }
+        self.lens.clear();
+        self.lens
+            .extend(self.sel_v.iter().map(|v| (v[0] * v[0] + v[1] * v[1]).sqrt()));
+        let p90 = percentile(&mut self.lens, 90.0);
+        let med = percentile(&mut self.lens, 50.0);
+        let resid = affine(&self.sel_p, &self.sel_v, &mut self.scratch)[0];
+        [p90, med, resid, resid / (p90 + INCOHERENCE_FLOOR)]
+    }
+
+    /// The [`N_FRAME`] per-frame values of this frame (history updated).
+    fn frame_values(&mut self, motion: &[[f32; 2]], valid: &[bool]) -> [f64; N_FRAME] {
+        let m: Vec<[f64; 2]> = motion
+            .iter()
+            .map(|v| [v[0] as f64 / self.pitch, v[1] as f64 / self.pitch])
+            .collect();
+        let ok: Vec<bool> = valid
+            .iter()
+            .zip(&m)
+            .map(|(&v, p)| v && p[0].is_finite() && p[1].is_finite())
+            .collect();
+        if self.hist.len() == LONG + 1 {
+            self.hist.pop_front();
+        }
+        self.hist.push_back((m, ok));
+        let mut out = [0.0; N_FRAME];
+        let (m, ok) = &self.hist[self.hist.len() - 1];
+        let n = m.len();
+        let n_ok = ok.iter().filter(|&&v| v).count();
+        out[14] = if n == 0 {
+            1.0
+        } else {
+            1.0 - n_ok as f64 / n as f64
+        };
+        if self.medians.len() == LONG {
+            self.medians.pop_front();
+        }
+        if n_ok < MIN_MARKERS {
+            let last = self.medians.back().copied().unwrap_or(0.0);
+            self.medians.push_back(last);
+            return out;
+        }
+        self.sel_p.clear();
+        self.sel_v.clear();
+        let (mut sx, mut sy) = (0.0, 0.0);
+        for i in 0..n {
+            if ok[i] {
+                self.sel_p.push(self.pts[i]);
+                self.sel_v.push(m[i]);
+                sx += m[i][0];
+                sy += m[i][1];
+            }
+        }
+        self.lens.clear();
+        self.lens
+            .extend(self.sel_v.iter().map(|v| (v[0] * v[0] + v[1] * v[1]).sqrt()));
+        out[1] = percentile(&mut self.lens, 90.0);
+        out[0] = percentile(&mut self.lens, 50.0);
+        let k = n_ok as f64;
+        out[2] = ((sx / k).powi(2) + (sy / k).powi(2)).sqrt();
+        let aff = affine(&self.sel_p, &self.sel_v, &mut self.scratch);
+        out[3..6].copy_from_slice(&aff);
+        let c1 = self.change(1);
+        out[6..10].copy_from_slice(&c1);
+        let c4 = self.change(4);
+        out[10..14].copy_from_slice(&c4);
+        self.medians.push_back(out[0]);
+        let peak = self.medians.iter().copied().fold(f64::MIN, f64::max);
+        out[15] = peak - out[0];
+        if self.hist.len() > LONG {
+            let (cur, cur_ok) = &self.hist[self.hist.len() - 1];
+            let (old, old_ok) = &self.hist[0];
+            self.lens.clear();
+            for i in 0..cur.len() {
+                if cur_ok[i] && old_ok[i] {
+                    let d = [cur[i][0] - old[i][0], cur[i][1] - old[i][1]];
+                    self.lens.push((d[0] * d[0] + d[1] * d[1]).sqrt());
+                }
+            }
+            out[16] = percentile(&mut self.lens, 50.0);
+        }
+        out
+    }
+
+    /// Feeds one frame's motion since the first frame (`N x 2` px, NaN = lost) and validity;
+    /// returns its [`N_FEATURES`] features.
+    pub fn update(&mut self, motion: &[[f32; 2]], valid: &[bool]) -> Result<[f32; N_FEATURES]> {
+        if motion.len() != self.pts.len() {
+            return Err(CoreError::invalid(
+                "motion",
+                format!(
+                    "expected {} rows (one per reference marker); got {}",
+                    self.pts.len(),
+                    motion.len()
+                ),
+            ));
+        }
+        if valid.len() != motion.len() {
+            return Err(CoreError::invalid(
+                "valid",
+                format!("expected {} flags; got {}", motion.len(), valid.len()),
+            ));
+        }
+        let f = self.frame_values(motion, valid);
+        if self.recent.len() == WINDOW {
+            self.recent.pop_front();
+        }
+        self.recent.push_back(f);
+        if self.long.len() == LONG + 1 {
+            self.long.pop_front();
+        }
+        self.long.push_back(f);
+        let oldest = self.long.front().copied().unwrap_or(f);
+        let mut out = [0.0f32; N_FEATURES];
+        for j in 0..N_FRAME {
+            let mut hi = f64::MIN;
+            let mut lo = f64::MAX;
+            for r in &self.recent {
+                hi = hi.max(r[j]);
+                lo = lo.min(r[j]);
+            }
+            out[j] = f[j] as f32;
+            out[N_FRAME + j] = hi as f32;
+            out[2 * N_FRAME + j] = lo as f32;
+            out[3 * N_FRAME + j] = (f[j] - oldest[j]) as f32;
+        }
+        Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid() -> Vec<[f32; 2]> {
+        let mut p = Vec::new();
+        for y in 0..7 {
+            for x in 0..9 {
+                p.push([20.0 + 30.0 * x as f32, 15.0 + 30.0 * y as f32]);
+            }
+        }
+        p
+    }
+
+    #[test]
+    fn percentile_matches_numpy_linear() {
+        let mut v = vec![4.0, 1.0, 3.0, 2.0];
+        assert!((percentile(&mut v, 90.0) - 3.7).abs() < 1e-12);
+        assert!((percentile(&mut v, 50.0) - 2.5).abs() < 1e-12);
+        assert_eq!(percentile(&mut [], 50.0), 0.0);
+    }
+
+    #[test]
+    fn rigid_translation_has_no_residual_and_scales_with_pitch() {
+        let pts = grid();
+        let mut f = SlipFeatures::new(&pts, 30.0).unwrap();
+        let valid = vec![true; pts.len()];
+        f.update(&vec![[0.0, 0.0]; pts.len()], &valid).unwrap();
+        let out = f.update(&vec![[6.0, 8.0]; pts.len()], &valid).unwrap();
+        assert!((out[0] - 10.0 / 30.0).abs() < 1e-5);
+        assert!((out[2] - 10.0 / 30.0).abs() < 1e-5);
+        assert!(out[3].abs() < 1e-5, "affine residual {}", out[3]);
+        assert!((out[6] - 10.0 / 30.0).abs() < 1e-5, "one-frame change {}", out[6]);
+        assert!(out[8].abs() < 1e-5);
+    }
+
+    #[test]
+    fn rotation_and_dilation_are_measured() {
+        let pts = grid();
+        let mut f = SlipFeatures::new(&pts, 30.0).unwrap();
+        let (cx, cy) = (140.0f32, 105.0f32);
+        let a = 0.02f32;
+        let rot: Vec<[f32; 2]> = pts
+            .iter()
+            .map(|p| {
+                let (x, y) = (p[0] - cx, p[1] - cy);
+                [x * a.cos() - y * a.sin() - x, x * a.sin() + y * a.cos() - y]
+            })
+            .collect();
+        let out = f.update(&rot, &vec![true; pts.len()]).unwrap();
+        assert!((out[5] - 2.0 * a.sin()).abs() < 1e-3, "rotation {}", out[5]);
+        assert!(out[4].abs() < 1e-3, "dilation {}", out[4]);
+    }
+
+    #[test]
+    fn relaxation_follows_a_drop() {
+        let pts = grid();
+        let mut f = SlipFeatures::new(&pts, 30.0).unwrap();
+        let valid = vec![true; pts.len()];
+        f.update(&vec![[9.0, 0.0]; pts.len()], &valid).unwrap();
+        let out = f.update(&vec![[3.0, 0.0]; pts.len()], &valid).unwrap();
+        assert!((out[15] - 0.2).abs() < 1e-5, "relaxation {}", out[15]);
+    }
+
+    #[test]
+    fn too_few_markers_and_bad_arguments() {
+        let pts = grid();
+        let mut f = SlipFeatures::new(&pts, 30.0).unwrap();
+        let mut valid = vec![false; pts.len()];
+        valid[0] = true;
+        let out = f.update(&vec![[1.0, 0.0]; pts.len()], &valid).unwrap();
+        assert!((out[14] - (1.0 - 1.0 / 63.0)).abs() < 1e-5);
+        assert_eq!(out[0], 0.0);
+        assert!(f.update(&[[0.0, 0.0]], &[true]).is_err());
+        assert!(f.update(&vec![[0.0, 0.0]; pts.len()], &[true]).is_err());
+        assert!(SlipFeatures::new(&pts, 0.0).is_err());
+        assert!(SlipFeatures::new(&pts, f32::NAN).is_err());
+    }
+
+    #[test]
+    fn nan_rows_count_as_lost() {
+        let pts = grid();
+        let mut f = SlipFeatures::new(&pts, 30.0).unwrap();
+        let mut m = vec![[1.0f32, 0.0]; pts.len()];
+        m[3] = [f32::NAN, 0.0];
+        let out = f.update(&m, &vec![true; pts.len()]).unwrap();
+        assert!((out[14] - 1.0 / 63.0).abs() < 1e-5);
+        assert!(out.iter().all(|v| v.is_finite()));
+    }
+}

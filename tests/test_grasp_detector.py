@@ -1,0 +1,176 @@
+"""The grasp slip detector: phase gating (nothing before the contact onset or after the release),
+the shipped scorer, folds grouped by object, experiment scores and training/export."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import tacswitch as ts
+from tacswitch import sim
+from tacswitch.grasp.detector import GraspSlipDetector, load_scorer, run_clip
+from tacswitch.grasp.evaluate import object_folds, score_experiments
+from tacswitch.grasp.features import N_FEATURES
+from tacswitch.grasp.phases import GRASP, NO_CONTACT, PRESSING
+
+LEAD = 4
+
+
+def press_recording(seed: int) -> list[np.ndarray]:
+    """Simulated GelSight Mini: no contact, press and shear, hold, release, no contact."""
+    seq = sim.grasp_sequence("gelsight_mini", "hold", n_frames=24, seed=seed)
+    return ([seq.reference] * LEAD + list(seq.frames) + list(seq.frames[: seq.grasp_start][::-1])
+            + [seq.reference] * 4)
+
+
+def tracked(frames: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    tr = ts.MarkerTracker(frames[0])
+    out = [tr.update(f) for f in frames]
+    return (np.stack([m for m, _ in out]), np.stack([v for _, v in out]), tr.reference)
+
+
+class Recorder:
+    """A scorer that always says slip and records the frames it ran on."""
+
+    def __init__(self) -> None:
+        self.calls = 0
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        assert x.shape == (1, N_FEATURES) and x.dtype == np.float32
+        self.calls += 1
+        return np.full(len(x), 5.0, np.float32)
+
+
+@pytest.mark.parametrize("seed", [4, 7])
+def test_scorer_runs_only_between_contact_onset_and_release(seed: int) -> None:
+    frames = press_recording(seed)
+    motion, valid, pts = tracked(frames)
+    rec = Recorder()
+    states = run_clip(motion, valid, pts, image_width=frames[0].shape[1], model=rec,
+                      threshold=0.0)
+    phases = [s.phase for s in states]
+    assert phases[:LEAD] == [NO_CONTACT] * LEAD and phases[-1] == NO_CONTACT
+    assert PRESSING in phases and GRASP in phases
+    for s in states:
+        # An always-slip scorer flags exactly the contact frames: the gate is the phase.
+        assert s.slip == (s.phase in (PRESSING, GRASP) and s.frame >= 3), s
+        assert (s.score == s.score) == s.slip
+    assert rec.calls == sum(s.slip for s in states)
+    released = max(i for i, p in enumerate(phases) if p != NO_CONTACT) + 1
+    assert not any(s.slip for s in states[released:])
+
+
+def test_shipped_scorer_loads_and_scores() -> None:
+    scorer = load_scorer()
+    x = np.zeros((3, N_FEATURES), np.float32)
+    out = scorer(x)
+    assert out.shape == (3,) and np.isfinite(out).all()
+    np.testing.assert_allclose(out, out[0])  # frames scored independently
+    assert np.isfinite(scorer.threshold) and scorer.warmup >= 0
+
+
+@pytest.mark.parametrize("seed", [4, 7])
+def test_shipped_scorer_leaves_a_simulated_press_and_release_alone(seed: int) -> None:
+    # Simulated, and the scorer was trained on real Mini grasps: a sanity check that a plain
+    # press, hold and release (no slip) is not called slip, not a measure of accuracy.
+    frames = press_recording(seed)
+    motion, valid, pts = tracked(frames)
+    states = run_clip(motion, valid, pts, image_width=frames[0].shape[1])
+    assert not any(s.slip for s in states)
+    assert any(s.score == s.score for s in states)  # it did run during the contact
+
+
+def test_paper_rule_matches_the_slip_detector_from_the_grasp_start() -> None:
+    seq = sim.grasp_sequence("gelsight_mini", "slip", n_frames=24, seed=9)
+    frames = [seq.reference] * LEAD + list(seq.frames)
+    motion, valid, pts = tracked(frames)
+    states = run_clip(motion, valid, pts, image_width=frames[0].shape[1], rule="paper")
+    start = next(s.frame for s in states if s.grasp_start == s.frame)
+    ref = ts.SlipDetector(image_width=frames[0].shape[1])
+    for s in states[start:]:
+        want = ref.update(motion[s.frame], valid[s.frame])
+        assert s.slip == want.slip and s.max_displacement == pytest.approx(want.max_displacement)
+    assert any(s.slip for s in states)
+    assert not any(s.slip for s in states[:start])
+
+
+def test_detector_errors_name_the_argument() -> None:
+    pts = np.array([[10, 10], [40, 10], [10, 40], [40, 40]], np.float32)
+    with pytest.raises(ValueError, match="rule"):
+        GraspSlipDetector(pts, rule="magic")
+    with pytest.raises(ValueError, match="rigid_threshold_px"):
+        GraspSlipDetector(pts, rigid_threshold_px=1.0)
+    with pytest.raises(ValueError, match="threshold"):
+        GraspSlipDetector(pts, model=Recorder(), threshold=float("nan"))
+    with pytest.raises(FileNotFoundError, match="model"):
+        GraspSlipDetector(pts, model="/nonexistent/slip.onnx")
+    det = GraspSlipDetector(pts, model=Recorder())
+    with pytest.raises(ValueError, match="motion"):
+        det.update(np.zeros((3, 2), np.float32))
+    with pytest.raises(ValueError, match="image_width"):
+        GraspSlipDetector(pts, image_width=0)
+
+
+def test_a_tacdiff_model_is_refused_as_a_slip_scorer() -> None:
+    from tacswitch.tacdiff.infer import model_path
+
+    pts = np.array([[10, 10], [40, 10], [10, 40], [40, 40]], np.float32)
+    with pytest.raises(ValueError, match=r"model: .* expected a slip scorer"):
+        GraspSlipDetector(pts, model=model_path(None))
+
+
+def test_object_folds_keep_objects_together_and_balance() -> None:
+    objects = ["a"] * 7 + ["b"] * 5 + ["c"] * 5 + ["d"] * 3 + ["e"] * 2 + ["f"] * 2 + ["g"]
+    folds = object_folds(objects, 5)
+    assert object_folds(objects, 5) == folds  # deterministic
+    for o in set(objects):
+        assert len({f for f, x in zip(folds, objects, strict=False) if x == o}) == 1
+    sizes = np.bincount(folds, minlength=5)
+    assert sizes.min() >= 3 and sizes.max() <= 7
+    with pytest.raises(ValueError, match="k"):
+        object_folds(["a", "b"], 5)
+
+
+def test_experiment_scores() -> None:
+    labels = [True, True, False, False, False]
+    flags = [
+        [np.array([0, 0, 1, 1], bool), np.zeros(4, bool)],   # caught at frame 2
+        [np.zeros(4, bool), np.zeros(4, bool)],              # missed
+        [np.zeros(4, bool), np.zeros(4, bool)],              # left alone
+        [np.array([1, 0, 1, 0], bool), np.zeros(4, bool)],   # two false alarms
+        [np.zeros(4, bool), np.array([0, 0, 0, 1], bool)],   # one on the other finger
+    ]
+    s = score_experiments(labels, flags, fps=1.0)
+    assert (s.tp, s.fn, s.tn, s.fp) == (1, 1, 1, 2)
+    assert s.tpr == 0.5 and s.tnr == pytest.approx(1 / 3)
+    assert s.balanced_accuracy == pytest.approx((0.5 + 1 / 3) / 2)
+    assert s.accuracy == pytest.approx(2 / 5)
+    assert s.false_alarms_per_min == pytest.approx(3 / (24 / 60))
+    assert s.median_first_frame == 2
+
+
+def test_train_and_export_roundtrip(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    torch = pytest.importorskip("torch")
+    from tacswitch.grasp.train import export_scorer, frame_scores, train_scorer
+
+    rng = np.random.default_rng(0)
+    feats, labels = [], []
+    for i in range(16):
+        slip = i % 2 == 0
+        video = rng.normal(0, 0.1, (30, N_FEATURES)).astype(np.float32)
+        if slip:  # a burst in a few frames of one feature
+            video[20:24, 9] += 3.0
+        feats.append([video, rng.normal(0, 0.1, (30, N_FEATURES)).astype(np.float32)])
+        labels.append(slip)
+    res = train_scorer(feats, labels, epochs=40, seed=0, members=1)
+    scores = [max(frame_scores(res.net, v)[3:].max() for v in exp) for exp in feats]
+    assert all((s > 0) == lab for s, lab in zip(scores, labels, strict=False)), scores
+    path = tmp_path / "slip.onnx"
+    export_scorer(res, path, threshold=0.25)
+    onnx = load_scorer(path)
+    assert onnx.threshold == 0.25
+    x = feats[0][0]
+    np.testing.assert_allclose(onnx(x), frame_scores(res.net, x), rtol=1e-4, atol=1e-4)
+    assert torch is not None
+    with pytest.raises(ValueError, match="labels"):
+        train_scorer(feats[:1], labels[:1])

@@ -522,12 +522,12 @@ multiversion! {
     fn background(luma: &[u16], h: usize, w: usize, block: usize, buf: &mut BoxBuffers) -> Background {
         let factor = bin_factor(block);
         let (bins_h, bins_w) = (h.div_ceil(factor), w.div_ceil(factor));
-        buf.binned.clear();
-        buf.binned.resize(bins_h * bins_w, 0);
+        // `bin_sums` assigns every bin.
+        resize_for_overwrite(&mut buf.binned, bins_h * bins_w);
         if factor == 4 {
-            bin_sums::<4>(luma, h, w, &mut buf.binned);
+            bin_sums::<4>(luma, h, w, &mut buf.binned, &mut buf.bin_cols);
         } else {
-            bin_sums::<2>(luma, h, w, &mut buf.binned);
+            bin_sums::<2>(luma, h, w, &mut buf.binned, &mut buf.bin_cols);
         }
         let radius = block / (2 * factor);
         box_mean_binned(
@@ -545,23 +545,36 @@ multiversion! {
 }
 
 /// Sums of `F x F` pixel bins; partial bins at the right/bottom edge repeat the last pixel so that
-/// every bin sums `F * F` values.
+/// every bin sums `F * F` values. The `F` rows of a bin row are first added column by column
+/// (vector adds), then each bin sums `F` columns: one horizontal pass per bin row, not `F`.
 #[inline(always)]
-fn bin_sums<const F: usize>(luma: &[u16], h: usize, w: usize, out: &mut [u32]) {
+fn bin_sums<const F: usize>(
+    luma: &[u16],
+    h: usize,
+    w: usize,
+    out: &mut [u32],
+    cols: &mut Vec<u32>,
+) {
     let bins_w = w.div_ceil(F);
     let full = w / F;
+    resize_for_overwrite(cols, w);
     for (by, orow) in out.chunks_exact_mut(bins_w).enumerate() {
-        for k in 0..F {
+        let first = &luma[(by * F).min(h - 1) * w..][..w];
+        for (c, &v) in cols.iter_mut().zip(first) {
+            *c = u32::from(v);
+        }
+        for k in 1..F {
             let row = &luma[(by * F + k).min(h - 1) * w..][..w];
-            for (o, px) in orow.iter_mut().zip(row.chunks_exact(F)) {
-                *o += px.iter().map(|&v| u32::from(v)).sum::<u32>();
+            for (c, &v) in cols.iter_mut().zip(row) {
+                *c += u32::from(v);
             }
-            if full < bins_w {
-                let tail = &row[full * F..];
-                let last = u32::from(row[w - 1]);
-                orow[full] += tail.iter().map(|&v| u32::from(v)).sum::<u32>()
-                    + last * (F - tail.len()) as u32;
-            }
+        }
+        for (o, px) in orow.iter_mut().zip(cols.chunks_exact(F)) {
+            *o = px.iter().sum::<u32>();
+        }
+        if full < bins_w {
+            let tail = &cols[full * F..];
+            orow[full] = tail.iter().sum::<u32>() + cols[w - 1] * (F - tail.len()) as u32;
         }
     }
 }
@@ -691,6 +704,8 @@ fn hist_bin(d: i16) -> usize {
 #[derive(Debug, Default, Clone)]
 struct BoxBuffers {
     binned: Vec<u32>,
+    /// Column sums of one bin row's pixel rows ([`bin_sums`]).
+    bin_cols: Vec<u32>,
     col: Vec<u32>,
     padded: Vec<u32>,
     mean: Vec<u16>,

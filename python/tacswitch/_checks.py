@@ -19,7 +19,8 @@ def aligned(arr: NDArray[Any]) -> NDArray[Any]:
     ``np.ascontiguousarray`` keeps an unaligned array (e.g. a view at an odd byte offset of a
     buffer) as it is; the native code needs aligned elements.
     """
-    if arr.flags.c_contiguous and arr.flags.aligned:
+    flags = arr.flags  # one flags object, not one per attribute (hot path: every frame)
+    if flags.c_contiguous and flags.aligned:
         return arr
     return np.array(arr, order="C", copy=True)
 

@@ -130,12 +130,14 @@ class MarkerTracker:
             ref = as_points(ref_img_or_pts, "ref_img_or_pts")
             self.reference_shape = None
         self._native = _native.Tracker(ref, positive_or_none(max_dist, "max_dist"), **extract_opts)
+        # The reference never changes: kept here so that reading it (SlipDetector does, every
+        # frame) takes neither the lock nor a native call.
+        self._reference: NDArray[np.float32] = self._native.reference
 
     @property
     def reference(self) -> NDArray[np.float32]:
-        """Reference centres, ``N x 2`` float32 ``(x, y)``."""
-        with self._lock:
-            return self._native.reference
+        """Reference centres, ``N x 2`` float32 ``(x, y)`` (a fresh copy each time)."""
+        return self._reference.copy()
 
     @property
     def positions(self) -> NDArray[np.float32]:
@@ -155,7 +157,7 @@ class MarkerTracker:
             return self._native.frame
 
     def __len__(self) -> int:
-        return int(self.reference.shape[0])
+        return int(self._reference.shape[0])
 
     def update(self, img_or_pts: Any) -> tuple[Motion, Valid]:
         """Tracks one frame: a uint8 image (markers are extracted) or ``M x 2`` detected centres.

@@ -427,8 +427,9 @@ fn validate(image: &ImageView<'_, u8>, params: &ExtractParams) -> Result<()> {
 /// Luma x 256 in `u16`; for bright markers the image is inverted so markers are dark.
 fn compute_luma(image: &ImageView<'_, u8>, polarity: Polarity, out: &mut Vec<u16>) {
     let n = image.height() * image.width();
-    out.clear();
-    out.resize(n, 0);
+    // Every element is written below: only a new size needs the buffer resized (a fresh 600 KB
+    // zero fill per 640x480 frame otherwise).
+    resize_for_overwrite(out, n);
     let data = image.data();
     match image.channels() {
         1 => {
@@ -466,6 +467,16 @@ multiversion! {
                 + LUMA_G as u16 * u16::from(px[1])
                 + LUMA_R as u16 * u16::from(px[2]);
         }
+    }
+}
+
+/// Sets `buf`'s length to `n` for a caller that overwrites every element: reused buffers of the
+/// right size keep their stale contents instead of being zero-filled again.
+#[inline(always)]
+fn resize_for_overwrite<T: Copy + Default>(buf: &mut Vec<T>, n: usize) {
+    if buf.len() != n {
+        buf.clear();
+        buf.resize(n, T::default());
     }
 }
 
@@ -511,12 +522,12 @@ multiversion! {
     fn background(luma: &[u16], h: usize, w: usize, block: usize, buf: &mut BoxBuffers) -> Background {
         let factor = bin_factor(block);
         let (bins_h, bins_w) = (h.div_ceil(factor), w.div_ceil(factor));
-        buf.binned.clear();
-        buf.binned.resize(bins_h * bins_w, 0);
+        // `bin_sums` assigns every bin.
+        resize_for_overwrite(&mut buf.binned, bins_h * bins_w);
         if factor == 4 {
-            bin_sums::<4>(luma, h, w, &mut buf.binned);
+            bin_sums::<4>(luma, h, w, &mut buf.binned, &mut buf.bin_cols);
         } else {
-            bin_sums::<2>(luma, h, w, &mut buf.binned);
+            bin_sums::<2>(luma, h, w, &mut buf.binned, &mut buf.bin_cols);
         }
         let radius = block / (2 * factor);
         box_mean_binned(
@@ -534,23 +545,36 @@ multiversion! {
 }
 
 /// Sums of `F x F` pixel bins; partial bins at the right/bottom edge repeat the last pixel so that
-/// every bin sums `F * F` values.
+/// every bin sums `F * F` values. The `F` rows of a bin row are first added column by column
+/// (vector adds), then each bin sums `F` columns: one horizontal pass per bin row, not `F`.
 #[inline(always)]
-fn bin_sums<const F: usize>(luma: &[u16], h: usize, w: usize, out: &mut [u32]) {
+fn bin_sums<const F: usize>(
+    luma: &[u16],
+    h: usize,
+    w: usize,
+    out: &mut [u32],
+    cols: &mut Vec<u32>,
+) {
     let bins_w = w.div_ceil(F);
     let full = w / F;
+    resize_for_overwrite(cols, w);
     for (by, orow) in out.chunks_exact_mut(bins_w).enumerate() {
-        for k in 0..F {
+        let first = &luma[(by * F).min(h - 1) * w..][..w];
+        for (c, &v) in cols.iter_mut().zip(first) {
+            *c = u32::from(v);
+        }
+        for k in 1..F {
             let row = &luma[(by * F + k).min(h - 1) * w..][..w];
-            for (o, px) in orow.iter_mut().zip(row.chunks_exact(F)) {
-                *o += px.iter().map(|&v| u32::from(v)).sum::<u32>();
+            for (c, &v) in cols.iter_mut().zip(row) {
+                *c += u32::from(v);
             }
-            if full < bins_w {
-                let tail = &row[full * F..];
-                let last = u32::from(row[w - 1]);
-                orow[full] += tail.iter().map(|&v| u32::from(v)).sum::<u32>()
-                    + last * (F - tail.len()) as u32;
-            }
+        }
+        for (o, px) in orow.iter_mut().zip(cols.chunks_exact(F)) {
+            *o = px.iter().sum::<u32>();
+        }
+        if full < bins_w {
+            let tail = &cols[full * F..];
+            orow[full] = tail.iter().sum::<u32>() + cols[w - 1] * (F - tail.len()) as u32;
         }
     }
 }
@@ -558,8 +582,8 @@ fn bin_sums<const F: usize>(luma: &[u16], h: usize, w: usize, out: &mut [u32]) {
 /// Background of row `y` at pixel resolution, read from the bins.
 #[inline(always)]
 fn expand_row(mean: &[u16], bg: Background, y: usize, row: &mut Vec<u16>) {
-    row.clear();
-    row.resize(bg.w, 0);
+    // `expand` writes every pixel of the row.
+    resize_for_overwrite(row, bg.w);
     let src = &mean[(y / bg.factor) * bg.bins_w..][..bg.bins_w];
     match bg.factor {
         4 => expand::<4>(src, row),
@@ -585,11 +609,24 @@ fn expand<const F: usize>(src: &[u16], row: &mut [u16]) {
 /// Darkness of one row, i16 in 1/64 grey level: `(background - luma) >> 2`.
 #[inline(always)]
 fn darkness_row(bg_row: &[u16], luma_row: &[u16], out: &mut Vec<i16>) {
-    out.clear();
-    out.resize(luma_row.len(), 0);
+    resize_for_overwrite(out, luma_row.len());
     for ((d, &m), &l) in out.iter_mut().zip(bg_row).zip(luma_row) {
         *d = ((i32::from(m) - i32::from(l)) >> DARK_SHIFT) as i16;
     }
+}
+
+/// [`darkness_row`] that also returns the row's largest darkness (`i16::MIN` for an empty row),
+/// so that rows with nothing above the threshold skip the run scan.
+#[inline(always)]
+fn darkness_row_max(bg_row: &[u16], luma_row: &[u16], out: &mut Vec<i16>) -> i16 {
+    resize_for_overwrite(out, luma_row.len());
+    let mut max = i16::MIN;
+    for ((d, &m), &l) in out.iter_mut().zip(bg_row).zip(luma_row) {
+        let v = ((i32::from(m) - i32::from(l)) >> DARK_SHIFT) as i16;
+        *d = v;
+        max = max.max(v);
+    }
+    max
 }
 
 multiversion! {
@@ -646,8 +683,12 @@ multiversion! {
             if y % bg.factor == 0 {
                 expand_row(mean, bg, y, bg_row);
             }
-            darkness_row(bg_row, &luma[y * bg.w..][..bg.w], dark_row);
-            labeller.push_row(dark_row, y, t);
+            // About half the rows of a marker frame hold no marker pixel: no run scan for them.
+            if darkness_row_max(bg_row, &luma[y * bg.w..][..bg.w], dark_row) > t {
+                labeller.push_row(dark_row, y, t);
+            } else {
+                labeller.empty_row();
+            }
         }
         labeller.finish()
     }
@@ -663,6 +704,8 @@ fn hist_bin(d: i16) -> usize {
 #[derive(Debug, Default, Clone)]
 struct BoxBuffers {
     binned: Vec<u32>,
+    /// Column sums of one bin row's pixel rows ([`bin_sums`]).
+    bin_cols: Vec<u32>,
     col: Vec<u32>,
     padded: Vec<u32>,
     mean: Vec<u16>,
@@ -696,10 +739,9 @@ fn box_mean_binned(
             *c += v;
         }
     }
-    padded.clear();
-    padded.resize(w + 2 * rx, 0);
-    mean.clear();
-    mean.resize(h * w, 0);
+    // Both are fully written below (`padded`: the row and both reflected margins, every row).
+    resize_for_overwrite(padded, w + 2 * rx);
+    resize_for_overwrite(mean, h * w);
     for y in 0..h {
         if y > 0 {
             let add = &binned[reflect101(y as isize + ry as isize, h) * w..][..w];
@@ -817,6 +859,13 @@ impl RunLabeller {
         self.prev = 0..0;
     }
 
+    /// A row without runs: what [`Self::push_row`] does with a row where no `row[x] > t`.
+    #[inline(always)]
+    fn empty_row(&mut self) {
+        let end = self.runs.len();
+        self.prev = end..end;
+    }
+
     /// Adds the runs of `row[x] > t` of row `y` and unions them with touching runs above.
     #[inline(always)]
     fn push_row(&mut self, row: &[i16], y: usize, t: i16) {
@@ -824,12 +873,12 @@ impl RunLabeller {
         let start = self.runs.len();
         let mut x = 0;
         while x < w {
-            // Skip background a chunk at a time: the max over a chunk vectorises.
+            // Skip background a chunk at a time: an OR of the comparisons vectorises to one
+            // compare and one test per chunk (a max would need a horizontal reduction).
             if x + SCAN_CHUNK <= w
-                && row[x..x + SCAN_CHUNK]
+                && !row[x..x + SCAN_CHUNK]
                     .iter()
-                    .fold(i16::MIN, |m, &v| m.max(v))
-                    <= t
+                    .fold(false, |any, &v| any | (v > t))
             {
                 x += SCAN_CHUNK;
                 continue;
@@ -1449,6 +1498,52 @@ mod tests {
         assert!(dilate_cross_n(vec![false; 54], 6, 9, usize::MAX)
             .iter()
             .all(|&m| !m));
+    }
+
+    #[test]
+    fn a_reused_workspace_gives_what_a_fresh_one_gives() {
+        // Buffers are resized without zero-filling when the size is unchanged: stale contents
+        // of an earlier frame (other size, channels, polarity, content) must not leak.
+        let mut ws = ExtractWorkspace::default();
+        let cases: [(usize, usize, f32, f32, usize, Polarity); 6] = [
+            (120, 160, 5.0, 30.0, 3, Polarity::Dark),
+            (120, 160, 4.0, 60.0, 3, Polarity::Dark),
+            (97, 131, 3.5, 40.0, 1, Polarity::Dark),
+            (120, 160, 6.0, 220.0, 4, Polarity::Bright),
+            (5, 3, 1.0, 20.0, 1, Polarity::Dark),
+            (120, 160, 5.0, 30.0, 3, Polarity::Dark),
+        ];
+        for (k, &(h, w, radius, fg, channels, polarity)) in cases.iter().enumerate() {
+            let centres: Vec<[f32; 2]> = (0..4)
+                .flat_map(|j| {
+                    (0..5).map(move |i| [15.3 + 30.0 * i as f32 + k as f32, 14.6 + 28.0 * j as f32])
+                })
+                .collect();
+            let grey = render(h, w, &centres, radius, 128.0 + 10.0 * k as f32, fg);
+            let img: Vec<u8> = grey
+                .iter()
+                .flat_map(|&v| std::iter::repeat(v).take(channels))
+                .collect();
+            let view = ImageView::new(&img, h, w, channels, "img").unwrap();
+            for grow in [MaskGrowth::Dilate(1), MaskGrowth::Adaptive] {
+                let params = ExtractParams {
+                    polarity,
+                    grow,
+                    ..Default::default()
+                };
+                let fresh = extract_markers(&view, &params).unwrap();
+                for want_mask in [true, false] {
+                    let reused = extract_markers_with(&view, &params, &mut ws, want_mask).unwrap();
+                    assert_eq!(reused.markers, fresh.markers, "case {k}");
+                    assert_eq!(reused.threshold, fresh.threshold, "case {k}");
+                    assert_eq!(reused.n_components, fresh.n_components, "case {k}");
+                    if want_mask {
+                        assert_eq!(reused.mask, fresh.mask, "case {k}");
+                        assert_eq!(reused.grow_rings, fresh.grow_rings, "case {k}");
+                    }
+                }
+            }
+        }
     }
 
     #[test]

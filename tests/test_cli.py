@@ -52,6 +52,22 @@ def test_demo_writes_a_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     assert "marker removal (TELEA) on a simulated" in out
     assert "marker removal (TacDiff hybrid) on a simulated" in out
     assert "motion from markerless frames" in out
+    assert "for zero motion" in out
+
+
+@pytest.mark.parametrize("preset", ["gelsight", "gelsight_mini"])
+def test_demo_motion_panel_agrees_with_its_truth(preset: str) -> None:
+    import re
+
+    from tacswitch.cli.demo import _motion_panel
+
+    _, lines = _motion_panel(preset, 0, 640)
+    found = re.search(r"direction cosine (-?[0-9.]+), error mean ([0-9.]+) px against "
+                      r"([0-9.]+) px for zero motion", lines[0])
+    assert found, lines[0]
+    cos, err, zero = map(float, found.groups())
+    assert cos >= 0.8
+    assert err < zero
 
 
 def test_markers_command_writes_csv_json_and_overlay(tmp_path: Path, grasp) -> None:

@@ -235,9 +235,9 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             (:func:`tacswitch.motion.flow.flow_motion`); default ``False`` (a reference of the
             same contact).
         gain: ``method="mechanics"``, ``"ensemble"``, ``"outward"`` or ``"auto"`` (used when
-            it runs the ensemble, i.e. without ``ref``; ignored when it runs flow): how far a press moves this sensor's
-            gel, which one image does not show. A sensor name, ``"gelsight"`` or
-            ``"gelsight_mini"`` (gains fitted on that sensor's real presses:
+            it runs the ensemble, i.e. without ``ref``; ignored when it runs flow): how far a
+            press moves this sensor's gel, which one image does not show. A sensor name,
+            ``"gelsight"`` or ``"gelsight_mini"`` (gains fitted on that sensor's real presses:
             :data:`tacswitch.sim.presets.MECHANICS_GAINS` / ``OUTWARD_GAINS``; the real Mini's
             gel barely moves, so its gains predict ~zero), a number >= 0 (mechanics: the
             dimensionless gain, e.g. ``tacswitch.motion.calibration.calibrate_press_gain(

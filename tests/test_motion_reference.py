@@ -56,6 +56,24 @@ def test_auto_runs_flow_with_any_reference_and_the_ensemble_without(mini, grid) 
     assert resolve_method("flow", img, mini.f0) == "flow"
 
 
+def test_auto_from_the_no_contact_frame_keeps_the_press_magnitude(grid) -> None:
+    # A generated gel pressed and sheared by a known field, its imprint appearing: "auto"
+    # against the no-contact frame keeps the motion's size (it ran the ensemble before, whose
+    # rule and model predicted a fraction of it).
+    from gel_fixtures import _gel, _pressed_and_sheared
+
+    f0 = _gel(1)
+    for amp in (3.0, 8.0):
+        img, fld = _pressed_and_sheared(f0, amp)
+        assert reference.is_new_contact(img, f0)
+        true = flow.sample_field(fld, grid)
+        moved = np.hypot(*true.T) >= 1.0
+        got = predict_motion(img, f0, grid)
+        ratio = np.hypot(*got[moved].T).sum() / np.hypot(*true[moved].T).sum()
+        assert 0.7 < ratio < 1.3, ratio
+        assert np.hypot(*(got - true).T).mean() < 0.3 * np.hypot(*true.T).mean()
+
+
 def test_auto_with_a_reference_is_consistent(mini, grid) -> None:
     for img in (mini.f0, mini.imgs[3]):
         assert not predict_motion(img, img.copy(), grid).any()

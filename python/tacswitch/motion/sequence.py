@@ -17,7 +17,7 @@ identical frame). Measured in ``benches/bench_motion_sequence.py`` (BENCHMARKS.m
 motion over a sequence") and on real GelSight Mini videos with tracked markers
 (``benches/bench_motion_video_real.py``, 29 objects, markers removed): there it ties with the
 direct flow from the no-contact frame (development objects: e_rmse 1.36 vs 1.35 px, zero 1.72;
-held-out objects with the ghost control 0.81 px vs zero 1.54, cosine 0.91 for both), while
+held-out objects with the ghost control 0.82 vs 0.81 px, zero 1.54, cosine 0.91 for both), while
 anchoring at the first contact with the flow instead of the rule (1.38) and re-anchoring
 whenever the motion from the anchor passes 0-5 px (2.5-3.5: every link adds its error) were
 worse; on simulated GelSight grasps and real frames with the modelled press field the rule at

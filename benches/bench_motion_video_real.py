@@ -5,8 +5,10 @@ Data: ``gsmini_slip_train`` (real GelSight Mini grasp-and-lift videos with a pai
 (:data:`CLIPS`: every one of the set's 29 objects in name order, its first experiment in
 ``labels.csv``, camera 0 and camera 2 alternating; nylon_thread's camera 2 shows no markers at
 its first frame, so its camera 0), so the figures come from 29 objects, not from many clips of a
-few. The development objects (even positions) chose the methods; the held-out objects (odd
-positions) were not looked at before the final run. The paper's own recipe:
+few. The development objects (even positions) were used to compare design options (flow
+settings, chaining, anchoring); the last choice (the tracker's direct flow) also looked at the
+all-object rows of the frames with a new contact, so those rows are not held out. Nothing is
+fitted. The paper's own recipe:
 
 1. truth: :class:`tacswitch.MarkerTracker` on the frames *with* markers, from the first frame
    (the no-contact frame: the gripper is open) on every frame; its reference centres are the

@@ -52,6 +52,22 @@ def test_demo_writes_a_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     assert "marker removal (TELEA) on a simulated" in out
     assert "marker removal (TacDiff hybrid) on a simulated" in out
     assert "motion from markerless frames" in out
+    assert "for zero motion" in out
+
+
+@pytest.mark.parametrize("preset", ["gelsight", "gelsight_mini"])
+def test_demo_motion_panel_agrees_with_its_truth(preset: str) -> None:
+    import re
+
+    from tacswitch.cli.demo import _motion_panel
+
+    _, lines = _motion_panel(preset, 0, 640)
+    found = re.search(r"direction cosine (-?[0-9.]+), error mean ([0-9.]+) px against "
+                      r"([0-9.]+) px for zero motion", lines[0])
+    assert found, lines[0]
+    cos, err, zero = map(float, found.groups())
+    assert cos >= 0.8
+    assert err < zero
 
 
 def test_markers_command_writes_csv_json_and_overlay(tmp_path: Path, grasp) -> None:
@@ -307,6 +323,36 @@ def test_motion_sequence_is_the_markerless_tracker(tmp_path: Path, mini) -> None
             np.testing.assert_allclose(pts, tr.centres, atol=1e-3)
     assert main(["motion", str(frames), "--sequence", "--method", "flow", "--ref",
                  str(tmp_path / "ref.png"), "-o", str(tmp_path / "x"), "-q"]) == 2
+
+
+def test_motion_on_a_video_tracks_it_as_one_sequence(tmp_path: Path) -> None:
+    from gel_fixtures import _gel, _pressed_and_sheared
+
+    from tacswitch.cli.sources import video_frames
+    from tacswitch.motion.sequence import MarkerlessTracker
+
+    f0 = _gel()
+    path = tmp_path / "press.avi"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 25, (320, 240))
+    for a in (0.0, 3.0, 6.0):
+        writer.write(f0 if a == 0 else _pressed_and_sheared(f0, a)[0])
+    writer.release()
+    cv2.imwrite(str(tmp_path / "ref.png"), f0)
+    out = tmp_path / "o"
+    assert main(["motion", str(path), "--ref", str(tmp_path / "ref.png"), "-o", str(out),
+                 "-q"]) == 0
+    with open(out / "press.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    tr = MarkerlessTracker(f0)
+    frames = list(video_frames(path))
+    assert len(rows) == 99 * len(frames) == 297  # the default grid, every frame
+    for t, img in enumerate(frames):
+        want = tr.update(img)
+        got = np.array([[float(r["dx"]), float(r["dy"])] for r in rows if int(r["frame"]) == t])
+        np.testing.assert_allclose(got, want, atol=1e-3)
+    assert np.hypot(*want.T).max() > 2.0  # the press shows
+    assert (out / "press_motion.png").is_file()
+    assert main(["motion", str(path), "--method", "mechanics", "-o", str(out), "-q"]) == 2
 
 
 def test_train_motion_tiny_run_exports_a_usable_model(tmp_path: Path,

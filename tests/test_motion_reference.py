@@ -37,22 +37,41 @@ def test_real_gelsight_presses_against_the_no_contact_frame() -> None:
     assert reference.contact_energy_ratio(_sheared(gs, 5), gs.imgs[5]) > 0.8
 
 
-def test_auto_runs_the_ensemble_against_the_no_contact_frame_and_flow_otherwise(mini, grid) -> None:
+def test_auto_runs_flow_with_any_reference_and_the_ensemble_without(mini, grid) -> None:
     img = mini.imgs[6]
+    # The no-contact frame too (real Mini videos: the ensemble kept ~1/6 of a press's motion).
     np.testing.assert_array_equal(predict_motion(img, mini.f0, grid),
-                                  ensemble.ensemble_motion(img, mini.f0, grid))
-    np.testing.assert_array_equal(predict_motion(img, mini.f0, grid, gain="gelsight"),
-                                  ensemble.ensemble_motion(img, mini.f0, grid, gain=0.25))
+                                  flow.flow_motion(img, mini.f0, grid))
     same = _sheared(mini, 6)
     np.testing.assert_array_equal(predict_motion(same, img, grid), flow.flow_motion(same, img,
                                                                                     grid))
-    # The gain is the rule's; flow ignores it.
+    # The gain is the ensemble's; flow ignores it.
     np.testing.assert_array_equal(predict_motion(same, img, grid, gain=3.0),
                                   flow.flow_motion(same, img, grid))
-    assert resolve_method("auto", img, mini.f0) == "ensemble"
+    np.testing.assert_array_equal(predict_motion(img, None, grid, gain="gelsight"),
+                                  ensemble.ensemble_motion(img, None, grid, gain=0.25))
+    assert resolve_method("auto", img, mini.f0) == "flow"
     assert resolve_method("auto", same, img) == "flow"
     assert resolve_method("auto", img, None) == "ensemble"
     assert resolve_method("flow", img, mini.f0) == "flow"
+
+
+def test_auto_from_the_no_contact_frame_keeps_the_press_magnitude(grid) -> None:
+    # A generated gel pressed and sheared by a known field, its imprint appearing: "auto"
+    # against the no-contact frame keeps the motion's size (it ran the ensemble before, whose
+    # rule and model predicted a fraction of it).
+    from gel_fixtures import _gel, _pressed_and_sheared
+
+    f0 = _gel(1)
+    for amp in (3.0, 8.0):
+        img, fld = _pressed_and_sheared(f0, amp)
+        assert reference.is_new_contact(img, f0)
+        true = flow.sample_field(fld, grid)
+        moved = np.hypot(*true.T) >= 1.0
+        got = predict_motion(img, f0, grid)
+        ratio = np.hypot(*got[moved].T).sum() / np.hypot(*true[moved].T).sum()
+        assert 0.7 < ratio < 1.3, ratio
+        assert np.hypot(*(got - true).T).mean() < 0.3 * np.hypot(*true.T).mean()
 
 
 def test_auto_with_a_reference_is_consistent(mini, grid) -> None:
@@ -77,11 +96,12 @@ def test_ratio_is_finite_on_any_frame(h: int, w: int, level: int, noise: float) 
 
 
 def test_auto_rejects_flow_only_options_and_bad_gains(mini, grid) -> None:
-    # Flow's options are checked even when "auto" runs the ensemble (which ignores them).
+    # With a reference "auto" runs flow, with flow's options.
     with pytest.raises(ValueError, match=r"^preset: unknown 'slow'"):
         predict_motion(mini.imgs[2], mini.f0, grid, preset="slow")
     np.testing.assert_array_equal(predict_motion(mini.imgs[2], mini.f0, grid, preset="medium"),
-                                  predict_motion(mini.imgs[2], mini.f0, grid))
+                                  flow.flow_motion(mini.imgs[2], mini.f0, grid,
+                                                   preset="medium"))
     with pytest.raises(ValueError, match=r"^preset: applies to method='flow' only"):
         predict_motion(mini.imgs[2], None, grid, preset="medium")
     with pytest.raises(ValueError, match=r"^gain: must be a finite number >= 0"):

@@ -1,5 +1,5 @@
-"""``MarkerlessTracker``: motion from rest over a markerless video that starts at the no-contact
-frame (real taxim GelSight Mini presses; a known shear of the pressed frame)."""
+"""``MarkerlessTracker``: motion from rest over a markerless video (a generated gel warped by a
+known press + shear; real taxim GelSight Mini presses for the video that starts in contact)."""
 
 from __future__ import annotations
 
@@ -10,36 +10,40 @@ from tacswitch.motion import mechanics, proxy
 from tacswitch.motion.sequence import MarkerlessTracker
 
 
-def test_press_then_shear_is_the_rule_plus_the_flow_from_the_anchor(mini, grid) -> None:
-    i = 6
-    tr = MarkerlessTracker(mini.f0, grid, gain="gelsight")
-    assert not tr.update(mini.f0.copy()).any()  # no contact yet: exactly zero
-    assert tr.anchor_index is None
-    press = tr.update(mini.imgs[i])
-    np.testing.assert_array_equal(press, mechanics.mechanics_motion(mini.imgs[i], mini.f0, grid,
-                                                                   gain=0.25))
-    assert tr.anchor_index == 1
-    fld = proxy.random_field("shear", tuple(mini.centres[i]), float(mini.radii[i]), 10.0,
-                             np.random.default_rng(4), shape=(240, 320))
-    sheared = proxy.warp(mini.imgs[i], fld)
-    true = press + fld.at(grid + press)
-    got = tr.update(sheared)
-    err = np.linalg.norm(got - true, axis=1).mean()
-    assert err < 0.3 * np.linalg.norm(true, axis=1).mean()
-    # The pair alone (auto: the rule against the no-contact frame) cannot see the shear.
-    from tacswitch import predict_motion
+def test_with_the_no_contact_frame_it_is_the_direct_flow_from_it(grid) -> None:
+    from gel_fixtures import _gel, _pressed_and_sheared
 
-    pair = predict_motion(sheared, mini.f0, grid, gain="gelsight")
-    assert np.linalg.norm(pair - true, axis=1).mean() > 2 * err
-    # Released: back to the no-contact frame, exactly zero, and the anchor is gone.
-    assert not tr.update(mini.f0.copy()).any()
-    assert tr.anchor_index is None
+    from tacswitch.motion.flow import flow_motion, sample_field
+
+    f0 = _gel()
+    tr = MarkerlessTracker(f0, grid, gain="gelsight")
+    assert not tr.update(f0.copy()).any()  # no contact: exactly zero
+    frames = [_pressed_and_sheared(f0, a) for a in (2.0, 5.0, 8.0)]
+    from tacswitch.motion.reference import is_new_contact
+
+    assert all(is_new_contact(img, f0) for img, _ in frames)  # a contact the reference lacks
+    for img, fld in frames:
+        got = tr.update(img)
+        np.testing.assert_array_equal(got, flow_motion(img, f0, grid))
+        true = sample_field(fld, grid)
+        moved = np.linalg.norm(true, axis=1) >= 1.0
+        # The press and the shear at their size: the magnitude within 30 % (the earlier
+        # design took the press from the mechanics rule, a fraction of it on such a gel).
+        ratio = np.linalg.norm(got[moved], axis=1).sum() / np.linalg.norm(true[moved],
+                                                                          axis=1).sum()
+        assert 0.7 < ratio < 1.3, ratio
+        cos = np.sum(got[moved] * true[moved], 1) / (np.linalg.norm(got[moved], axis=1)
+                                                   * np.linalg.norm(true[moved], axis=1))
+        assert cos.mean() > 0.9
+        assert tr.anchor_index is None
+    # Released: back to the no-contact frame, exactly zero.
+    assert not tr.update(f0.copy()).any()
 
 
 def test_reset_and_bad_inputs(mini, grid) -> None:
     tr = MarkerlessTracker(mini.f0, grid)
     tr.update(mini.imgs[3])
-    assert tr.anchor_index == 0
+    assert tr.anchor_index is None  # with a no-contact frame there is no anchor
     tr.reset()
     assert tr.anchor_index is None
     with pytest.raises(ValueError, match=r"^frame: shape \(120, 320, 3\) does not match"):

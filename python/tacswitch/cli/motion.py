@@ -15,14 +15,20 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("motion", help="predict marker motion from markerless images",
                        description="Predicts the (dx, dy) each marker would have had from "
                                    "markerless frames; writes a CSV and an arrow overlay per "
-                                   "image. Unreadable images are skipped, counted and named "
-                                   "in a warning on stderr.")
-    p.add_argument("inputs", nargs="+", help="markerless image files or folders")
+                                   "image. A video is one sequence (as --sequence): every "
+                                   "frame's motion from rest by tacswitch.MarkerlessTracker, "
+                                   "one CSV per video (frame, x, y, dx, dy) and the overlay "
+                                   "of its last frame. Unreadable images are skipped, counted "
+                                   "and named in a warning on stderr.")
+    p.add_argument("inputs", nargs="+",
+                   help="markerless image files, videos (.mp4, .avi, .mov, .mkv, .webm, .m4v) "
+                        "or folders of them")
     p.add_argument("--ref", default=None,
                    help="markerless no-contact frame (needed by models trained with it)")
     p.add_argument("--centres", default=None,
-                   help="CSV with x,y columns (e.g. from `tacswitch markers`); default: the "
-                        "model's grid scaled to the frame")
+                   help="CSV with x,y columns of your sensor's marker rest centres (e.g. from "
+                        "`tacswitch markers` on a frame with markers); default: the GelSight "
+                        "Mini's 9 x 11 grid (pitch 28.5 px at 320 x 240) scaled to the frame")
     p.add_argument("--model", default=None, help="ONNX model (default: the shipped one)")
     p.add_argument("--method", choices=("auto", "ensemble", "model", "flow", "outward",
                                         "mechanics"),
@@ -47,7 +53,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="the inputs are the frames of one video, in name order: each frame's "
                         "motion from rest by tacswitch.MarkerlessTracker (--ref: the no-contact "
                         "frame; without it the video starts in contact and its first frame is "
-                        "the anchor); method auto only")
+                        "the anchor); method auto only. Videos are always read so")
     p.add_argument("-o", "--out", default="motion-out", help="output folder (default: %(default)s)")
     p.add_argument("--scale", type=float, default=3.0, help="arrow length per px of motion")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")
@@ -91,13 +97,12 @@ def _gain_option(text: str | None, method: str) -> float | str | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import cv2
     import numpy as np
 
     from tacswitch._io import atomic_open, read_image, write_image
     from tacswitch.cli.options import UsageError, input_file, load_model_option, output_dir
     from tacswitch.cli.progress import progress, say
-    from tacswitch.cli.sources import collect_images, read_quiet, report_unreadable
+    from tacswitch.cli.sources import collect_inputs, read_quiet, report_unreadable
     from tacswitch.motion.infer import load_model, predict_motion
 
     if args.method == "flow" and not args.ref:
@@ -118,8 +123,16 @@ def run(args: argparse.Namespace) -> int:
     # (which ignores the gain): check --gain as the ensemble's.
     gain = _gain_option(args.gain, "ensemble" if args.method == "auto" else args.method)
     centres = _read_centres(str(input_file(args.centres, "--centres"))) if args.centres else None
-    files = collect_images(args.inputs)
+    files, videos = collect_inputs(args.inputs)
+    if videos and args.method != "auto":
+        raise UsageError(f"--method: a video is one sequence, tracked by MarkerlessTracker "
+                         f"(the flow from rest); drop --method {args.method}")
     out = output_dir(args.out, "--out")
+    if centres is None:
+        say("centres: the default grid (the GelSight Mini's 9 x 11 markers scaled to the "
+            "frame); pass --centres for your sensor's own", quiet=args.quiet)
+    for path in videos:
+        _track_video(path, ref, centres, gain, args, out)
     tracker = None
     if args.sequence:
         from tacswitch.motion.sequence import MarkerlessTracker
@@ -150,15 +163,61 @@ def run(args: argparse.Namespace) -> int:
                 w.writerow([f"{x:.3f}", f"{y:.3f}", f"{dx:.4f}", f"{dy:.4f}"])
             with atomic_open(out / f"{path.stem}.csv") as fh:
                 fh.write(buf.getvalue())
-            vis = img.copy()
-            for (x, y), (dx, dy) in zip(pts, motion, strict=True):
-                tip = (round(float(x + args.scale * dx)), round(float(y + args.scale * dy)))
-                cv2.arrowedLine(vis, (round(float(x)), round(float(y))), tip, (0, 0, 255), 1,
-                                cv2.LINE_AA, tipLength=0.3)
-            write_image(out / f"{path.stem}_motion.png", vis)
+            write_image(out / f"{path.stem}_motion.png", _arrows(img, pts, motion, args.scale))
             mx = float(np.hypot(motion[:, 0], motion[:, 1]).max()) if len(motion) else 0.0
             say(f"{path}: {len(motion)} markers, largest motion {mx:.2f} px -> "
                 f"{out / (path.stem + '.csv')}", quiet=args.quiet)
             done += 1
-    report_unreadable("motion", failed, done)
+    report_unreadable("motion", failed, done + len(videos))
     return 0
+
+
+def _arrows(img, pts, motion, scale: float):  # type: ignore[no-untyped-def]
+    """``img`` with an arrow per marker, ``scale`` px per px of motion."""
+    import cv2
+
+    vis = img.copy()
+    for (x, y), (dx, dy) in zip(pts, motion, strict=True):
+        tip = (round(float(x + scale * dx)), round(float(y + scale * dy)))
+        cv2.arrowedLine(vis, (round(float(x)), round(float(y))), tip, (0, 0, 255), 1,
+                        cv2.LINE_AA, tipLength=0.3)
+    return vis
+
+
+def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # type: ignore[no-untyped-def]
+                 out: Path) -> None:
+    """Every frame of the video ``path`` through one :class:`MarkerlessTracker` (``ref``: the
+    no-contact frame, or None: the video starts in contact); ``<stem>.csv`` with a row per
+    frame and marker, ``<stem>_motion.png`` the last frame's arrows. Frames that do not decode
+    are skipped (their rows are absent); a video with none raises ``ValueError``."""
+    import numpy as np
+
+    from tacswitch._io import atomic_open, write_image
+    from tacswitch.cli.progress import say
+    from tacswitch.cli.sources import video_frames
+    from tacswitch.motion.sequence import MarkerlessTracker
+
+    tracker = MarkerlessTracker(ref, centres, gain=gain, model=args.model)
+    buf = io.StringIO()
+    w = csv.writer(buf)
+    w.writerow(["frame", "x", "y", "dx", "dy"])
+    last = None
+    n = 0
+    for t, img in enumerate(video_frames(path, "inputs")):
+        if img is None:
+            continue
+        motion = tracker.update(img)
+        pts = tracker.centres
+        assert pts is not None  # set by the first update
+        for (x, y), (dx, dy) in zip(pts, motion, strict=True):
+            w.writerow([t, f"{x:.3f}", f"{y:.3f}", f"{dx:.4f}", f"{dy:.4f}"])
+        last = (img, pts, motion)
+        n += 1
+    if last is None:
+        raise ValueError(f"inputs: no frame of {str(path)!r} could be decoded")
+    with atomic_open(out / f"{path.stem}.csv") as fh:
+        fh.write(buf.getvalue())
+    write_image(out / f"{path.stem}_motion.png", _arrows(*last, args.scale))
+    mx = float(np.hypot(*last[2].T).max()) if len(last[2]) else 0.0
+    say(f"{path}: {n} frames, {len(last[2])} markers, largest motion at the last frame "
+        f"{mx:.2f} px -> {out / (path.stem + '.csv')}", quiet=args.quiet)

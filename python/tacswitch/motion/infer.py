@@ -203,12 +203,11 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             training grid (the GelSight Mini preset's 9 x 11 grid, pitch 28.5 px at 320 x 240)
             scaled to the frame, for every method; pass your sensor's own centres (e.g.
             ``tacswitch.extract_markers(ref_with_markers).centres``) otherwise.
-        method: ``"auto"`` (default): without ``ref``, ``"ensemble"``; with ``ref``,
-            ``"flow"`` when ``ref`` shows the same contact as ``img`` (or none), and
-            ``"ensemble"`` (its rule against ``ref``) when ``ref`` lacks ``img``'s contact,
-            e.g. the no-contact frame (:mod:`tacswitch.motion.reference`: against it the
-            imprint appears, and flow turns its shading into false motion) — the choices that
-            scored best on real frames, see the README;
+        method: ``"auto"`` (default): without ``ref``, ``"ensemble"``; with ``ref`` (the
+            no-contact frame or a frame of the same contact), ``"flow"`` — the choices that
+            scored best on real frames with real marker motion
+            (``benches/bench_motion_video_real.py``; until this release a no-contact ``ref``
+            ran the ensemble, which kept ~1/6 of a real Mini press's motion);
             ``"ensemble"`` (the mean of the mechanics rule and the learned single-frame model,
             :mod:`tacswitch.motion.ensemble`; with or without ``ref``, which only the rule
             uses), ``"model"`` (the ONNX model), ``"flow"`` (training-free dense optical flow
@@ -236,9 +235,9 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             (:func:`tacswitch.motion.flow.flow_motion`); default ``False`` (a reference of the
             same contact).
         gain: ``method="mechanics"``, ``"ensemble"``, ``"outward"`` or ``"auto"`` (used when
-            it runs the ensemble, ignored when it runs flow): how far a press moves this sensor's
-            gel, which one image does not show. A sensor name, ``"gelsight"`` or
-            ``"gelsight_mini"`` (gains fitted on that sensor's real presses:
+            it runs the ensemble, i.e. without ``ref``; ignored when it runs flow): how far a
+            press moves this sensor's gel, which one image does not show. A sensor name,
+            ``"gelsight"`` or ``"gelsight_mini"`` (gains fitted on that sensor's real presses:
             :data:`tacswitch.sim.presets.MECHANICS_GAINS` / ``OUTWARD_GAINS``; the real Mini's
             gel barely moves, so its gains predict ~zero), a number >= 0 (mechanics: the
             dimensionless gain, e.g. ``tacswitch.motion.calibration.calibrate_press_gain(
@@ -301,11 +300,11 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
     pts = (load_model(model).centres_for(*frame.shape[:2]) if centres is None
            else as_points(centres, "centres"))
     if method == "auto":
-        # With a reference: flow follows a contact present in both frames (real warp proxy,
-        # same-contact reference: 2.7 vs 10.2 px for zero motion), but turns an imprint that
-        # appears into false motion (real frames + calibrated press field, no-contact
-        # reference: flow 4.45, mechanics 1.64, zero 2.74 px; the ensemble with the rule
-        # against the reference is better still on real presses); see motion/reference.py.
+        # With a reference, flow, whatever the reference shows: on real GelSight Mini videos
+        # with tracked markers (benches/bench_motion_video_real.py) flow from the no-contact
+        # frame keeps the press's magnitude (ratio ~0.9-1.0) where the ensemble, the earlier
+        # choice against a no-contact reference, predicted ~1/6 of it; on taxim's real
+        # GelSight presses (grain-matched truth) flow was already the better of the two.
         method = resolve_method(method, frame, ref_arr)
     if method == "flow":
         from tacswitch.motion.flow import DEFAULT_PRESET, flow_motion
@@ -336,17 +335,11 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
 def resolve_method(method: str, img: Any = None, ref: Any = None) -> str:
     """The method :func:`predict_motion` runs for ``method`` on ``img`` (validated BGR uint8)
     and ``ref`` (None: single frame): ``"auto"`` stands for ``"ensemble"`` without a
-    reference or with one that lacks ``img``'s contact
-    (:func:`tacswitch.motion.reference.is_new_contact`), else ``"flow"``; any other name is
-    returned as is."""
+    reference and ``"flow"`` with one; any other name is returned as is."""
+    del img  # the choice depends on whether there is a reference only
     if method != "auto":
         return method
-    if ref is None:
-        return "ensemble"
-    from tacswitch.motion.reference import is_new_contact
-
-    # Identical frames are no new contact (nothing changed): flow, which returns zero.
-    return "ensemble" if is_new_contact(img, ref) else "flow"
+    return "ensemble" if ref is None else "flow"
 
 
 def _rule_gain(method: str, gain: Any) -> float:

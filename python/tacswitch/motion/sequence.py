@@ -1,27 +1,31 @@
 """Marker motion from rest over a markerless video: the no-contact frame, then the contact.
 
-One pair cannot have it both ways: against the no-contact frame the imprint *appears* and optical
-flow turns its shading into false motion, so the contact-mechanics rule is the better estimate
-there (:mod:`tacswitch.motion.reference`), but that rule sees only the press, never the shear or
-twist that drags a stuck contact sideways; against a frame of the same contact flow follows that
-lateral motion well (real texture: cosine 0.97). A video has both frames.
-:class:`MarkerlessTracker` anchors on the first frame that shows a contact the no-contact frame
-lacks, takes the press part of the motion there from the mechanics rule against the no-contact
-frame, and from then on adds the flow from the anchor (read at the markers' anchored positions):
-
-    motion(t) = m_rule(anchor vs no-contact) + flow(anchor -> frame t) at (centres + m_rule)
-
-Before the first contact (and after the contact is released) it returns the flow from the
-no-contact frame, which for a frame without contact is texture motion only (exactly zero for an
-identical frame). Measured in ``benches/bench_motion_sequence.py`` (BENCHMARKS.md "Markerless
-motion over a sequence").
+With the no-contact frame, every frame's motion is the optical flow from that frame, read at
+the rest centres (:func:`tacswitch.motion.flow.flow_motion`; exactly zero for an identical
+frame). Measured on real GelSight Mini videos with tracked markers (29 objects, markers removed,
+``benches/bench_motion_video_real.py``, BENCHMARKS.md "Markerless motion on real GelSight Mini
+videos"), the direct flow from the no-contact frame beat every chained estimate tried on the
+development objects: e_rmse 1.35 px (zero 1.72) against 1.38 for anchoring at the first contact
+and adding the flow from there, 2.5-3.5 for re-anchoring whenever the motion from the anchor
+passes 0-5 px (every link adds its own error; drift grows with the chain), and 1.36 for the
+earlier design (the mechanics rule at the first frame with a new contact, then the flow from
+it). Where it matters — the frames showing a contact the no-contact frame lacks — the earlier
+design lost the press: over all 29 objects, ghost control, e_rmse 1.44 px, cosine 0.31,
+magnitude ratio 0.50, against the direct flow's 1.25 / 0.62 / 0.90 (zero 1.14; the rule
+predicts little press motion on these gels, which move several px). On the simulator's grasps
+and on real frames with the modelled press field (the rule's own physics) the earlier design
+was better (``benches/bench_motion_sequence.py``); the real markers decided.
 
 A video that starts in contact has no no-contact frame (``no_contact=None``): the first frame
 is the anchor and the mechanics rule runs on it alone (single frame; ``predict_motion(img)``
-runs the ensemble, rule + learned model, instead); the contact cannot be seen to end, so the
-anchor stays until :meth:`~MarkerlessTracker.reset`. Checked on real marker motion: the two
-FOTS GelSight Mini frames (a press, then the same contact sheared), markers removed,
-``benches/bench_motion_fots.py``.
+runs the ensemble, rule + learned model, instead); every later frame adds the flow from the
+anchor, read at the markers' anchored positions:
+
+    motion(t) = m_rule(anchor) + flow(anchor -> frame t) at (centres + m_rule)
+
+The contact cannot be seen to end, so the anchor stays until :meth:`~MarkerlessTracker.reset`.
+Checked on real marker motion: the two FOTS GelSight Mini frames (a press, then the same contact
+sheared), markers removed, ``benches/bench_motion_fots.py``.
 
 Units and conventions: frames ``H x W x 3`` uint8 BGR of one size, centres and motion ``(x, y)``
 px with pixel centres at integers.
@@ -47,14 +51,17 @@ class MarkerlessTracker:
             module doc).
         centres: ``N x 2`` float32 marker rest centres ``(x, y)`` px (default: the shipped motion
             model's grid scaled to the frame, as :func:`tacswitch.predict_motion`).
-        gain: the mechanics rule's press gain (a sensor name or a number >= 0, as
-            :func:`tacswitch.predict_motion` takes it; default: the rule's).
+        gain: the mechanics rule's press gain on the first frame of a video that starts in
+            contact (``no_contact=None``; a sensor name or a number >= 0, as
+            :func:`tacswitch.predict_motion` takes it; default: the rule's). Unused with a
+            no-contact frame.
         model: motion model path, used only for the default centres.
 
     Attributes:
         centres: the rest centres used (None until the first frame when both ``no_contact``
         and ``centres`` were None); ``anchor_index``: index (0-based count of :meth:`update`
-        calls since the last reset) of the current anchor frame, or None.
+        calls since the last reset) of the anchor frame of a video that starts in contact,
+        or None (always None with a no-contact frame).
     """
 
     def __init__(self, no_contact: Any = None, centres: Any = None, *,
@@ -102,7 +109,6 @@ class MarkerlessTracker:
         from tacswitch.motion.flow import flow_motion
         from tacswitch.motion.infer import _bgr
         from tacswitch.motion.mechanics import mechanics_motion
-        from tacswitch.motion.reference import is_new_contact
 
         img = _bgr(frame, "frame")
         if self._shape is None:
@@ -116,18 +122,12 @@ class MarkerlessTracker:
         assert c is not None  # set by _checked at construction or on the first frame
         if len(c) == 0:
             return np.zeros((0, 2), np.float32)
-        if self.no_contact is None:
-            # Starts in contact: the first frame is the anchor, the rule on it alone.
-            if self._anchor is None:
-                self._anchor = (img.copy(), mechanics_motion(img, None, c, gain=self.gain))
-                self.anchor_index = index
-                return self._anchor[1].copy()
-        elif not is_new_contact(img, self.no_contact):
-            # No contact (yet, or any more): texture motion against the no-contact frame.
-            self._anchor = self.anchor_index = None
+        if self.no_contact is not None:
+            # The direct flow from rest (module doc: chaining through anchors adds error).
             return flow_motion(img, self.no_contact, c)
         if self._anchor is None:
-            self._anchor = (img.copy(), mechanics_motion(img, self.no_contact, c, gain=self.gain))
+            # Starts in contact: the first frame is the anchor, the rule on it alone.
+            self._anchor = (img.copy(), mechanics_motion(img, None, c, gain=self.gain))
             self.anchor_index = index
             return self._anchor[1].copy()
         anchor, pressed = self._anchor

@@ -15,7 +15,9 @@ Rows:
 - ``--markerless``: the same on the markerless sensor each video would have been (markers
   removed, motion predicted by ``MarkerlessTracker``), scorer trained on markers.
 
-``--export PATH`` trains on every experiment and writes the scorer (the shipped model).
+``--export PATH`` trains on every experiment and writes the scorer (the shipped models:
+``python/tacswitch/models/slip_scorer.onnx``, and with ``--markerless``
+``slip_scorer_markerless.onnx``).
 
     python benches/bench_slip_real.py [--data DIR] [--seeds 3] [--workers 2] [--markerless]
 """
@@ -56,12 +58,15 @@ def main() -> int:
     if args.export is not None:
         from tacswitch.grasp.train import EPOCHS, export_scorer, train_scorer
 
+        if args.markerless:
+            clips = experiment_clips(exps, CACHE, markerless=True, workers=args.workers)
         res = train_scorer([[c.features() for c in exp] for exp in clips], labels,
                            epochs=args.epochs or EPOCHS, seed=0,
                            log=lambda s: print(s, file=sys.stderr))
+        motion = "markers removed, MarkerlessTracker" if args.markerless else "markers"
         export_scorer(res, args.export, extra={
             "trained_on": f"{args.data.name}: {len(exps)} experiments, "
-                          f"{len(set(objects))} objects (real GelSight Mini, markers)"})
+                          f"{len(set(objects))} objects (real GelSight Mini, {motion})"})
         print(f"wrote {args.export}")
         return 0
     print(f"REAL GelSight Mini grasps: {len(exps)} experiments, {len(set(objects))} objects, "
@@ -84,8 +89,12 @@ def main() -> int:
         print(format_scores(f"markers: learned, objects held out (5 folds, seed {seed})",
                             score_experiments(labels, flags["train"])), flush=True)
         if test is not None:
-            print(format_scores(f"markerless (markers removed): learned, objects held out "
-                                f"(seed {seed})", score_experiments(labels, flags["markerless"])),
+            print(format_scores(f"markerless: the marker scorer, objects held out (seed "
+                                f"{seed})", score_experiments(labels, flags["markerless"])),
+                  flush=True)
+            own = cross_validated_flags(test, labels, objects, seed=seed, epochs=args.epochs)
+            print(format_scores(f"markerless: learned on markerless motion, objects held out "
+                                f"(seed {seed})", score_experiments(labels, own["train"])),
                   flush=True)
     return 0
 

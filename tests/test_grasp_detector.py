@@ -60,13 +60,15 @@ def test_scorer_runs_only_between_contact_onset_and_release(seed: int) -> None:
     assert not any(s.slip for s in states[released:])
 
 
-def test_shipped_scorer_loads_and_scores() -> None:
-    scorer = load_scorer()
+@pytest.mark.parametrize("name", [None, "markers", "markerless"])
+def test_shipped_scorers_load_and_score(name: str | None) -> None:
+    scorer = load_scorer(name)
     x = np.zeros((3, N_FEATURES), np.float32)
     out = scorer(x)
     assert out.shape == (3,) and np.isfinite(out).all()
     np.testing.assert_allclose(out, out[0])  # frames scored independently
     assert np.isfinite(scorer.threshold) and scorer.warmup >= 0
+    assert scorer.path.name.startswith("slip_scorer")
 
 
 @pytest.mark.parametrize("seed", [4, 7])

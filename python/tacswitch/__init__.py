@@ -22,6 +22,7 @@ torch are imported by the functions that need them.
 from __future__ import annotations
 
 from tacswitch._native import __version__
+from tacswitch.grasp.detector import GraspSlipDetector, GraspSlipState
 from tacswitch.inpaint import (
     inpaint_biharmonic,
     inpaint_telea,
@@ -36,6 +37,8 @@ from tacswitch.slip import SlipDetector, SlipState
 from tacswitch.tracking import MarkerTracker, estimate_pitch, match_markers
 
 __all__ = [
+    "GraspSlipDetector",
+    "GraspSlipState",
     "MarkerTracker",
     "MarkerlessTracker",
     "Markers",

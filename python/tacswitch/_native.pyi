@@ -7,7 +7,10 @@ from numpy.typing import NDArray
 
 __version__: str
 __all__ = [
+    "SLIP_N_FEATURES",
+    "SLIP_N_FRAME",
     "SlipDetector",
+    "SlipFeatures",
     "Tracker",
     "__version__",
     "dilate_mask",
@@ -103,6 +106,7 @@ class SlipDetector:
 SLIP_N_FEATURES: int
 SLIP_N_FRAME: int
 
+@final
 class SlipFeatures:
     def __new__(cls, points: NDArray[np.float32], pitch: float) -> SlipFeatures: ...
     def update(self, motion: NDArray[np.float32], valid: NDArray[np.bool_]

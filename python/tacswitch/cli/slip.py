@@ -37,8 +37,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "grasp start (implied by --threshold-px, --rigid-threshold-px, "
                         "--rigid-only and --smooth-frames)")
     p.add_argument("--slip-model", default=None, metavar="ONNX",
-                   help="scorer for --rule learned (default: the shipped one; make your own "
-                        "with `tacswitch train slip`)")
+                   help="scorer for --rule learned (default: the shipped one, for markers or "
+                        "with --markerless for predicted motion; make your own with "
+                        "`tacswitch train slip`)")
     p.add_argument("--score-threshold", type=float, default=None, metavar="LOGIT",
                    help="--rule learned flags a frame whose score exceeds this (default: the "
                         "model's, 0); higher: fewer false alarms, later and fewer detections")
@@ -229,7 +230,8 @@ def _run_learned(args: argparse.Namespace) -> int:
     from tacswitch.cli.progress import progress
     from tacswitch.grasp.detector import GraspSlipDetector
 
-    model = str(input_file(args.slip_model, "--slip-model")) if args.slip_model else None
+    model = (str(input_file(args.slip_model, "--slip-model")) if args.slip_model
+             else "markerless" if args.markerless else "markers")
     show = args.show and (sys.platform == "win32" or bool(os.environ.get("DISPLAY")))
     tracker: ts.MarkerTracker | MarkerlessSequence | None = None
     detector: GraspSlipDetector | None = None

@@ -78,7 +78,7 @@ def read_video(path: str | os.PathLike[str]) -> Iterator[NDArray[np.uint8]]:
     """Decoded BGR frames of a video (unreadable frames skipped)."""
     from tacswitch.cli.sources import video_frames
 
-    for frame in video_frames(path, "video"):
+    for frame in video_frames(Path(path), "video"):
         if frame is not None and frame.ndim == 3:
             yield frame
 

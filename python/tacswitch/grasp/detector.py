@@ -31,8 +31,10 @@ from tacswitch._checks import as_motion, as_points, as_valid
 from tacswitch.grasp.features import N_FEATURES, FieldFeatures
 from tacswitch.grasp.phases import GRASP, PRESSING, GraspSegmenter, Step
 
-#: The shipped scorer (``python/tacswitch/models``).
-DEFAULT_SLIP_MODEL = "slip_scorer.onnx"
+#: The shipped scorers (``python/tacswitch/models``): trained on tracked markers, and on the
+#: motion ``MarkerlessTracker`` predicts once the markers are removed from the same videos.
+SHIPPED_SLIP_MODELS = {"markers": "slip_scorer.onnx", "markerless": "slip_scorer_markerless.onnx"}
+DEFAULT_SLIP_MODEL = SHIPPED_SLIP_MODELS["markers"]
 RULES = ("learned", "paper")
 #: Marker pitch (px) assumed when the reference has fewer than two markers.
 FALLBACK_PITCH_PX = 30.0
@@ -41,10 +43,12 @@ Scorer = Callable[[NDArray[np.float32]], NDArray[np.float32]]
 
 
 def slip_model_path(path: str | os.PathLike[str] | None = None) -> Path:
-    """The scorer file: ``path``, else the shipped one."""
-    if path is not None:
-        return Path(path)
-    return Path(__file__).resolve().parent.parent / "models" / DEFAULT_SLIP_MODEL
+    """The scorer file: ``path``, a shipped model's name (``"markers"``, ``"markerless"``),
+    else the shipped marker scorer."""
+    name = SHIPPED_SLIP_MODELS.get(str(path)) if path is not None else DEFAULT_SLIP_MODEL
+    if name is None:
+        return Path(path)  # type: ignore[arg-type]
+    return Path(__file__).resolve().parent.parent / "models" / name
 
 
 class OnnxScorer:
@@ -121,8 +125,9 @@ class GraspSlipDetector:
         image_width: frame width, pixels (scales the contact levels and the paper's threshold;
             default: estimated from the markers' extent).
         rule: ``"learned"`` (default) or ``"paper"``.
-        model: ONNX scorer for the learned rule (default: the shipped one), or a callable
-            ``B x N_FEATURES`` -> ``B`` logits.
+        model: ONNX scorer for the learned rule: a path, ``"markers"`` (the default, for
+            tracked markers) or ``"markerless"`` (for motion predicted on a markerless sensor),
+            or a callable ``B x N_FEATURES`` -> ``B`` logits.
         threshold: the learned rule's logit threshold (default: the model's).
         threshold_px: the paper rule's displacement threshold (default 3.25 px at 640 wide,
             scaled to ``image_width``).
@@ -190,7 +195,8 @@ class GraspSlipDetector:
         if len(m) != len(self.points):
             raise ValueError(f"motion: expected {len(self.points)} rows (one per reference "
                              f"marker); got {len(m)}")
-        v = (~np.isnan(m).any(axis=1)) if valid is None else as_valid(valid, len(m))
+        v: NDArray[np.bool_] = (np.asarray(~np.isnan(m).any(axis=1)) if valid is None
+                                else as_valid(valid, len(m)))
         self.frame += 1
         step = self.segmenter.update(m, v)
         if self._paper is not None:

@@ -1,0 +1,75 @@
+"""Frames per second of the whole slip loop, tracking included, one thread: marker tracking +
+the learned grasp slip detector (``tacswitch slip``'s default) vs tracking + the paper's rule,
+measured in alternating rounds in one run.
+
+Frames: a REAL GelSight Mini grasp video (320x240, from the slip study's training split) when the
+data folder is there, else rendered; a rendered GelSight grasp at 640x480. Budget: >= 1000
+frames/s at 320x240 with the learned detector.
+
+    python benches/bench_slip_loop.py [--rounds 9] [--data DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import time
+from pathlib import Path
+
+import numpy as np
+from harness import machine, single_thread
+
+import tacswitch as ts
+from tacswitch import sim
+from tacswitch.grasp.dataset import read_video
+
+DEFAULT_VIDEO = (Path(__file__).resolve().parents[2]
+                 / "shared/data/real/gsmini_slip_train/avocado_real/exp_num_5/camera_0.avi")
+
+
+def loop_fps(frames: list[np.ndarray], rule: str | None) -> float:
+    """Frames/s of one pass: tracker update, then the detector (None: tracking alone)."""
+    tracker = ts.MarkerTracker(frames[0])
+    det = (None if rule is None else
+           ts.GraspSlipDetector(tracker.reference, image_width=frames[0].shape[1], rule=rule))
+    t0 = time.perf_counter()
+    for f in frames:
+        m, v = tracker.update(f)
+        if det is not None:
+            det.update(m, v)
+    return len(frames) / (time.perf_counter() - t0)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--rounds", type=int, default=9)
+    ap.add_argument("--video", type=Path, default=DEFAULT_VIDEO)
+    args = ap.parse_args()
+    single_thread()
+    sets = []
+    if args.video.is_file():
+        sets.append(("REAL GelSight Mini video 320x240",
+                     list(itertools.islice(read_video(args.video), 450))))
+    else:
+        seq = sim.grasp_sequence("gelsight_mini", "slip", n_frames=60, seed=0)
+        sets.append(("rendered GelSight Mini 320x240", [seq.reference, *seq.frames]))
+    seq = sim.grasp_sequence("gelsight", "slip", n_frames=60, seed=0)
+    sets.append(("rendered GelSight 640x480", [seq.reference, *seq.frames]))
+    print(machine())
+    print("| frames | tracking alone | tracking + paper rule | tracking + learned detector | "
+          "learned / paper |\n|---|---|---|---|---|")
+    for name, frames in sets:
+        loop_fps(frames, "learned")  # warm-up: the scorer's session, caches
+        rates: dict[str | None, list[float]] = {None: [], "paper": [], "learned": []}
+        for _ in range(args.rounds):
+            for rule in rates:
+                rates[rule].append(loop_fps(frames, rule))
+        med = {k: float(np.median(v)) for k, v in rates.items()}
+        print(f"| {name} ({len(frames)} frames, {args.rounds} rounds, medians) | "
+              f"{med[None]:.0f} | {med['paper']:.0f} | {med['learned']:.0f} | "
+              f"{med['learned'] / med['paper']:.2f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

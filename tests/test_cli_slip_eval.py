@@ -1,0 +1,94 @@
+"""``tacswitch evaluate slip`` and ``tacswitch train slip`` on a small labelled folder of rendered
+grasp videos (simulated GelSight Mini; the layout of a user's own recordings)."""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import json
+from pathlib import Path
+
+import cv2
+import pytest
+
+from tacswitch import sim
+from tacswitch.cli import main
+
+
+@pytest.fixture(scope="module")
+def labelled(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    root = tmp_path_factory.mktemp("grasps")
+    rows = []
+    for k, (obj, kind) in enumerate([("cup", "slip"), ("cup", "hold"), ("box", "slip"),
+                                     ("box", "hold"), ("pen", "hold"), ("pen", "slip")]):
+        seq = sim.grasp_sequence("gelsight_mini", kind, n_frames=16, seed=k)
+        folder = root / obj / f"exp_{k}"
+        folder.mkdir(parents=True)
+        frames = [seq.reference] * 3 + list(seq.frames)
+        h, w = frames[0].shape[:2]
+        vw = cv2.VideoWriter(str(folder / "camera_0.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 25,
+                             (w, h))
+        for f in frames:
+            vw.write(f)
+        vw.release()
+        rows.append([obj, f"exp_{k}", int(kind == "slip")])
+    with open(root / "labels.csv", "w", newline="") as fh:
+        csv.writer(fh).writerows([["object", "experiment", "slip"], *rows])
+    return root
+
+
+def run(*args: str) -> tuple[int, str]:
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = main(list(args))
+    return code, buf.getvalue()
+
+
+def test_evaluate_slip_scores_every_experiment(labelled: Path, tmp_path: Path) -> None:
+    out = tmp_path / "res.json"
+    code, text = run("evaluate", "slip", str(labelled), "--json", str(out), "-q",
+                     "--cache", str(tmp_path / "cache"))
+    assert code == 0
+    assert "| markers: learned (shipped model) |" in text
+    res = json.loads(out.read_text())
+    assert len(res["experiments"]) == 6
+    s = res["scores"]
+    assert s["n"] == 6 and s["n_slip"] == 3 and s["tp"] + s["fn"] == 3 and s["tn"] + s["fp"] == 3
+    for e in res["experiments"]:
+        assert e["called"] == any(f is not None for f in e["first_flag"])
+    # The paper rule on the same (cached) tracks: every rendered slip moves past its threshold.
+    code, text = run("evaluate", "slip", str(labelled), "--rule", "paper", "-q",
+                     "--cache", str(tmp_path / "cache"))
+    assert code == 0 and "| markers: paper rule |" in text
+    assert (tmp_path / "cache").is_dir() and len(list((tmp_path / "cache").iterdir())) == 6
+
+
+def test_train_slip_writes_a_model_the_slip_loop_uses(labelled: Path, tmp_path: Path) -> None:
+    pytest.importorskip("torch")
+    model = tmp_path / "mine.onnx"
+    code, _ = run("train", "slip", str(labelled), "--out", str(model), "--epochs", "3", "-q",
+                  "--cache", str(tmp_path / "cache"))
+    assert code == 0 and model.is_file()
+    video = next(labelled.rglob("*.avi"))
+    log = tmp_path / "log.csv"
+    code, _ = run("slip", str(video), "--log", str(log), "--slip-model", str(model), "-q")
+    assert code == 0
+    with open(log) as fh:
+        assert len(list(csv.DictReader(fh))) == 19
+
+
+def test_errors_name_the_argument(labelled: Path, tmp_path: Path,
+                                  capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["evaluate", "slip", str(tmp_path / "nowhere"), "-q"]) != 0
+    assert "data: not a folder" in capsys.readouterr().err
+    bad = tmp_path / "bad.csv"
+    bad.write_text("object,experiment,slip\ncup,exp_0,maybe\n")
+    assert main(["evaluate", "slip", str(labelled), "--labels", str(bad), "-q"]) != 0
+    assert "--labels: line 2: slip must be 0 or 1" in capsys.readouterr().err
+    cols = tmp_path / "cols.csv"
+    cols.write_text("object,slip\ncup,1\n")
+    assert main(["evaluate", "slip", str(labelled), "--labels", str(cols), "-q"]) != 0
+    assert "lacks column(s) ['experiment']" in capsys.readouterr().err
+    assert main(["evaluate", "slip", str(labelled), "--rigid-threshold-px", "2", "-q"]) != 0
+    assert "--rigid-threshold-px: applies to --rule paper only" in capsys.readouterr().err

@@ -126,11 +126,16 @@ def test_extremes_are_finite_and_match_numpy(scale: float, pitch: float, n: int,
         np.testing.assert_allclose(got, want, rtol=1e-3, atol=1e-4 * max(1.0, scale / pitch))
 
 
+def random_walk(seed: int, pts: np.ndarray, frames: int = 30) -> tuple[np.ndarray, np.ndarray]:
+    """Motions of a random walk of every marker, all valid."""
+    rng = np.random.default_rng(seed)
+    motions = np.cumsum(rng.normal(0, 0.5, (frames, len(pts), 2)), axis=0).astype(np.float32)
+    return motions, np.ones((frames, len(pts)), bool)
+
+
 def test_invariant_to_rotating_and_mirroring_the_image() -> None:
-    rng = np.random.default_rng(1)
     pts = grid()
-    motions = np.cumsum(rng.normal(0, 0.5, (30, len(pts), 2)), axis=0).astype(np.float32)
-    valids = np.ones((30, len(pts)), bool)
+    motions, valids = random_walk(1, pts)
     base = sequence_features(motions, valids, pts, 30.0)
     for flip in (np.array([[0, -1], [1, 0]]), np.array([[-1, 0], [0, 1]])):
         f = flip.astype(np.float32)
@@ -139,10 +144,8 @@ def test_invariant_to_rotating_and_mirroring_the_image() -> None:
 
 
 def test_scales_with_the_pitch() -> None:
-    rng = np.random.default_rng(2)
     pts = grid()
-    motions = np.cumsum(rng.normal(0, 0.5, (30, len(pts), 2)), axis=0).astype(np.float32)
-    valids = np.ones((30, len(pts)), bool)
+    motions, valids = random_walk(2, pts)
     small = sequence_features(motions, valids, pts, 30.0)
     big = sequence_features(motions * 2, valids, pts * 2, 60.0)
     np.testing.assert_allclose(small, big, rtol=1e-3, atol=1e-4)

@@ -7,6 +7,7 @@ import csv
 import os
 import sys
 import time
+from typing import Any
 
 import numpy as np
 
@@ -140,20 +141,15 @@ def _check(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import tacswitch as ts
     from tacswitch.cli.options import output_file
     from tacswitch.cli.progress import progress
-    from tacswitch.grasp.phases import GRASP, GraspSegmenter
 
     _check(args)
     if args.markerless:
         _warn_inter_frame_codec(args.source)
-    if args.rule == "learned":
-        return _run_learned(args)
+    rule: _PaperLoop | _LearnedLoop = (_LearnedLoop(args) if args.rule == "learned"
+                                       else _PaperLoop(args))
     show = args.show and (sys.platform == "win32" or bool(os.environ.get("DISPLAY")))
-    tracker: ts.MarkerTracker | MarkerlessMotion | None = None
-    detector: ts.SlipDetector | None = None
-    segmenter: GraspSegmenter | None = None
     n = skipped = slips = 0
     starts: list[int] = []
     t0 = time.perf_counter()
@@ -173,116 +169,23 @@ def run(args: argparse.Namespace) -> int:
                 if frame is None or frame.ndim != 3:
                     skipped += 1
                     continue
-                if tracker is None:
-                    tracker = (MarkerlessMotion(frame, args) if args.markerless
-                               else ts.MarkerTracker(frame))
-                    if len(tracker) == 0:
-                        raise ValueError(f"source: no markers found in the first frame of "
-                                         f"{args.source!r} (a blank or markerless frame?)")
-                    detector = ts.SlipDetector(args.threshold_px,
-                                               rigid_threshold_px=args.rigid_threshold_px,
-                                               use_displacement=not args.rigid_only,
-                                               points=tracker.reference,
-                                               image_width=frame.shape[1],
-                                               smooth_frames=_smooth_frames(args))
-                    segmenter = GraspSegmenter(_epsilon(args, frame.shape[1]), start=args.start)
-                elif frame.shape[:2] != tracker.reference_shape:
+                if rule.tracker is None:
+                    rule.begin(frame)
+                elif frame.shape[:2] != rule.tracker.reference_shape:
                     skipped += 1
                     continue
-                assert detector is not None and segmenter is not None
-                motion, valid = tracker.update(frame)
-                step = segmenter.update(motion, valid)
-                state = None
-                if step.starts:
-                    detector.reset()
+                row, slip, started, state = rule.step(frame, n, time.perf_counter() - t0)
+                if started:
                     starts.append(n)
                     bar.set_postfix_str(f"grasp start at frame {n}", refresh=False)
-                if step.phase == GRASP:
-                    if isinstance(tracker, MarkerlessMotion):
-                        # Slip is measured from the grasp start: predict from that frame.
-                        motion, valid = tracker.since_grasp(frame, restart=step.starts)
-                    state = detector.update(motion, valid)
-                    if state.slip and not slips:
-                        bar.set_postfix_str(f"slip at frame {n}", refresh=False)
-                    slips += state.slip
-                writer.writerow(_row(n, step, state, int(valid.sum()), time.perf_counter() - t0))
-                fh.flush()
-                n += 1
-                if show:
-                    _show(frame, tracker, state)
-        except ConnectionError as exc:
-            print(f"tacswitch slip: {exc}; log kept at {log_path}", file=sys.stderr)
-            status = 1
-    elapsed = time.perf_counter() - t0
-    if n == 0:
-        raise ValueError(f"source: no readable frames in {args.source!r}")
-    if not args.quiet:
-        print(f"{n} frames ({skipped} skipped), {_starts_text(starts, args, segmenter)}, "
-              f"{slips} with slip, {n / elapsed:.0f} frames/s; log: {log_path}")
-    return status
-
-
-def _run_learned(args: argparse.Namespace) -> int:
-    """The slip loop with the learned rule: every frame's field since the first frame goes to
-    :class:`tacswitch.grasp.GraspSlipDetector`, which follows the grasp phases itself."""
-    import tacswitch as ts
-    from tacswitch.cli.options import input_file, output_file
-    from tacswitch.cli.progress import progress
-    from tacswitch.grasp.detector import GraspSlipDetector
-
-    model = (str(input_file(args.slip_model, "--slip-model")) if args.slip_model
-             else "markerless" if args.markerless else "markers")
-    show = args.show and (sys.platform == "win32" or bool(os.environ.get("DISPLAY")))
-    tracker: ts.MarkerTracker | MarkerlessSequence | None = None
-    detector: GraspSlipDetector | None = None
-    n = skipped = slips = 0
-    starts: list[int] = []
-    t0 = time.perf_counter()
-    log_path = output_file(args.log, "--log")
-    status = 0
-    total = frame_count(args.source, args.max_frames)
-    with open(log_path, "w", newline="") as fh, \
-            progress(total=total, desc="slip", unit="frame", quiet=args.quiet or show) as bar:
-        writer = csv.writer(fh)
-        writer.writerow(LOG_COLUMNS)
-        try:
-            for frame in frames(args.source):
-                if args.max_frames is not None and n >= args.max_frames:
-                    break
-                bar.update()
-                if frame is None or frame.ndim != 3:
-                    skipped += 1
-                    continue
-                if tracker is None:
-                    tracker = (MarkerlessSequence(frame, args) if args.markerless
-                               else ts.MarkerTracker(frame))
-                    if len(tracker) == 0:
-                        raise ValueError(f"source: no markers found in the first frame of "
-                                         f"{args.source!r} (a blank or markerless frame?)")
-                    try:
-                        detector = GraspSlipDetector(
-                            tracker.reference, image_width=frame.shape[1], model=model,
-                            threshold=args.score_threshold, start=args.start)
-                    except (ValueError, FileNotFoundError) as exc:
-                        raise ValueError(str(exc).replace("model:", "--slip-model:", 1)
-                                         ) from None
-                elif frame.shape[:2] != tracker.reference_shape:
-                    skipped += 1
-                    continue
-                assert detector is not None
-                motion, valid = tracker.update(frame)
-                st = detector.update(motion, valid)
-                if st.grasp_start == st.frame:
-                    starts.append(n)
-                    bar.set_postfix_str(f"grasp start at frame {n}", refresh=False)
-                if st.slip and not slips:
+                if slip and not slips:
                     bar.set_postfix_str(f"slip at frame {n}", refresh=False)
-                slips += st.slip
-                writer.writerow(_learned_row(n, st, time.perf_counter() - t0))
+                slips += slip
+                writer.writerow(row)
                 fh.flush()
                 n += 1
                 if show:
-                    _show(frame, tracker, st)
+                    _show(frame, rule.tracker, state)
         except ConnectionError as exc:
             print(f"tacswitch slip: {exc}; log kept at {log_path}", file=sys.stderr)
             status = 1
@@ -290,10 +193,98 @@ def _run_learned(args: argparse.Namespace) -> int:
     if n == 0:
         raise ValueError(f"source: no readable frames in {args.source!r}")
     if not args.quiet:
-        seg = detector.segmenter if detector is not None else None
-        print(f"{n} frames ({skipped} skipped), {_starts_text(starts, args, seg)}, "
-              f"{slips} with slip (learned rule), {n / elapsed:.0f} frames/s; log: {log_path}")
+        print(f"{n} frames ({skipped} skipped), {_starts_text(starts, args, rule.segmenter)}, "
+              f"{slips} with slip{rule.label}, {n / elapsed:.0f} frames/s; log: {log_path}")
     return status
+
+
+def _first_tracker(frame: np.ndarray, args: argparse.Namespace, markerless: type) -> Any:
+    """The marker tracker (or its markerless stand-in) from the first frame; one-line error
+    when that frame shows no marker."""
+    import tacswitch as ts
+
+    tracker = markerless(frame, args) if args.markerless else ts.MarkerTracker(frame)
+    if len(tracker) == 0:
+        raise ValueError(f"source: no markers found in the first frame of {args.source!r} "
+                         "(a blank or markerless frame?)")
+    return tracker
+
+
+class _PaperLoop:
+    """The paper's rule from each detected grasp start (``--rule paper``)."""
+
+    label = ""
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.args = args
+        self.tracker: Any = None
+        self.detector: Any = None
+        self.segmenter: Any = None
+
+    def begin(self, frame: np.ndarray) -> None:
+        import tacswitch as ts
+        from tacswitch.grasp.phases import GraspSegmenter
+
+        args = self.args
+        self.tracker = _first_tracker(frame, args, MarkerlessMotion)
+        self.detector = ts.SlipDetector(args.threshold_px,
+                                        rigid_threshold_px=args.rigid_threshold_px,
+                                        use_displacement=not args.rigid_only,
+                                        points=self.tracker.reference,
+                                        image_width=frame.shape[1],
+                                        smooth_frames=_smooth_frames(args))
+        self.segmenter = GraspSegmenter(_epsilon(args, frame.shape[1]), start=args.start)
+
+    def step(self, frame: np.ndarray, n: int, t: float) -> tuple[list, bool, bool, Any]:
+        from tacswitch.grasp.phases import GRASP
+
+        motion, valid = self.tracker.update(frame)
+        step = self.segmenter.update(motion, valid)
+        state = None
+        if step.starts:
+            self.detector.reset()
+        if step.phase == GRASP:
+            if isinstance(self.tracker, MarkerlessMotion):
+                # Slip is measured from the grasp start: predict from that frame.
+                motion, valid = self.tracker.since_grasp(frame, restart=step.starts)
+            state = self.detector.update(motion, valid)
+        slip = bool(state is not None and state.slip)
+        return _row(n, step, state, int(valid.sum()), t), slip, step.starts, state
+
+
+class _LearnedLoop:
+    """The learned rule (default): every frame's field since the first frame goes to
+    :class:`tacswitch.GraspSlipDetector`, which follows the grasp phases itself."""
+
+    label = " (learned rule)"
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        from tacswitch.cli.options import input_file
+
+        self.args = args
+        self.model = (str(input_file(args.slip_model, "--slip-model")) if args.slip_model
+                      else "markerless" if args.markerless else "markers")
+        self.tracker: Any = None
+        self.detector: Any = None
+
+    @property
+    def segmenter(self) -> Any:
+        return None if self.detector is None else self.detector.segmenter
+
+    def begin(self, frame: np.ndarray) -> None:
+        from tacswitch.grasp.detector import GraspSlipDetector
+
+        self.tracker = _first_tracker(frame, self.args, MarkerlessSequence)
+        try:
+            self.detector = GraspSlipDetector(
+                self.tracker.reference, image_width=frame.shape[1], model=self.model,
+                threshold=self.args.score_threshold, start=self.args.start)
+        except (ValueError, FileNotFoundError) as exc:
+            raise ValueError(str(exc).replace("model:", "--slip-model:", 1)) from None
+
+    def step(self, frame: np.ndarray, n: int, t: float) -> tuple[list, bool, bool, Any]:
+        st = self.detector.update(*self.tracker.update(frame))
+        return _learned_row(n, st, t), st.slip, st.grasp_start == st.frame, st
 
 
 def _learned_row(n: int, st, t: float) -> list:  # type: ignore[no-untyped-def]

@@ -200,7 +200,7 @@ def test_cli_slip_markerless_flags_a_growing_shear_after_the_grasp_start(mini, t
     # the last 2 frames: 1.5 px at frame 7, 2.5 px at frame 8.
     for extra, first in (([], 8), (["--smooth-frames", "1"], 7)):
         assert main(["slip", str(folder), "--markerless", "--ref", str(tmp_path / "f0.png"),
-                     "--start", "3", "--log", str(log), "-q", *extra]) == 0
+                     "--start", "3", "--log", str(log), "-q", "--rule", "paper", *extra]) == 0
         rows = list(csv.DictReader(open(log)))
         flagged = [int(r["frame"]) for r in rows if r["slip"] == "1"]
         assert flagged and flagged[0] == first, extra
@@ -298,7 +298,7 @@ def test_cli_slip_markerless_ignores_texture_drifting_far_from_the_contact(mini,
     flagged = {}
     for extra in ([], ["--all-markers"]):
         assert main(["slip", str(folder), "--markerless", "--ref", str(tmp_path / "f0.png"),
-                     "--start", "3", "--log", str(log), "-q", *extra]) == 0
+                     "--start", "3", "--log", str(log), "-q", "--rule", "paper", *extra]) == 0
         rows = list(csv.DictReader(open(log)))
         flagged[bool(extra)] = [int(r["frame"]) for r in rows if r["slip"] == "1"]
         valid = {int(r["valid_markers"]) for r in rows if int(r["frame"]) >= 3}
@@ -359,7 +359,7 @@ def test_cli_slip_markerless_says_when_the_start_frame_shows_no_contact(mini, tm
         cv2.imwrite(str(folder / f"{t:03d}.png"), mini.imgs[6])
     log = tmp_path / "log.csv"
     assert main(["slip", str(folder), "--markerless", "--start", "0", "--log", str(log),
-                 "-q"]) == 0
+                 "-q", "--rule", "paper"]) == 0
     err = capsys.readouterr().err
     assert err.count("warning: --ref: the grasp-start frame shows no contact") == 1
     assert main(["slip", str(folder), "--markerless", "--start", "0", "--all-markers", "--log",

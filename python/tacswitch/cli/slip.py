@@ -36,7 +36,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "time, trained on real lifted and shaken grasps, run from the contact "
                         "onset to the release; 'paper': the paper's displacement rule from the "
                         "grasp start (implied by --threshold-px, --rigid-threshold-px, "
-                        "--rigid-only and --smooth-frames)")
+                        "--rigid-only, --smooth-frames, --method and --all-markers)")
     p.add_argument("--slip-model", default=None, metavar="ONNX",
                    help="scorer for --rule learned (default: the shipped one, for markers or "
                         "with --markerless for predicted motion; make your own with "
@@ -71,9 +71,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="marker rest centres, a CSV with x,y columns (e.g. `tacswitch markers` "
                         "on a frame with markers); default: the motion model's grid scaled to "
                         "the frame")
-    m.add_argument("--method", choices=("flow", "model", "outward"), default="flow",
-                   help="how motion is predicted (default: %(default)s, dense optical flow "
-                        "from the reference)")
+    m.add_argument("--method", choices=("flow", "model", "outward"), default=None,
+                   help="--rule paper: how motion is predicted (default: flow, dense optical "
+                        "flow from the reference; the learned rule reads MarkerlessTracker's "
+                        "motion)")
     m.add_argument("--model", default=None, help="ONNX motion model for --method model")
     m.add_argument("--all-markers", action="store_true",
                    help="judge slip on every marker (default: only the markers near the "
@@ -86,7 +87,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 RULES = ("learned", "paper")
 #: Options of the paper rule only: giving one selects it when --rule is not given.
-PAPER_OPTIONS = ("threshold_px", "rigid_threshold_px", "smooth_frames")
+PAPER_OPTIONS = ("threshold_px", "rigid_threshold_px", "smooth_frames", "method")
 
 
 def _px_or_auto(text: str) -> float | str:
@@ -123,7 +124,7 @@ def _check(args: argparse.Namespace) -> None:
             if value is not None:
                 raise UsageError(f"{flag}: applies to --markerless only")
     paper_given = [o for o in PAPER_OPTIONS if getattr(args, o) is not None] + (
-        ["rigid_only"] if args.rigid_only else [])
+        ["rigid_only"] if args.rigid_only else []) + (["all_markers"] if args.all_markers else [])
     if args.rule is None:
         args.rule = "paper" if paper_given else "learned"
     if args.rule == "learned" and paper_given:
@@ -355,7 +356,7 @@ class MarkerlessMotion:
             raise ValueError(f"--ref: shape {self.ref.shape} does not match the frames "
                              f"{first.shape}")
         self.reference_shape = first.shape[:2]
-        self.method, self.model = args.method, args.model
+        self.method, self.model = args.method or "flow", args.model
         self.reference = (_read_centres(str(input_file(args.centres, "--centres")))
                           if args.centres else
                           load_model_option(load_model, args.model).centres_for(

@@ -32,6 +32,7 @@ from pathlib import Path
 from tacswitch.grasp.crossval import clip_flags, cross_validated_flags
 from tacswitch.grasp.dataset import experiment_clips, read_labels
 from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
+from tacswitch.grasp.simulated import SIMULATED_PER_KIND, SIMULATED_SEED, simulated_clips
 
 DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared/data/real/gsmini_slip_train"
 CACHE = Path(__file__).resolve().parents[1] / "bench-results" / "slip_real"
@@ -46,6 +47,9 @@ def main() -> int:
     ap.add_argument("--markerless", action="store_true")
     ap.add_argument("--export", type=Path, default=None)
     ap.add_argument("--no-rules", action="store_true", help="skip the paper-rule rows")
+    ap.add_argument("--simulated", type=int, default=SIMULATED_PER_KIND,
+                    help="rendered grasps per kind and sensor added to every training set "
+                         "of the marker scorer (default: %(default)s; 0: real grasps only)")
     args = ap.parse_args()
 
     exps = read_labels(args.data)
@@ -60,6 +64,10 @@ def main() -> int:
 
         if args.markerless:
             clips = experiment_clips(exps, CACHE, markerless=True, workers=args.workers)
+        elif args.simulated:
+            sim_clips, sim_labels = simulated_clips(args.simulated, SIMULATED_SEED)
+            clips = clips + [[c] for c in sim_clips]
+            labels = labels + sim_labels
         res = train_scorer([[c.features() for c in exp] for exp in clips], labels,
                            epochs=args.epochs or EPOCHS, seed=0,
                            log=lambda s: print(s, file=sys.stderr))
@@ -79,15 +87,21 @@ def main() -> int:
             flags = [[clip_flags(c, rule="paper", **opts) for c in exp] for exp in clips]
             print(format_scores(f"markers: {name}", score_experiments(labels, flags)),
                   flush=True)
+    extra = None
+    if args.simulated:
+        sim_clips, sim_labels = simulated_clips(args.simulated, SIMULATED_SEED)
+        extra = ([[c] for c in sim_clips], sim_labels)
     test = None
     if args.markerless:
         test = experiment_clips(exps, CACHE, markerless=True, workers=args.workers,
                                 progress=True)
     for seed in range(args.seeds):
         flags = cross_validated_flags(clips, labels, objects, seed=seed, epochs=args.epochs,
-                                      test_sets={"markerless": test} if test else None)
-        print(format_scores(f"markers: learned, objects held out (5 folds, seed {seed})",
-                            score_experiments(labels, flags["train"])), flush=True)
+                                      test_sets={"markerless": test} if test else None,
+                                      extra=extra)
+        with_sim = f" + {len(extra[1])} rendered grasps" if extra else ""
+        print(format_scores(f"markers: learned{with_sim}, objects held out (5 folds, seed "
+                            f"{seed})", score_experiments(labels, flags["train"])), flush=True)
         if test is not None:
             print(format_scores(f"markerless: the marker scorer, objects held out (seed "
                                 f"{seed})", score_experiments(labels, flags["markerless"])),
@@ -96,7 +110,29 @@ def main() -> int:
             print(format_scores(f"markerless: learned on markerless motion, objects held out "
                                 f"(seed {seed})", score_experiments(labels, own["train"])),
                   flush=True)
+    if extra is not None:
+        from tacswitch.grasp.crossval import torch_scorer
+        from tacswitch.grasp.train import EPOCHS, train_scorer
+
+        # Simulated grasps of seeds never trained on, scored by a scorer trained on every real
+        # experiment and the rendered training grasps (as shipped).
+        held, held_labels = simulated_clips(HELD_OUT_SIM, HELD_OUT_SIM_SEED)
+        res = train_scorer([[c.features() for c in exp] for exp in clips] + [
+            [c.features() for c in exp] for exp in extra[0]], labels + extra[1],
+            epochs=args.epochs or EPOCHS, seed=0)
+        scorer = torch_scorer(res.net)
+        flags_sim = [[clip_flags(c, model=scorer, threshold=0.0)] for c in held]
+        paper_sim = [[clip_flags(c, rule="paper")] for c in held]
+        print(format_scores(f"SIMULATED held-out grasps ({len(held)}: slip / hold / vibration, "
+                            "GelSight + Mini): learned", score_experiments(held_labels, flags_sim)))
+        print(format_scores("SIMULATED held-out grasps: paper rule",
+                            score_experiments(held_labels, paper_sim)))
     return 0
+
+
+#: Rendered grasps per kind and sensor scored as a second, simulated test set.
+HELD_OUT_SIM = 6
+HELD_OUT_SIM_SEED = 3000
 
 
 if __name__ == "__main__":

@@ -68,7 +68,7 @@ def test_train_slip_writes_a_model_the_slip_loop_uses(labelled: Path, tmp_path: 
     pytest.importorskip("torch")
     model = tmp_path / "mine.onnx"
     code, _ = run("train", "slip", str(labelled), "--out", str(model), "--epochs", "3", "-q",
-                  "--cache", str(tmp_path / "cache"))
+                  "--cache", str(tmp_path / "cache"), "--simulated", "1")
     assert code == 0 and model.is_file()
     video = next(labelled.rglob("*.avi"))
     log = tmp_path / "log.csv"
@@ -92,3 +92,7 @@ def test_errors_name_the_argument(labelled: Path, tmp_path: Path,
     assert "lacks column(s) ['experiment']" in capsys.readouterr().err
     assert main(["evaluate", "slip", str(labelled), "--rigid-threshold-px", "2", "-q"]) != 0
     assert "--rigid-threshold-px: applies to --rule paper only" in capsys.readouterr().err
+    pytest.importorskip("torch")
+    assert main(["train", "slip", str(labelled), "--out", str(tmp_path / "m.onnx"),
+                 "--simulated", "-1", "-q"]) != 0
+    assert "--simulated: must be in [0, 1000]" in capsys.readouterr().err

@@ -52,6 +52,11 @@ def add_train_parser(what: argparse._SubParsersAction) -> None:
     p.add_argument("--epochs", type=int, default=None, help="passes over the experiments "
                                                             "(default: 60)")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--simulated", type=int, default=None, metavar="N",
+                   help="add N rendered grasps per kind (slip / hold / vibration) and sensor "
+                        "(GelSight, GelSight Mini) to the training set: the textbook slip "
+                        "your recordings may lack (default: 24, as the shipped scorer; 0: none; "
+                        "ignored with --markerless)")
     p.set_defaults(run=run_train)
 
 
@@ -131,13 +136,24 @@ def run_train(args: argparse.Namespace) -> int:
     epochs = args.epochs if args.epochs is not None else EPOCHS
     if epochs < 1:
         raise ValueError(f"--epochs: must be >= 1; got {epochs}")
+    from tacswitch.grasp.simulated import SIMULATED_PER_KIND, SIMULATED_SEED, simulated_clips
+
+    n_sim = SIMULATED_PER_KIND if args.simulated is None else args.simulated
+    if not 0 <= n_sim <= 1000:
+        raise ValueError(f"--simulated: must be in [0, 1000]; got {n_sim}")
     exps, clips = _load(args)
     labels = [e.slip for e in exps]
+    feats = [[c.features() for c in exp] for exp in clips]
+    if n_sim and not args.markerless:
+        sim_clips, sim_labels = simulated_clips(n_sim, SIMULATED_SEED)
+        feats += [[c.features()] for c in sim_clips]
+        labels = labels + sim_labels
     log = None if args.quiet else (lambda s: print(s, file=sys.stderr))
-    res = train_scorer([[c.features() for c in exp] for exp in clips], labels, epochs=epochs,
-                       seed=args.seed, log=log)
+    res = train_scorer(feats, labels, epochs=epochs, seed=args.seed, log=log)
     export_scorer(res, out, extra={"trained_on": f"{Path(args.data).name}: {len(exps)} "
-                                                 f"experiments, {sum(labels)} slip"})
+                                                 f"experiments, {sum(e.slip for e in exps)} "
+                                                 f"slip; {len(labels) - len(exps)} rendered"})
     if not args.quiet:
-        print(f"wrote {out} ({len(exps)} experiments, {sum(labels)} slip, {epochs} epochs)")
+        print(f"wrote {out} ({len(exps)} experiments, {sum(e.slip for e in exps)} slip, "
+              f"{len(labels) - len(exps)} rendered grasps, {epochs} epochs)")
     return 0

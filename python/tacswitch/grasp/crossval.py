@@ -36,13 +36,17 @@ def cross_validated_flags(clips: list[list[TrackedClip]], labels: list[bool],
                           objects: list[str], *, seed: int = 0, epochs: int | None = None,
                           folds: int = 5,
                           test_sets: dict[str, list[list[TrackedClip]]] | None = None,
+                          extra: tuple[list[list[TrackedClip]], list[bool]] | None = None,
                           quiet: bool = True) -> dict[str, list[list[NDArray[np.bool_]]]]:
     """Flags of every experiment's videos from a scorer trained on ``clips`` of the other
     folds' objects (:func:`object_folds`): under key ``"train"`` for ``clips`` themselves and
-    under each name of ``test_sets`` (the same experiments seen otherwise, e.g. markerless)."""
+    under each name of ``test_sets`` (the same experiments seen otherwise, e.g. markerless).
+    ``extra`` (experiments, labels) joins every fold's training set (e.g. rendered grasps)."""
     from tacswitch.grasp.train import EPOCHS, train_scorer
 
     feats = [[c.features() for c in exp] for exp in clips]
+    extra_feats = [[c.features() for c in exp] for exp in extra[0]] if extra else []
+    extra_labels = list(extra[1]) if extra else []
     fold_of = object_folds(objects, folds)
     sets = {"train": clips, **(test_sets or {})}
     out: dict[str, list[list[NDArray[np.bool_]]]] = {k: [[] for _ in clips] for k in sets}
@@ -51,7 +55,8 @@ def cross_validated_flags(clips: list[list[TrackedClip]], labels: list[bool],
         if not quiet:
             print(f"fold {f + 1}/{folds}: training on {len(train)} experiments",
                   file=sys.stderr)
-        res = train_scorer([feats[i] for i in train], [labels[i] for i in train],
+        res = train_scorer([feats[i] for i in train] + extra_feats,
+                           [labels[i] for i in train] + extra_labels,
                            epochs=epochs or EPOCHS, seed=seed)
         scorer = torch_scorer(res.net)
         for name, test in sets.items():

@@ -1,0 +1,45 @@
+"""Rendered grasps for the slip scorer: the physical simulator's press, shear and then hold, slip
+or vibration (``tacswitch.sim.grasp_sequence``), each after a few no-contact frames, tracked like
+a recording. They add the textbook slip (the stuck zone shrinking until the contact slides) to
+the real grasps, whose slips are mostly objects sliding out of the fingers."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tacswitch.grasp.dataset import FALLBACK_PITCH_PX, TrackedClip
+
+#: Rendered grasps per kind and sensor in the shipped scorer's training set (and the default of
+#: ``tacswitch train slip --simulated``), and their first seed.
+SIMULATED_PER_KIND = 24
+SIMULATED_SEED = 1000
+#: No-contact frames before each rendered grasp.
+LEAD = 4
+KINDS = ("slip", "hold", "vibration")
+SENSORS = ("gelsight_mini", "gelsight")
+
+
+def simulated_clips(n_per_kind: int, seed: int, *, sensors: tuple[str, ...] = SENSORS,
+                    n_frames: int = 30) -> tuple[list[TrackedClip], list[bool]]:
+    """``n_per_kind`` rendered grasps of each kind and sensor, tracked from their no-contact
+    first frame; labels: slip or not. Seeds ``seed, seed + 1, ...`` per kind and sensor."""
+    import tacswitch as ts
+    from tacswitch import sim
+
+    clips: list[TrackedClip] = []
+    labels: list[bool] = []
+    for sensor in sensors:
+        for kind in KINDS:
+            for k in range(n_per_kind):
+                seq = sim.grasp_sequence(sensor, kind, n_frames=n_frames, seed=seed + k)
+                frames = [seq.reference] * LEAD + list(seq.frames)
+                tracker = ts.MarkerTracker(frames[0])
+                out = [tracker.update(f) for f in frames]
+                pts = tracker.reference
+                pitch = ts.estimate_pitch(pts) if len(pts) >= 2 else None
+                clips.append(TrackedClip(np.stack([np.array(m, np.float32) for m, _ in out]),
+                                         np.stack([np.array(v, bool) for _, v in out]), pts,
+                                         float(pitch) if pitch else FALLBACK_PITCH_PX,
+                                         int(frames[0].shape[1])))
+                labels.append(kind == "slip")
+    return clips, labels

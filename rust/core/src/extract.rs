@@ -743,6 +743,30 @@ struct BoxBuffers {
     box_count: Vec<u32>,
 }
 
+/// Per bin, the luma sum and count of the pixels at most `limit` (luma units) darker than the
+/// bin's background (branch-free, one bin of `F` pixels at a time).
+#[inline(always)]
+fn kept_sums<const F: usize>(luma: &[u16], bg: Background, limit: i32, buf: &mut BoxBuffers) {
+    for y in 0..bg.h {
+        let b0 = (y / F) * bg.bins_w;
+        let means = &buf.mean[b0..][..bg.bins_w];
+        let sums = &mut buf.kept_sum[b0..][..bg.bins_w];
+        let counts = &mut buf.kept_count[b0..][..bg.bins_w];
+        let bins = means.iter().zip(sums.iter_mut().zip(counts.iter_mut()));
+        for (chunk, (&m, (s, c))) in luma[y * bg.w..][..bg.w].chunks(F).zip(bins) {
+            let m = i32::from(m);
+            let (mut ss, mut cc) = (0u32, 0u32);
+            for &l in chunk {
+                let k = u32::from(m - i32::from(l) <= limit);
+                ss += k * u32::from(l);
+                cc += k;
+            }
+            *s += u64::from(ss);
+            *c += cc;
+        }
+    }
+}
+
 /// Replaces the binned background `buf.mean` by the mean over the same boxes of the pixels whose
 /// darkness against it is at most `exclude` grey levels: markers no longer pull the background of
 /// their surroundings (nor their own) toward them. A box with no pixel kept keeps its mean.
@@ -761,18 +785,10 @@ fn background_excluding(
     buf.kept_sum.resize(nb, 0);
     buf.kept_count.clear();
     buf.kept_count.resize(nb, 0);
-    for y in 0..bg.h {
-        let b0 = (y / f) * bins_w;
-        let means = &buf.mean[b0..][..bins_w];
-        let sums = &mut buf.kept_sum[b0..][..bins_w];
-        let counts = &mut buf.kept_count[b0..][..bins_w];
-        for (x, &l) in luma[y * bg.w..][..bg.w].iter().enumerate() {
-            let b = x / f;
-            if i32::from(means[b]) - i32::from(l) <= limit {
-                sums[b] += u64::from(l);
-                counts[b] += 1;
-            }
-        }
+    if f == 4 {
+        kept_sums::<4>(luma, bg, limit, buf);
+    } else {
+        kept_sums::<2>(luma, bg, limit, buf);
     }
     // Same box as `background`: radius in bins, reflect-101 borders.
     let r = block / (2 * f);

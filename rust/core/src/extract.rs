@@ -9,6 +9,8 @@
 //! 3. darkness `d = background - luma`; its histogram gives the background level (median), the
 //!    noise (MAD) and an Otsu threshold on the darker half; the threshold is never below
 //!    `median + max(NOISE_SIGMAS * sigma, MIN_CONTRAST)` so that a markerless frame yields nothing;
+//!    when that floor decides, the background is recomputed without Otsu's dark class (markers
+//!    pull a box mean toward them) and the median and noise come from the remaining pixels;
 //! 4. run-length 8-connected labelling with union-find (same components as
 //!    `cv2.connectedComponents(connectivity=8)`);
 //! 5. filters on area, fill ratio (area / bounding-box area) and bounding-box aspect ratio;

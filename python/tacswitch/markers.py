@@ -74,7 +74,10 @@ def extract_markers(
     background, estimated by a ``block_size`` box mean with ``cv2.BORDER_REFLECT_101`` borders and
     computed in wide integers (no uint8 wraparound). The threshold is chosen per image (Otsu on the
     darkness histogram, never below 6 noise sigmas or 10 grey levels above the background level),
-    so one setting works across sensors and lighting; pass ``threshold`` to fix it. Components are
+    so one setting works across sensors and lighting; pass ``threshold`` to fix it. When that noise
+    floor decides, the background is computed again without the pixels Otsu puts in the dark class
+    and the gel's level and noise are taken from the others, so that large or many markers and an
+    object's texture or imprint do not push the threshold above the markers. Components are
     8-connected (same components as ``cv2.connectedComponents(connectivity=8)``), then filtered by
     area, fill ratio and aspect ratio, and must be darker than the ring just around them. Centres
     are darkness-weighted over the blob and a one-pixel margin, so soft edges count.

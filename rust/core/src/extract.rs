@@ -9,6 +9,8 @@
 //! 3. darkness `d = background - luma`; its histogram gives the background level (median), the
 //!    noise (MAD) and an Otsu threshold on the darker half; the threshold is never below
 //!    `median + max(NOISE_SIGMAS * sigma, MIN_CONTRAST)` so that a markerless frame yields nothing;
+//!    when that floor decides, the background is recomputed without Otsu's dark class (markers
+//!    pull a box mean toward them) and the median and noise come from the remaining pixels;
 //! 4. run-length 8-connected labelling with union-find (same components as
 //!    `cv2.connectedComponents(connectivity=8)`);
 //! 5. filters on area, fill ratio (area / bounding-box area) and bounding-box aspect ratio;
@@ -229,9 +231,33 @@ pub fn extract_markers_with(
         &mut ws.boxes.row,
         &mut ws.dark,
     );
-    let stats = HistStats::from_hist(&hist);
+    let mut stats = HistStats::from_hist(&hist);
+    let first_sigma = stats.sigma;
     let threshold = match params.threshold {
         Some(t) => t,
+        None if otsu_threshold(&hist, &stats) < noise_floor(&stats) => {
+            // The noise floor binds: the spread may come from the markers themselves (large or
+            // many markers pull the box mean down near them, so the gel around them reads bright
+            // and the markers shallow) rather than from noise. Recompute the background without
+            // the pixels that Otsu puts in the dark class, then the statistics and threshold.
+            let exclude = otsu_threshold(&hist, &stats).max(stats.median + MIN_CONTRAST_LEVELS);
+            background_excluding(&ws.luma, bg, block, exclude, &mut ws.boxes);
+            let hist = darkness_histogram(
+                &ws.luma,
+                &ws.boxes.mean,
+                bg,
+                &mut ws.boxes.row,
+                &mut ws.dark,
+            );
+            // The level and noise of the gel: from the pixels left out of the dark class (the
+            // markers' own darkness is not noise). Otsu still sees the whole histogram.
+            let mut gel = hist;
+            let cut = (exclude.floor() as i32 + HIST_OFFSET).clamp(0, HIST_BINS as i32) as usize;
+            gel[cut..].fill(0);
+            stats = HistStats::from_hist(&gel);
+            let otsu = otsu_threshold(&hist, &stats);
+            otsu.max(noise_floor(&stats)).clamp(0.0, 255.0)
+        }
         None => auto_threshold(&hist, &stats),
     };
     // Strictly greater than the threshold, in the i16 darkness units.
@@ -288,7 +314,7 @@ pub fn extract_markers_with(
         ws.labels[row + r.x0 as usize..row + r.x1 as usize].fill(r.label + 1);
     }
 
-    let sigma_units = stats.sigma * LUMA_SCALE as f32;
+    let sigma_units = stats.sigma.max(first_sigma) * LUMA_SCALE as f32;
     let mut markers = Vec::new();
     let t_luma = threshold * LUMA_SCALE as f32;
     let mut seeds = Vec::new();
@@ -711,6 +737,94 @@ struct BoxBuffers {
     mean: Vec<u16>,
     /// Background of the current row at pixel resolution.
     row: Vec<u16>,
+    /// [`background_excluding`]: per-bin luma sums and counts of the pixels kept, and their box
+    /// sums (one pass down the columns, then along the rows).
+    kept_sum: Vec<u64>,
+    kept_count: Vec<u32>,
+    box_sum: Vec<u64>,
+    box_count: Vec<u32>,
+}
+
+/// Per bin, the luma sum and count of the pixels at most `limit` (luma units) darker than the
+/// bin's background (branch-free, one bin of `F` pixels at a time).
+#[inline(always)]
+fn kept_sums<const F: usize>(luma: &[u16], bg: Background, limit: i32, buf: &mut BoxBuffers) {
+    for y in 0..bg.h {
+        let b0 = (y / F) * bg.bins_w;
+        let means = &buf.mean[b0..][..bg.bins_w];
+        let sums = &mut buf.kept_sum[b0..][..bg.bins_w];
+        let counts = &mut buf.kept_count[b0..][..bg.bins_w];
+        let bins = means.iter().zip(sums.iter_mut().zip(counts.iter_mut()));
+        for (chunk, (&m, (s, c))) in luma[y * bg.w..][..bg.w].chunks(F).zip(bins) {
+            let m = i32::from(m);
+            let (mut ss, mut cc) = (0u32, 0u32);
+            for &l in chunk {
+                let k = u32::from(m - i32::from(l) <= limit);
+                ss += k * u32::from(l);
+                cc += k;
+            }
+            *s += u64::from(ss);
+            *c += cc;
+        }
+    }
+}
+
+/// Replaces the binned background `buf.mean` by the mean over the same boxes of the pixels whose
+/// darkness against it is at most `exclude` grey levels: markers no longer pull the background of
+/// their surroundings (nor their own) toward them. A box with no pixel kept keeps its mean.
+fn background_excluding(
+    luma: &[u16],
+    bg: Background,
+    block: usize,
+    exclude: f32,
+    buf: &mut BoxBuffers,
+) {
+    let f = bg.factor;
+    let (bins_h, bins_w) = (bg.h.div_ceil(f), bg.bins_w);
+    let nb = bins_h * bins_w;
+    let limit = (exclude * LUMA_SCALE as f32).floor() as i32;
+    buf.kept_sum.clear();
+    buf.kept_sum.resize(nb, 0);
+    buf.kept_count.clear();
+    buf.kept_count.resize(nb, 0);
+    if f == 4 {
+        kept_sums::<4>(luma, bg, limit, buf);
+    } else {
+        kept_sums::<2>(luma, bg, limit, buf);
+    }
+    // Same box as `background`: radius in bins, reflect-101 borders.
+    let r = block / (2 * f);
+    let ry = r.min(bins_h.saturating_sub(1)) as isize;
+    let rx = r.min(bins_w.saturating_sub(1)) as isize;
+    buf.box_sum.clear();
+    buf.box_sum.resize(nb, 0);
+    buf.box_count.clear();
+    buf.box_count.resize(nb, 0);
+    // Vertical pass into `box_*`, then horizontal pass back into `kept_*` via a row copy.
+    for by in 0..bins_h {
+        for k in -ry..=ry {
+            let src = reflect101(by as isize + k, bins_h) * bins_w;
+            for bx in 0..bins_w {
+                buf.box_sum[by * bins_w + bx] += buf.kept_sum[src + bx];
+                buf.box_count[by * bins_w + bx] += buf.kept_count[src + bx];
+            }
+        }
+    }
+    for by in 0..bins_h {
+        let row = by * bins_w;
+        for bx in 0..bins_w {
+            let (mut s, mut c) = (0u64, 0u64);
+            for k in -rx..=rx {
+                let i = row + reflect101(bx as isize + k, bins_w);
+                s += buf.box_sum[i];
+                c += u64::from(buf.box_count[i]);
+            }
+            // A mean of u16 values fits in u16.
+            if let Some(m) = (s + c / 2).checked_div(c) {
+                buf.mean[row + bx] = m as u16;
+            }
+        }
+    }
 }
 
 #[inline(always)]
@@ -816,7 +930,19 @@ impl HistStats {
 
 /// Otsu's threshold on the darker-than-background half of the histogram, floored above the noise.
 fn auto_threshold(hist: &[u32; HIST_BINS], stats: &HistStats) -> f32 {
-    let floor = stats.median + (NOISE_SIGMAS * stats.sigma).max(MIN_CONTRAST_LEVELS);
+    otsu_threshold(hist, stats)
+        .max(noise_floor(stats))
+        .clamp(0.0, 255.0)
+}
+
+/// Lowest automatic threshold: [`NOISE_SIGMAS`] sigmas, at least [`MIN_CONTRAST_LEVELS`], above
+/// the background level.
+fn noise_floor(stats: &HistStats) -> f32 {
+    stats.median + (NOISE_SIGMAS * stats.sigma).max(MIN_CONTRAST_LEVELS)
+}
+
+/// Otsu's threshold on the darker-than-background half of the histogram, grey levels.
+fn otsu_threshold(hist: &[u32; HIST_BINS], stats: &HistStats) -> f32 {
     let lo = stats.median_bin;
     let (mut total, mut sum) = (0f64, 0f64);
     for (i, &c) in hist.iter().enumerate().skip(lo) {
@@ -840,8 +966,7 @@ fn auto_threshold(hist: &[u32; HIST_BINS], stats: &HistStats) -> f32 {
         }
     }
     // Otsu's class boundary is the upper edge of `best_bin`.
-    let otsu = (best_bin as f32 + 1.0) - HIST_OFFSET as f32;
-    otsu.max(floor).clamp(0.0, 255.0)
+    (best_bin as f32 + 1.0) - HIST_OFFSET as f32
 }
 
 /// Run-length 8-connected labelling, fed one row of darkness at a time.

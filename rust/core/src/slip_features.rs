@@ -56,8 +56,9 @@ fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
         b.swap(col, piv);
         for row in col + 1..3 {
             let f = a[row][col] / a[col][col];
-            for k in col..3 {
-                a[row][k] -= f * a[col][k];
+            let pivot_row = a[col];
+            for (v, p) in a[row].iter_mut().zip(pivot_row).skip(col) {
+                *v -= f * p;
             }
             b[row] -= f * b[col];
         }
@@ -123,7 +124,10 @@ impl SlipFeatures {
     /// An extractor for markers at `points` (`x, y` px) with the given pitch (px).
     pub fn new(points: &[[f32; 2]], pitch: f32) -> Result<Self> {
         if !(pitch.is_finite() && pitch > 0.0) {
-            return Err(CoreError::invalid("pitch", format!("must be > 0; got {pitch}")));
+            return Err(CoreError::invalid(
+                "pitch",
+                format!("must be > 0; got {pitch}"),
+            ));
         }
         crate::geometry::check_finite(points, "points")?;
         let n = points.len().max(1) as f64;
@@ -180,15 +184,19 @@ impl SlipFeatures {
         for i in 0..cur.len() {
             if cur_ok[i] && old_ok[i] {
                 self.sel_p.push(self.pts[i]);
-                self.sel_v.push([cur[i][0] - old[i][0], cur[i][1] - old[i][1]]);
+                self.sel_v
+                    .push([cur[i][0] - old[i][0], cur[i][1] - old[i][1]]);
             }
         }
         if self.sel_v.len() < MIN_MARKERS {
             return [0.0; 4];
         }
         self.lens.clear();
-        self.lens
-            .extend(self.sel_v.iter().map(|v| (v[0] * v[0] + v[1] * v[1]).sqrt()));
+        self.lens.extend(
+            self.sel_v
+                .iter()
+                .map(|v| (v[0] * v[0] + v[1] * v[1]).sqrt()),
+        );
         let p90 = percentile(&mut self.lens, 90.0);
         let med = percentile(&mut self.lens, 50.0);
         let resid = affine(&self.sel_p, &self.sel_v, &mut self.scratch)[0];
@@ -239,8 +247,11 @@ impl SlipFeatures {
             }
         }
         self.lens.clear();
-        self.lens
-            .extend(self.sel_v.iter().map(|v| (v[0] * v[0] + v[1] * v[1]).sqrt()));
+        self.lens.extend(
+            self.sel_v
+                .iter()
+                .map(|v| (v[0] * v[0] + v[1] * v[1]).sqrt()),
+        );
         out[1] = percentile(&mut self.lens, 90.0);
         out[0] = percentile(&mut self.lens, 50.0);
         let k = n_ok as f64;
@@ -347,7 +358,11 @@ mod tests {
         assert!((out[0] - 10.0 / 30.0).abs() < 1e-5);
         assert!((out[2] - 10.0 / 30.0).abs() < 1e-5);
         assert!(out[3].abs() < 1e-5, "affine residual {}", out[3]);
-        assert!((out[6] - 10.0 / 30.0).abs() < 1e-5, "one-frame change {}", out[6]);
+        assert!(
+            (out[6] - 10.0 / 30.0).abs() < 1e-5,
+            "one-frame change {}",
+            out[6]
+        );
         assert!(out[8].abs() < 1e-5);
     }
 

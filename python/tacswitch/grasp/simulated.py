@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from tacswitch.grasp.dataset import FALLBACK_PITCH_PX, TrackedClip
+from tacswitch.sim.sequences import Kind
 
 #: Rendered grasps per kind and sensor in the shipped scorer's training set (and the default of
 #: ``tacswitch train slip --simulated``), and their first seed.
@@ -15,7 +16,7 @@ SIMULATED_PER_KIND = 24
 SIMULATED_SEED = 1000
 #: No-contact frames before each rendered grasp.
 LEAD = 4
-KINDS = ("slip", "hold", "vibration")
+KINDS: tuple[Kind, ...] = ("slip", "hold", "vibration")
 SENSORS = ("gelsight_mini", "gelsight")
 
 

@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch.grasp.dataset import TrackedClip
-from tacswitch.grasp.detector import GraspSlipDetector
+from tacswitch.grasp.detector import run_clip
 from tacswitch.grasp.evaluate import object_folds
 
 
@@ -20,8 +20,7 @@ def clip_flags(clip: TrackedClip, **options: Any) -> NDArray[np.bool_]:
     first frame showed no marker."""
     if len(clip.points) == 0:
         return np.zeros(len(clip.motion), bool)
-    det = GraspSlipDetector(clip.points, image_width=clip.width, **options)
-    states = (det.update(m, v) for m, v in zip(clip.motion, clip.valid, strict=True))
+    states = run_clip(clip.motion, clip.valid, clip.points, image_width=clip.width, **options)
     return np.array([s.slip for s in states], bool)
 
 

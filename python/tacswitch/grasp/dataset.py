@@ -24,11 +24,9 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from tacswitch.grasp.features import sequence_features
+from tacswitch.grasp.features import marker_pitch, sequence_features
 
 VIDEO_SUFFIXES = (".avi", ".mp4", ".mkv", ".mov")
-#: Marker pitch (px) assumed when a first frame shows fewer than two markers.
-FALLBACK_PITCH_PX = 30.0
 
 
 @dataclass
@@ -137,9 +135,7 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
             valids.append(np.array(v, bool))
     if not motions:
         raise ValueError("frames: no readable frame")
-    pitch = ts.estimate_pitch(points) if len(points) >= 2 else None
-    return TrackedClip(np.stack(motions), np.stack(valids), points,
-                       float(pitch) if pitch else FALLBACK_PITCH_PX, width)
+    return TrackedClip(np.stack(motions), np.stack(valids), points, marker_pitch(points), width)
 
 
 def cached_clip(video: Path, cache: Path | None, *, markerless: bool = False) -> TrackedClip:

@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch._checks import as_motion, as_points, as_valid
-from tacswitch.grasp.features import N_FEATURES, FieldFeatures
+from tacswitch.grasp.features import N_FEATURES, FieldFeatures, marker_pitch
 from tacswitch.grasp.phases import GRASP, PRESSING, GraspSegmenter, Step
 
 #: The shipped scorers (``python/tacswitch/models``): trained on tracked markers, and on the
@@ -36,8 +36,6 @@ from tacswitch.grasp.phases import GRASP, PRESSING, GraspSegmenter, Step
 SHIPPED_SLIP_MODELS = {"markers": "slip_scorer.onnx", "markerless": "slip_scorer_markerless.onnx"}
 DEFAULT_SLIP_MODEL = SHIPPED_SLIP_MODELS["markers"]
 RULES = ("learned", "paper")
-#: Marker pitch (px) assumed when the reference has fewer than two markers.
-FALLBACK_PITCH_PX = 30.0
 
 Scorer = Callable[[NDArray[np.float32]], NDArray[np.float32]]
 
@@ -143,7 +141,6 @@ class GraspSlipDetector:
                  rigid_threshold_px: float | str | None = None, rigid_only: bool = False,
                  smooth_frames: int = 1, start: int | None = None) -> None:
         from tacswitch.slip import SlipDetector, scaled_threshold
-        from tacswitch.tracking import estimate_pitch
 
         if rule not in RULES:
             raise ValueError(f"rule: one of {RULES}; got {rule!r}")
@@ -174,8 +171,7 @@ class GraspSlipDetector:
         else:
             if rigid_threshold_px is not None or rigid_only:
                 raise ValueError("rigid_threshold_px: applies to rule='paper' only")
-            pitch = estimate_pitch(self.points) if len(self.points) >= 2 else None
-            self.pitch = float(pitch) if pitch else FALLBACK_PITCH_PX
+            self.pitch = marker_pitch(self.points)
             self._features = FieldFeatures(self.points, self.pitch)
             if callable(model) and not isinstance(model, (str, os.PathLike)):
                 self._scorer = model

@@ -52,6 +52,19 @@ FEATURE_NAMES = tuple(f"{n}{s}" for s in ("", "_wmax", "_wmin", "_change")
 assert N_FEATURES == _native.SLIP_N_FEATURES and N_FRAME == _native.SLIP_N_FRAME
 
 
+#: Marker pitch (px) assumed when the reference has fewer than two distinct markers.
+FALLBACK_PITCH_PX = 30.0
+
+
+def marker_pitch(points: Any) -> float:
+    """The pitch (px) of reference marker centres, the unit of every length feature:
+    :func:`tacswitch.estimate_pitch`, or :data:`FALLBACK_PITCH_PX` when it has none."""
+    from tacswitch.tracking import estimate_pitch
+
+    pitch = estimate_pitch(points) if len(points) >= 2 else None
+    return float(pitch) if pitch else FALLBACK_PITCH_PX
+
+
 class FieldFeatures:
     """Streaming features of one marker field, one :data:`N_FEATURES` vector per frame.
 

@@ -5,9 +5,7 @@ the real grasps, whose slips are mostly objects sliding out of the fingers."""
 
 from __future__ import annotations
 
-import numpy as np
-
-from tacswitch.grasp.dataset import FALLBACK_PITCH_PX, TrackedClip
+from tacswitch.grasp.dataset import TrackedClip, track_clip
 from tacswitch.sim.sequences import Kind
 
 #: Rendered grasps per kind and sensor in the shipped scorer's training set (and the default of
@@ -24,7 +22,6 @@ def simulated_clips(n_per_kind: int, seed: int, *, sensors: tuple[str, ...] = SE
                     n_frames: int = 30) -> tuple[list[TrackedClip], list[bool]]:
     """``n_per_kind`` rendered grasps of each kind and sensor, tracked from their no-contact
     first frame; labels: slip or not. Seeds ``seed, seed + 1, ...`` per kind and sensor."""
-    import tacswitch as ts
     from tacswitch import sim
 
     clips: list[TrackedClip] = []
@@ -33,14 +30,6 @@ def simulated_clips(n_per_kind: int, seed: int, *, sensors: tuple[str, ...] = SE
         for kind in KINDS:
             for k in range(n_per_kind):
                 seq = sim.grasp_sequence(sensor, kind, n_frames=n_frames, seed=seed + k)
-                frames = [seq.reference] * LEAD + list(seq.frames)
-                tracker = ts.MarkerTracker(frames[0])
-                out = [tracker.update(f) for f in frames]
-                pts = tracker.reference
-                pitch = ts.estimate_pitch(pts) if len(pts) >= 2 else None
-                clips.append(TrackedClip(np.stack([np.array(m, np.float32) for m, _ in out]),
-                                         np.stack([np.array(v, bool) for _, v in out]), pts,
-                                         float(pitch) if pitch else FALLBACK_PITCH_PX,
-                                         int(frames[0].shape[1])))
+                clips.append(track_clip(iter([seq.reference] * LEAD + list(seq.frames))))
                 labels.append(kind == "slip")
     return clips, labels

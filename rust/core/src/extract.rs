@@ -233,14 +233,15 @@ pub fn extract_markers_with(
     );
     let mut stats = HistStats::from_hist(&hist);
     let first_sigma = stats.sigma;
+    let otsu = otsu_threshold(&hist, &stats);
     let threshold = match params.threshold {
         Some(t) => t,
-        None if otsu_threshold(&hist, &stats) < noise_floor(&stats) => {
+        None if otsu < noise_floor(&stats) => {
             // The noise floor binds: the spread may come from the markers themselves (large or
             // many markers pull the box mean down near them, so the gel around them reads bright
             // and the markers shallow) rather than from noise. Recompute the background without
             // the pixels that Otsu puts in the dark class, then the statistics and threshold.
-            let exclude = otsu_threshold(&hist, &stats).max(stats.median + MIN_CONTRAST_LEVELS);
+            let exclude = otsu.max(stats.median + MIN_CONTRAST_LEVELS);
             background_excluding(&ws.luma, bg, block, exclude, &mut ws.boxes);
             let hist = darkness_histogram(
                 &ws.luma,

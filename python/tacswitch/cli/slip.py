@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from tacswitch.cli.rest_frame import choose_rest_frame
 from tacswitch.cli.sources import frame_count, frames
 
 
@@ -27,7 +28,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "phase, grasp, grasp_start, slip, ...) is written and flushed every frame, so an "
         "interruption never loses it.",
         epilog="A recording that starts in contact has no onset to detect: pass --start 0 "
-        "(or the frame where the grasp is established).",
+        "(or the frame where the grasp is established). When the first frame shows no "
+        "markers, or fewer than half as many as a frame of the first 30, the first frame that "
+        "shows that many is the reference instead (said on stderr); the frames before it have "
+        "no log rows, and frame numbers stay the source's.",
     )
     p.add_argument("source", help="video file, folder of images, or camera index (0, 1, ...)")
     p.add_argument("--log", default="slip-log.csv", help="CSV log (default: %(default)s)")
@@ -142,8 +146,9 @@ def _check(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import tacswitch as ts
     from tacswitch.cli.options import output_file
-    from tacswitch.cli.progress import progress
+    from tacswitch.cli.progress import progress, warn
 
     _check(args)
     if args.markerless:
@@ -163,7 +168,15 @@ def run(args: argparse.Namespace) -> int:
         writer = csv.writer(fh)
         writer.writerow(LOG_COLUMNS)
         try:
-            for frame in frames(args.source):
+            stream = frames(args.source)
+            rest = None
+            if not args.markerless:  # predicted motion needs no markers on the rest frame
+                rest, stream = choose_rest_frame(
+                    stream, lambda f: len(ts.extract_markers(f)), source=args.source,
+                    max_frames=args.max_frames)
+                if rest is not None and rest.index > 0:
+                    warn("slip", rest.message())
+            for frame in stream:
                 if args.max_frames is not None and n >= args.max_frames:
                     break
                 bar.update()
@@ -171,7 +184,10 @@ def run(args: argparse.Namespace) -> int:
                     skipped += 1
                     continue
                 if rule.tracker is None:
-                    rule.begin(frame)
+                    if rest is not None and n < rest.index:  # before the rest frame: no row
+                        n += 1
+                        continue
+                    rule.begin(frame, n)
                 elif frame.shape[:2] != rule.tracker.reference_shape:
                     skipped += 1
                     continue
@@ -194,21 +210,24 @@ def run(args: argparse.Namespace) -> int:
     if n == 0:
         raise ValueError(f"source: no readable frames in {args.source!r}")
     if not args.quiet:
-        print(f"{n} frames ({skipped} skipped), {_starts_text(starts, args, rule.segmenter)}, "
+        found = _starts_text(starts, args, rule.segmenter, rule.offset)
+        print(f"{n} frames ({skipped} skipped), {found}, "
               f"{slips} with slip{rule.label}, {n / elapsed:.0f} frames/s; log: {log_path}")
     return status
 
 
 def _first_tracker(frame: np.ndarray, args: argparse.Namespace, markerless: type) -> Any:
-    """The marker tracker (or its markerless stand-in) from the first frame; one-line error
-    when that frame shows no marker."""
+    """The marker tracker (or its markerless stand-in) from the rest frame (one with markers:
+    :func:`tacswitch.cli.rest_frame.choose_rest_frame`)."""
     import tacswitch as ts
 
-    tracker = markerless(frame, args) if args.markerless else ts.MarkerTracker(frame)
-    if len(tracker) == 0:
-        raise ValueError(f"source: no markers found in the first frame of {args.source!r} "
-                         "(a blank or markerless frame?)")
-    return tracker
+    return markerless(frame, args) if args.markerless else ts.MarkerTracker(frame)
+
+
+def _start_after(args: argparse.Namespace, offset: int) -> int | None:
+    """``--start`` counted from the rest frame ``offset`` (the rules count frames from it); a
+    start before the rest frame is the rest frame."""
+    return None if args.start is None else max(args.start - offset, 0)
 
 
 class _PaperLoop:
@@ -221,12 +240,15 @@ class _PaperLoop:
         self.tracker: Any = None
         self.detector: Any = None
         self.segmenter: Any = None
+        self.offset = 0  # the rest frame: the segmenter counts frames from it
 
-    def begin(self, frame: np.ndarray) -> None:
+    def begin(self, frame: np.ndarray, offset: int) -> None:
+        """Starts on the rest frame, frame ``offset`` of the source."""
         import tacswitch as ts
         from tacswitch.grasp.phases import GraspSegmenter
 
         args = self.args
+        self.offset = offset
         self.tracker = _first_tracker(frame, args, MarkerlessMotion)
         self.detector = ts.SlipDetector(args.threshold_px,
                                         rigid_threshold_px=args.rigid_threshold_px,
@@ -234,7 +256,8 @@ class _PaperLoop:
                                         points=self.tracker.reference,
                                         image_width=frame.shape[1],
                                         smooth_frames=_smooth_frames(args))
-        self.segmenter = GraspSegmenter(_epsilon(args, frame.shape[1]), start=args.start)
+        self.segmenter = GraspSegmenter(_epsilon(args, frame.shape[1]),
+                                        start=_start_after(args, offset))
 
     def step(self, frame: np.ndarray, n: int, t: float) -> tuple[list, bool, bool, Any]:
         from tacswitch.grasp.phases import GRASP
@@ -250,7 +273,8 @@ class _PaperLoop:
                 motion, valid = self.tracker.since_grasp(frame, restart=step.starts)
             state = self.detector.update(motion, valid)
         slip = bool(state is not None and state.slip)
-        return _row(n, step, state, int(valid.sum()), t), slip, step.starts, state
+        return (_row(n, step, state, int(valid.sum()), t, self.offset), slip, step.starts,
+                state)
 
 
 class _LearnedLoop:
@@ -267,31 +291,37 @@ class _LearnedLoop:
                       else "markerless" if args.markerless else "markers")
         self.tracker: Any = None
         self.detector: Any = None
+        self.offset = 0  # the rest frame: the detector counts frames from it
 
     @property
     def segmenter(self) -> Any:
         return None if self.detector is None else self.detector.segmenter
 
-    def begin(self, frame: np.ndarray) -> None:
+    def begin(self, frame: np.ndarray, offset: int) -> None:
+        """Starts on the rest frame, frame ``offset`` of the source."""
         from tacswitch.grasp.detector import GraspSlipDetector
 
+        self.offset = offset
         self.tracker = _first_tracker(frame, self.args, MarkerlessSequence)
         try:
             self.detector = GraspSlipDetector(
                 self.tracker.reference, image_width=frame.shape[1], model=self.model,
-                threshold=self.args.score_threshold, start=self.args.start)
+                threshold=self.args.score_threshold, start=_start_after(self.args, offset))
         except (ValueError, FileNotFoundError) as exc:
             raise ValueError(str(exc).replace("model:", "--slip-model:", 1)) from None
 
     def step(self, frame: np.ndarray, n: int, t: float) -> tuple[list, bool, bool, Any]:
         st = self.detector.update(*self.tracker.update(frame))
-        return _learned_row(n, st, t), st.slip, st.grasp_start == st.frame, st
+        return (_learned_row(n, st, t, self.offset), st.slip, st.grasp_start == st.frame,
+                st)
 
 
-def _learned_row(n: int, st, t: float) -> list:  # type: ignore[no-untyped-def]
-    """One log row of the learned rule (its score; the paper rule's columns stay empty)."""
+def _learned_row(n: int, st, t: float, offset: int) -> list:  # type: ignore[no-untyped-def]
+    """One log row of the learned rule (its score; the paper rule's columns stay empty);
+    ``offset``: the rest frame, where the detector's frame numbers start."""
     score = "" if st.score != st.score else f"{st.score:.3f}"  # NaN: the scorer did not run
-    return [n, st.phase, st.grasp or "", "" if st.grasp_start is None else st.grasp_start,
+    return [n, st.phase, st.grasp or "",
+            "" if st.grasp_start is None else st.grasp_start + offset,
             int(st.slip), st.criterion or "", "", "", "", score, st.n_valid, f"{t:.4f}"]
 
 
@@ -438,22 +468,28 @@ def _epsilon(args: argparse.Namespace, width: int) -> float:
     return float(args.threshold_px) if args.threshold_px is not None else scaled_threshold(width)
 
 
-def _row(n: int, step, state, n_valid: int, t: float) -> list:  # type: ignore[no-untyped-def]
-    """One log row; the rule's columns are empty outside a grasp (the rule did not run)."""
-    head = [n, step.phase, step.grasp or "", "" if step.start is None else step.start]
+def _row(n: int, step, state, n_valid: int, t: float,  # type: ignore[no-untyped-def]
+         offset: int) -> list:
+    """One log row; the rule's columns are empty outside a grasp (the rule did not run);
+    ``offset``: the rest frame, where the segmenter's frame numbers start."""
+    head = [n, step.phase, step.grasp or "", "" if step.start is None else step.start + offset]
     if state is None:
         return [*head, 0, "", "", "", "", "", n_valid, f"{t:.4f}"]
     return [*head, int(state.slip), state.criterion or "", f"{state.max_displacement:.3f}",
             state.marker, f"{state.rigid_residual:.3f}", "", state.n_compared, f"{t:.4f}"]
 
 
-def _starts_text(starts: list[int], args: argparse.Namespace, segmenter) -> str:  # type: ignore[no-untyped-def]
-    """How the grasp start(s) were found, for the summary line."""
+def _starts_text(starts: list[int], args: argparse.Namespace, segmenter,  # type: ignore[no-untyped-def]
+                 offset: int) -> str:
+    """How the grasp start(s) were found, for the summary line (``offset``: the rest frame,
+    where the segmenter's frame numbers start)."""
     if args.start is not None:
+        if starts and starts[0] != args.start:
+            return f"grasp start: frame {starts[0]} (--start {args.start}, before the rest frame)"
         return (f"grasp start: frame {args.start} (--start)" if starts else
                 f"grasp start --start {args.start} not reached")
     if not starts:
-        where = ("contact onset at frame " + str(segmenter.onset) + " never settled"
+        where = ("contact onset at frame " + str(segmenter.onset + offset) + " never settled"
                  if segmenter is not None and segmenter.onset is not None else "no contact onset")
         return f"no grasp detected ({where}; pass --start FRAME)"
     shown = ", ".join(str(s) for s in starts[:10]) + (" ..." if len(starts) > 10 else "")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import csv
 
+from tacswitch.cli.rest_frame import choose_rest_frame
 from tacswitch.cli.sources import frame_count, frames
 
 
@@ -14,7 +15,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="track markers through a video or image folder (motion per frame, CSV)",
         description="The first frame is the reference. Writes one CSV row per frame and marker: "
         "frame, marker, x_ref, y_ref, dx, dy, valid (dx, dy empty when lost). The file is "
-        "flushed every frame.",
+        "flushed every frame. When the first frame shows no markers, or fewer than half as "
+        "many as a frame of the first 30, the first frame that shows that many is the "
+        "reference instead (said on stderr); the frames before it have no rows.",
     )
     p.add_argument("source", help="video file, folder of images, or camera index")
     p.add_argument("-o", "--out", default="track.csv", help="CSV output (default: %(default)s)")
@@ -31,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
 
     import tacswitch as ts
     from tacswitch.cli.options import UsageError, output_file
-    from tacswitch.cli.progress import progress
+    from tacswitch.cli.progress import progress, warn
 
     if args.max_frames is not None and args.max_frames < 1:
         raise UsageError(f"--max-frames: must be >= 1; got {args.max_frames}")
@@ -43,7 +46,12 @@ def run(args: argparse.Namespace) -> int:
             progress(total=total, desc="track", unit="frame", quiet=args.quiet) as bar:
         writer = csv.writer(fh)
         writer.writerow(["frame", "marker", "x_ref", "y_ref", "dx", "dy", "valid"])
-        for frame in frames(args.source):
+        rest, stream = choose_rest_frame(
+            frames(args.source), lambda f: len(ts.extract_markers(f, polarity=args.polarity)),
+            source=args.source, max_frames=args.max_frames, hint="; check --polarity")
+        if rest is not None and rest.index > 0:
+            warn("track", rest.message())
+        for frame in stream:
             if args.max_frames is not None and n >= args.max_frames:
                 break
             bar.update()
@@ -51,11 +59,10 @@ def run(args: argparse.Namespace) -> int:
                 skipped += 1
                 continue
             if tracker is None:
+                if rest is not None and n < rest.index:  # before the rest frame: no rows
+                    n += 1
+                    continue
                 tracker = ts.MarkerTracker(frame, args.max_dist, polarity=args.polarity)
-                if len(tracker) == 0:
-                    raise ValueError(f"source: no markers found in the first frame of "
-                                     f"{args.source!r} (a blank or markerless frame?); check "
-                                     "--polarity")
             if frame.shape[:2] != tracker.reference_shape:
                 skipped += 1
                 continue

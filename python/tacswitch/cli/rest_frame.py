@@ -1,0 +1,125 @@
+"""The rest (reference) frame of a marker stream: the first frame, unless it is unusable.
+
+``tacswitch track`` and ``tacswitch slip`` measure every frame's marker motion from a rest
+frame, the frame whose markers are the reference. A recording may start on a frame that cannot
+serve: a blank frame while the camera settles, or a frame where few markers are found (motion
+blur, a textured object in contact). Tracking against it would stop (no marker) or lose most
+markers for the whole recording. So the first :data:`LOOK_AHEAD` readable frames are read
+ahead and counted, and the rest frame is the first of them whose marker count reaches
+:data:`USABLE_FRACTION` of the most any of them shows: frame 0 whenever it is usable, the
+recording's own timing otherwise. Frames before it are not tracked. Only when none of them shows
+a marker does the command stop, with one line naming the source.
+
+The frames read ahead are replayed unchanged, so the commands see the same stream (and the same
+frame numbers) as without the look-ahead; a camera is read ahead by about one second.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Readable frames looked at for the rest frame (about a second of a 30 frames/s camera).
+LOOK_AHEAD = 30
+#: A frame is usable as the rest frame when it shows at least this fraction of the largest
+#: marker count of the look-ahead. Half: a frame that shows fewer has lost markers to the
+#: contact, blur or a blank image, not to the small frame-to-frame changes of extraction (on
+#: the GelSight Mini slip recordings the first frame shows 0.7-1.0 of the best count of its
+#: first 30 frames; see BENCHMARKS.md, issue #35).
+USABLE_FRACTION = 0.5
+
+
+@dataclass(frozen=True)
+class RestFrame:
+    """The chosen rest frame. Frame numbers count the stream's readable frames from 0, as the
+    commands' logs do.
+
+    Attributes:
+        index: the rest frame.
+        markers: markers found on it.
+        first: markers found on frame 0.
+        best: the most markers found on a frame of the look-ahead ...
+        best_index: ... on this frame (the first with that many).
+        looked: readable frames looked at (at most the look-ahead).
+    """
+
+    index: int
+    markers: int
+    first: int
+    best: int
+    best_index: int
+    looked: int
+
+    def message(self) -> str:
+        """Which frame is the rest frame and why, one line (for a rest frame after frame 0)."""
+        shows = "no markers" if self.first == 0 else f"only {self.first} markers"
+        skipped = ("frame 0 is" if self.index == 1 else f"frames 0-{self.index - 1} are")
+        return (f"source: frame 0 shows {shows}, so frame {self.index} is the rest frame "
+                f"({self.markers} markers; the first of frames 0-{self.looked - 1} with at "
+                f"least {USABLE_FRACTION:.0%} of the most found, {self.best} on frame "
+                f"{self.best_index}); {skipped} not tracked")
+
+
+def choose_rest_frame(stream: Iterable[np.ndarray | None], count: Callable[[np.ndarray], int],
+                      *, source: str, max_frames: int | None = None, hint: str = ""
+                      ) -> tuple[RestFrame | None, Iterator[np.ndarray | None]]:
+    """Reads up to :data:`LOOK_AHEAD` readable frames of ``stream`` ahead (at most
+    ``max_frames``) and picks the first usable one as the rest frame.
+
+    Args:
+        stream: frames, None for an unreadable one (:func:`tacswitch.cli.sources.frames`).
+        count: markers found on a frame (the command's own extraction options).
+        source: the source as the user named it (for the error).
+        max_frames: the command's ``--max-frames`` (frames past it are never tracked).
+        hint: appended to the error (e.g. ``"; check --polarity"``).
+
+    Returns:
+        ``(rest, frames)``: the :class:`RestFrame` (None when the stream has no readable frame:
+        the caller reports that as it always did) and the whole stream again, the frames read
+        ahead first. An error the stream raised while read ahead (a camera that stops) is
+        raised again where it happened, after the frames read before it.
+
+    Raises:
+        ValueError: none of the frames looked at shows a marker (names ``source``).
+    """
+    look_ahead = LOOK_AHEAD if max_frames is None else max(1, min(LOOK_AHEAD, max_frames))
+    it = iter(stream)
+    end = object()
+    buffer: list[np.ndarray | None] = []
+    counts: list[int] = []
+    error: Exception | None = None
+    try:
+        while len(counts) < look_ahead:
+            item = next(it, end)
+            if item is end:
+                break
+            frame: np.ndarray | None = item  # type: ignore[assignment]
+            buffer.append(frame)
+            if frame is not None:
+                counts.append(int(count(frame)))
+    except Exception as exc:  # replayed where it happened (a disconnected camera, ...)
+        if not counts:
+            raise
+        error = exc
+    rest = None
+    if counts:
+        best = max(counts)
+        if best == 0:
+            if error is not None:
+                raise error
+            after = (f" nor in the {len(counts) - 1} after it" if len(counts) > 1 else "")
+            raise ValueError(f"source: no markers found in the first frame of {source!r}{after} "
+                             f"(a blank or markerless recording?){hint}")
+        index = next(i for i, c in enumerate(counts) if c > 0 and c >= USABLE_FRACTION * best)
+        rest = RestFrame(index, counts[index], counts[0], best, counts.index(best), len(counts))
+    return rest, _replay(buffer, error, it)
+
+
+def _replay(buffer: list[np.ndarray | None], error: Exception | None,
+            rest: Iterator[np.ndarray | None]) -> Iterator[np.ndarray | None]:
+    yield from buffer
+    if error is not None:
+        raise error
+    yield from rest

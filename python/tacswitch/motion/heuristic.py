@@ -74,7 +74,12 @@ def background(img: NDArray[np.uint8], iterations: int = 4) -> NDArray[np.float3
         # Normal equations: 10 cubic terms on [-1, 1] are well conditioned, and solving the
         # 10 x 10 system is several times cheaper than an SVD least squares on every refit.
         bk = basis[keep]
-        coef = np.linalg.solve(bk.T @ bk, bk.T @ vals[keep])
+        try:
+            coef = np.linalg.solve(bk.T @ bk, bk.T @ vals[keep])
+        except np.linalg.LinAlgError:
+            # A fit grid too thin to fix every cubic term (a 9 x 2000 frame gives one row of
+            # nodes: no y dependence to fit): the least-squares fit of minimum norm instead.
+            coef = np.linalg.lstsq(bk, vals[keep], rcond=None)[0]
         res = np.linalg.norm(vals - basis @ coef, axis=1)
         sigma = 1.4826 * np.median(np.abs(res[keep] - np.median(res[keep]))) + 1e-6
         new = res < np.median(res[keep]) + 2.5 * sigma
@@ -110,12 +115,54 @@ def change_map(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None) -> NDArray
     return np.asarray(cv2.sqrt(total), np.float32).reshape(a.shape[:2])
 
 
+#: :func:`_pitch` measures every centre's nearest neighbour up to this many centres, and this
+#: many evenly strided ones beyond (a median needs no more).
+PITCH_QUERIES = 4096
+#: Distances computed at once by :func:`_pitch` (bounds its memory: ~4 bytes each, a few times).
+_PITCH_CHUNK = 1 << 21
+
+
 def _pitch(centres: NDArray[np.float32]) -> float:
-    if len(centres) < 2:
+    """The median distance (px) from a centre to its nearest other centre (a duplicate counts:
+    distance 0); 1.0 for fewer than two.
+
+    Up to :data:`PITCH_QUERIES` centres, every one is measured (the N x N computation it
+    replaced, in chunks of bounded memory); beyond, an even stride of that many is, against all
+    centres: ``PITCH_QUERIES * N`` distances at most, never an N x N array.
+    """
+    import cv2
+
+    n = len(centres)
+    if n < 2:
         return 1.0
-    d = np.linalg.norm(centres[:, None, :] - centres[None, :, :], axis=2)
-    np.fill_diagonal(d, np.inf)
-    return float(np.median(d.min(1)))
+    pts = np.ascontiguousarray(centres, np.float32)
+    if n <= PITCH_QUERIES:
+        nearest = np.empty(n, np.float32)
+        step = max(1, _PITCH_CHUNK // n)
+        for i in range(0, n, step):
+            d = np.linalg.norm(pts[i:i + step, None, :] - pts[None, :, :], axis=2)
+            # The smallest distance is the centre to itself (0); the next its nearest other
+            # centre, 0 for a duplicate, as the diagonal-excluded minimum was.
+            nearest[i:i + step] = np.partition(d, 1, axis=1)[:, 1]
+        return float(np.median(nearest))
+    queries = pts[::-(-n // PITCH_QUERIES)]
+    # OpenCV's brute-force nearest-2 search: no N-wide temporaries, SIMD.
+    dist, _ = cv2.batchDistance(queries, pts, cv2.CV_32F, normType=cv2.NORM_L2, K=2)
+    return float(np.median(np.asarray(dist, np.float32)[:, 1]))
+
+
+#: Largest full-size blur :func:`outward_motion` runs, in pixels x kernel taps (a 640 x 480
+#: frame up to sigma ~40 px, ~0.3 s); wider ones run on a box-averaged map.
+_BLUR_BUDGET = 1e8
+
+
+def _blur_factor(h: int, w: int, sigma: float) -> int:
+    """Box-averaging factor before a Gaussian of ``sigma`` px on an ``h x w`` map: 1 (full size)
+    within :data:`_BLUR_BUDGET`, else ``sigma // 4`` (at least 2), which leaves sigma >= 4 px."""
+    taps = 2 * round(4 * sigma) + 1  # OpenCV's float kernel: +-4 sigma
+    if h * w * taps <= _BLUR_BUDGET:
+        return 1
+    return max(2, int(sigma // 4))
 
 
 def outward_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None,
@@ -138,16 +185,32 @@ def outward_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None,
     med = float(np.median(sub))
     floor = med + 3.0 * 1.4826 * float(np.median(np.abs(sub - med)))
     wmap = np.maximum(d - floor, 0.0).astype(np.float32)
-    wmap = cv2.GaussianBlur(wmap, (0, 0), max(1.0, pitch / 4))
+    del d
+    sigma = max(1.0, pitch / 4)
+    h, w = wmap.shape
+    k = _blur_factor(h, w, sigma)
+    if k > 1:
+        # A wide blur of a big frame (4000 x 4000 px, sigma ~90 px: minutes at full size) runs
+        # on the k x k box average instead, sigma / k >= 4 px there: the map is smooth at that
+        # scale, so its centroid, maximum and samples at the centres barely change.
+        wmap = np.asarray(cv2.resize(wmap, (max(1, w // k), max(1, h // k)),
+                                     interpolation=cv2.INTER_AREA), np.float32)
+    wmap = cv2.GaussianBlur(wmap, (0, 0), sigma / k if k > 1 else sigma)
     total = float(wmap.sum())
     wmax = float(wmap.max())
     if total <= 0 or wmax <= 0:
         return np.zeros((n, 2), np.float32)
-    ys, xs = np.mgrid[0:d.shape[0], 0:d.shape[1]]
-    centre = np.array([(wmap * xs).sum() / total, (wmap * ys).sum() / total], np.float32)
+    # Centroid from the row and column sums (no H x W coordinate grids).
+    cx = float(wmap.sum(0, dtype=np.float64) @ np.arange(wmap.shape[1])) / total
+    cy = float(wmap.sum(1, dtype=np.float64) @ np.arange(wmap.shape[0])) / total
+    # Pixel centres at integers on both grids: x = (x_small + 0.5) * sx - 0.5.
+    sx, sy = w / wmap.shape[1], h / wmap.shape[0]
+    centre = np.array([(cx + 0.5) * sx - 0.5, (cy + 0.5) * sy - 0.5], np.float32)
+    at = centres if k == 1 else ((centres + 0.5) / np.array([sx, sy], np.float32)
+                                 - 0.5).astype(np.float32)
     from tacswitch.motion.flow import sample_field
 
-    local = sample_field(np.repeat(wmap[..., None], 2, axis=2), centres)[:, 0] / wmax
+    local = sample_field(np.repeat(wmap[..., None], 2, axis=2), at)[:, 0] / wmax
     v = centres - centre
     r = np.linalg.norm(v, axis=1, keepdims=True)
     unit = np.divide(v, r, out=np.zeros_like(v), where=r > 1e-6)

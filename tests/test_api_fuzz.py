@@ -109,6 +109,16 @@ def test_outward_matches_the_old_rule_on_small_inputs(press: tuple[np.ndarray, n
     np.testing.assert_allclose(new, old, rtol=1e-4, atol=1e-5)
 
 
+@FUZZ
+@given(pts=arrays(np.float32, st.tuples(st.integers(2, 80), st.just(2)),
+                  elements=st.one_of(coords, st.sampled_from([0.0, 1.0, 1e6, -3e38, 3e38]))))
+def test_grid_nearest_distances_equal_the_brute_force(pts: np.ndarray) -> None:
+    from tacswitch.motion.heuristic import _brute_nearest, _nearest
+
+    q = np.arange(len(pts))
+    np.testing.assert_array_equal(_nearest(pts, q), _brute_nearest(pts, q))
+
+
 def test_outward_matches_the_old_rule_on_the_default_grid(press: tuple[np.ndarray,
                                                                           np.ndarray]) -> None:
     img, ref = press

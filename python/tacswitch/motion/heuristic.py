@@ -118,37 +118,89 @@ def change_map(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None) -> NDArray
 #: :func:`_pitch` measures every centre's nearest neighbour up to this many centres, and this
 #: many evenly strided ones beyond (a median needs no more).
 PITCH_QUERIES = 4096
-#: Distances computed at once by :func:`_pitch` (bounds its memory: ~4 bytes each, a few times).
-_PITCH_CHUNK = 1 << 21
+#: Distances computed at once by a brute-force pass (bounds its memory, ~4 bytes each).
+_CHUNK = 1 << 21
+
+
+def _brute_nearest(pts: NDArray[np.float32], queries: NDArray[np.intp]) -> NDArray[np.float32]:
+    """Distance from ``pts[queries]`` to their nearest other point (0 for a duplicate), against
+    every point, in chunks of :data:`_CHUNK` distances."""
+    out = np.empty(len(queries), np.float32)
+    step = max(1, _CHUNK // len(pts))
+    for i in range(0, len(queries), step):
+        with np.errstate(over="ignore"):  # points 3e38 apart: an infinite distance
+            d = np.linalg.norm(pts[queries[i:i + step], None, :] - pts[None, :, :], axis=2)
+        # The smallest distance is the query to itself (0); the next its nearest other point,
+        # 0 for a duplicate, as the N x N minimum with the diagonal excluded gave.
+        out[i:i + step] = np.partition(d, 1, axis=1)[:, 1]
+    return out
+
+
+def _nearest(pts: NDArray[np.float32], queries: NDArray[np.intp]) -> NDArray[np.float32]:
+    """:func:`_brute_nearest`'s distances, found among the points of the 3 x 3 cells of a
+    grid around each query (cells 1.5 mean spacings wide, so a grid of markers has its
+    neighbours there); a query whose nearest found lies farther than a cell, which the cells
+    cannot vouch for, is measured against every point. Float32 distances computed as the
+    brute force computes them: the same values."""
+    n = len(pts)
+    if not np.isfinite(pts).all():
+        return _brute_nearest(pts, queries)
+    lo = pts.min(0).astype(np.float64)
+    ext = pts.max(0).astype(np.float64) - lo
+    cell = 1.5 * float(np.sqrt(max(ext[0] * ext[1], 1.0) / n))
+    # At most 2**20 cells a side (points spread along a line, or over 1e30 px).
+    cell = max(cell, float(ext.max()) / 2**20, 1e-6)
+    if not np.isfinite(cell):
+        return _brute_nearest(pts, queries)
+    ncol, nrow = int(ext[0] // cell) + 1, int(ext[1] // cell) + 1
+    ix = np.clip(((pts[:, 0] - lo[0]) // cell).astype(np.int64), 0, ncol - 1)
+    iy = np.clip(((pts[:, 1] - lo[1]) // cell).astype(np.int64), 0, nrow - 1)
+    order = np.argsort(iy * ncol + ix, kind="stable")
+    keys = (iy * ncol + ix)[order]
+    qx, qy = ix[queries], iy[queries]
+    rep_q, rep_p = [], []
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            cx, cy = qx + dx, qy + dy
+            ok = (cx >= 0) & (cx < ncol) & (cy >= 0) & (cy < nrow)
+            k = cy * ncol + cx
+            start = np.searchsorted(keys, k, "left")
+            count = np.where(ok, np.searchsorted(keys, k, "right") - start, 0)
+            total = int(count.sum())
+            if total > _CHUNK * 8:  # points piled in a few cells: no use for the grid
+                return _brute_nearest(pts, queries)
+            offs = np.arange(total) - np.repeat(np.cumsum(count) - count, count)
+            rep_q.append(np.repeat(np.arange(len(queries)), count))
+            rep_p.append(order[np.repeat(start, count) + offs])
+    q_all, p_all = np.concatenate(rep_q), np.concatenate(rep_p)
+    with np.errstate(over="ignore"):
+        d = np.linalg.norm(pts[queries][q_all] - pts[p_all], axis=1)
+    srt = np.lexsort((d, q_all))
+    first = np.searchsorted(q_all[srt], np.arange(len(queries)))
+    has_two = np.bincount(q_all, minlength=len(queries)) >= 2
+    out = np.full(len(queries), np.inf, np.float32)
+    out[has_two] = d[srt][first[has_two] + 1]
+    # Within 0.99 cell (float margin) the cells hold every closer point: the nearest is exact.
+    far = ~(out <= 0.99 * cell)
+    if far.any():
+        out[far] = _brute_nearest(pts, queries[far])
+    return out
 
 
 def _pitch(centres: NDArray[np.float32]) -> float:
     """The median distance (px) from a centre to its nearest other centre (a duplicate counts:
     distance 0); 1.0 for fewer than two.
 
-    Up to :data:`PITCH_QUERIES` centres, every one is measured (the N x N computation it
-    replaced, in chunks of bounded memory); beyond, an even stride of that many is, against all
-    centres: ``PITCH_QUERIES * N`` distances at most, never an N x N array.
+    Up to :data:`PITCH_QUERIES` centres, every one is measured (the value the N x N array it
+    replaced gave); beyond, an even stride of that many is, against all centres. No N x N
+    array: a grid finds the neighbours (:func:`_nearest`).
     """
-    import cv2
-
     n = len(centres)
     if n < 2:
         return 1.0
     pts = np.ascontiguousarray(centres, np.float32)
-    if n <= PITCH_QUERIES:
-        nearest = np.empty(n, np.float32)
-        step = max(1, _PITCH_CHUNK // n)
-        for i in range(0, n, step):
-            d = np.linalg.norm(pts[i:i + step, None, :] - pts[None, :, :], axis=2)
-            # The smallest distance is the centre to itself (0); the next its nearest other
-            # centre, 0 for a duplicate, as the diagonal-excluded minimum was.
-            nearest[i:i + step] = np.partition(d, 1, axis=1)[:, 1]
-        return float(np.median(nearest))
-    queries = pts[::-(-n // PITCH_QUERIES)]
-    # OpenCV's brute-force nearest-2 search: no N-wide temporaries, SIMD.
-    dist, _ = cv2.batchDistance(queries, pts, cv2.CV_32F, normType=cv2.NORM_L2, K=2)
-    return float(np.median(np.asarray(dist, np.float32)[:, 1]))
+    queries = np.arange(0, n, max(1, -(-n // PITCH_QUERIES)))
+    return float(np.median(_nearest(pts, queries)))
 
 
 #: Largest full-size blur :func:`outward_motion` runs, in pixels x kernel taps (a 640 x 480

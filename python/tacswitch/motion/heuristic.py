@@ -10,10 +10,12 @@ baseline learned methods must beat, implemented here as well as it can be withou
    single-frame, the distance between ``img`` and a smooth background estimate of the gel (a robust
    per-channel cubic polynomial fit, outliers — the imprint — rejected iteratively);
 2. contact weights ``max(D - floor, 0)`` with the noise floor ``median(D) + 3 * 1.4826 * MAD``,
-   smoothed over about a quarter of the marker pitch; the contact centre is their centroid;
+   smoothed over about a quarter of the marker pitch (on a box-averaged map where that blur
+   would be wide on a big frame, :func:`_blur_factor`); the contact centre is their centroid;
 3. each marker at ``X`` moves along ``(X - centre) / |X - centre|`` by
    ``OUTWARD_GAIN * pitch * w(X) / w_max``: the largest motion is ``OUTWARD_GAIN`` of the
-   marker pitch (estimated from the centres), where the change is largest.
+   marker pitch (the centres' median nearest-neighbour distance, :func:`_pitch`), where the
+   change is largest.
 
 ``OUTWARD_GAIN`` is not fitted to any evaluation data: it is the least-squares scale of this rule's
 output against the true marker motion of the simulator's pure presses (40 per sensor, against the

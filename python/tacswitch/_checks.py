@@ -153,11 +153,12 @@ def as_path(path: Any, name: str) -> Any:
 
 def as_rng(seed: Any, name: str = "seed") -> np.random.Generator:
     """A ``numpy.random.Generator`` from ``seed``: None (fresh randomness), an integer >= 0, a
-    sequence of them (e.g. ``(dataset_seed, index)``), a ``SeedSequence`` or a Generator (used
-    as it is). Anything else: an error naming ``name`` (numpy's own names no argument)."""
+    sequence of them (e.g. ``(dataset_seed, index)``), a ``SeedSequence`` or ``BitGenerator``,
+    or a Generator (used as it is). Anything else: an error naming ``name`` (numpy's own
+    names no argument)."""
     if isinstance(seed, np.random.Generator):
         return seed
-    if seed is None or isinstance(seed, np.random.SeedSequence):
+    if seed is None or isinstance(seed, (np.random.SeedSequence, np.random.BitGenerator)):
         return np.random.default_rng(seed)
     if isinstance(seed, (list, tuple, np.ndarray)):
         parts = list(np.asarray(seed, dtype=object).ravel()) if isinstance(seed, np.ndarray) \

@@ -77,14 +77,25 @@ def as_count(value: Any, name: str, minimum: int, maximum: int | None = MAX_COUN
                         f"{span}, got {type(value).__name__}")
     if value < minimum or (maximum is not None and value > maximum):
         raise ValueError(f"{name}: expected an integer {'in ' if maximum is not None else ''}"
-                         f"{span}, got {value}")
+                         f"{span}, got {short_repr(int(value))}")
     return int(value)
+
+
+def short_repr(value: Any, limit: int = 40) -> str:
+    """``repr(value)`` cut to about ``limit`` characters (a 400-digit integer in an error
+    message would bury it)."""
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[:limit - 12]}...({len(text)} chars)"
 
 
 def as_number(value: Any, name: str, minimum: float | None = None,
               maximum: float | None = None) -> float:
-    """Checks a finite real argument (bools refused) against an optional closed range."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+    """Checks a finite real argument (bools refused) against an optional closed range.
+
+    Integers too large for a float (``10**400``) are out of range, not an OverflowError.
+    """
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer,
+                                                                      np.floating)):
         raise TypeError(f"{name}: expected a number, got {type(value).__name__}")
     try:
         v = float(value)
@@ -93,7 +104,8 @@ def as_number(value: Any, name: str, minimum: float | None = None,
     lo = -np.inf if minimum is None else minimum
     hi = np.inf if maximum is None else maximum
     if not np.isfinite(v) or not lo <= v <= hi:
-        raise ValueError(f"{name}: expected a finite number in [{lo}, {hi}], got {value!r}")
+        raise ValueError(f"{name}: expected a finite number in [{lo}, {hi}], got "
+                         f"{short_repr(value)}")
     return v
 
 
@@ -110,6 +122,56 @@ def as_seed(seed: Any, name: str = "seed") -> int | None:
     if seed is None:
         return None
     return as_count(seed, name, 0, 2**32 - 1)
+
+
+#: JPEG quality range of the simulator and capture models (libjpeg's scale; OpenCV silently
+#: clamps values outside it, so they are refused here instead).
+JPEG_QUALITY_RANGE = (1, 100)
+
+
+def as_jpeg_quality(quality: Any, name: str = "jpeg_quality") -> int | None:
+    """An optional JPEG quality: None (lossless) or an integer in :data:`JPEG_QUALITY_RANGE`.
+
+    Shared by the simulator (``jpeg_quality``) and the command line (``--jpeg``: pass its
+    option name as ``name``).
+    """
+    if quality is None:
+        return None
+    return as_count(quality, name, *JPEG_QUALITY_RANGE)
+
+
+def as_path(path: Any, name: str) -> Any:
+    """``path`` when it is a ``str`` or ``os.PathLike`` (e.g. a ``pathlib.Path``), else a
+    ``TypeError`` naming ``name`` (``Path(3)`` fails deep inside pathlib)."""
+    import os
+
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"{name}: expected a path (str or os.PathLike), got "
+                        f"{type(path).__name__}")
+    return path
+
+
+def as_rng(seed: Any, name: str = "seed") -> np.random.Generator:
+    """A ``numpy.random.Generator`` from ``seed``: None (fresh randomness), an integer >= 0, a
+    sequence of them (e.g. ``(dataset_seed, index)``), a ``SeedSequence`` or ``BitGenerator``,
+    or a Generator (used as it is). Anything else: an error naming ``name`` (numpy's own
+    names no argument)."""
+    if isinstance(seed, np.random.Generator):
+        return seed
+    if seed is None or isinstance(seed, (np.random.SeedSequence, np.random.BitGenerator)):
+        return np.random.default_rng(seed)
+    if isinstance(seed, (list, tuple, np.ndarray)):
+        parts = list(np.asarray(seed, dtype=object).ravel()) if isinstance(seed, np.ndarray) \
+            else list(seed)
+        if not parts:
+            raise ValueError(f"{name}: expected an integer >= 0 or a non-empty sequence of them; "
+                             "got an empty sequence")
+        values = [as_count(v, name, 0, None) for v in parts]
+        return np.random.default_rng(values)
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)):
+        raise TypeError(f"{name}: expected None, an integer >= 0, a sequence of them or a numpy "
+                        f"Generator; got {type(seed).__name__}")
+    return np.random.default_rng(as_count(seed, name, 0, None))
 
 
 def as_points(pts: Any, name: str, *, check_finite: bool = True) -> NDArray[np.float32]:

@@ -27,7 +27,9 @@ __all__ = ["SequenceDataset", "TactileDataset", "read_manifest"]
 
 def read_manifest(root: str | Path) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     """``(header, records)`` of the dataset in ``root`` (``dataset.json``, ``manifest.jsonl``)."""
-    root = Path(root)
+    from tacswitch._checks import as_path
+
+    root = Path(as_path(root, "root"))
     head = root / "dataset.json"
     man = root / "manifest.jsonl"
     if not head.is_file() or not man.is_file():
@@ -87,6 +89,14 @@ def _file(d: Path, rec: dict[str, Any], key: str, i: int) -> Path:
     return path
 
 
+def _classes(header: dict[str, Any], root: Any) -> list[str]:
+    """The header's class names (``label_id`` indexes them); an error naming ``root`` when
+    ``dataset.json`` has none."""
+    if "classes" not in header:
+        raise ValueError(f"root: {str(root)!r}: dataset.json lacks 'classes'")
+    return list(header["classes"])
+
+
 def _img(path: Path) -> np.ndarray:
     from tacswitch._io import read_image
 
@@ -120,13 +130,11 @@ class TactileDataset:
 
     def __init__(self, root: str | Path, *, transform: Callable[[dict], Any] | None = None,
                  keys: tuple[str, ...] | None = None) -> None:
+        self.header, self.records = read_manifest(root)
         self.root = Path(root)
-        self.header, self.records = read_manifest(self.root)
         if self.header.get("sequences"):
             raise ValueError(f"root: {str(root)!r} holds sequences; use SequenceDataset")
-        if "classes" not in self.header:
-            raise ValueError(f"root: {str(root)!r}: dataset.json lacks 'classes'")
-        self.classes: list[str] = list(self.header["classes"])
+        self.classes: list[str] = _classes(self.header, root)
         self.transform = transform
         self.keys = keys
 
@@ -174,11 +182,11 @@ class SequenceDataset:
 
     def __init__(self, root: str | Path, *, transform: Callable[[dict], Any] | None = None
                  ) -> None:
+        self.header, self.records = read_manifest(root)
         self.root = Path(root)
-        self.header, self.records = read_manifest(self.root)
         if not self.header.get("sequences"):
             raise ValueError(f"root: {str(root)!r} holds single samples; use TactileDataset")
-        self.classes: list[str] = list(self.header["classes"])
+        self.classes: list[str] = _classes(self.header, root)
         self.transform = transform
 
     def __len__(self) -> int:
@@ -193,14 +201,35 @@ class SequenceDataset:
         n = int(i) % len(self)
         d = _record_dir(self.root, rec, n)
         try:
-            return self._load(rec, d)
+            item = self._load(rec, d, n)
         except (KeyError, TypeError, AttributeError) as exc:
             raise ValueError(f"root: manifest record {n} is malformed ({exc!r})") from None
+        except ValueError as exc:
+            if str(exc).startswith(("root:", "path:")):
+                raise
+            # e.g. np.stack of per-frame arrays of different lengths
+            raise ValueError(f"root: manifest record {n} is malformed ({exc})") from None
+        return self.transform(item) if self.transform is not None else item
 
-    def _load(self, rec: dict[str, Any], d: Path) -> Any:
+    def _load(self, rec: dict[str, Any], d: Path, n: int) -> dict[str, Any]:
         fr = rec["frames"]
-        reference = _img(d / rec["files"]["reference"])
+        if not isinstance(fr, list) or not fr:
+            raise ValueError(f"root: manifest record {n} has no frames")
+        reference = _img(_file(d, rec, "reference", n))
         shape = reference.shape
+
+        def frames(key: str) -> np.ndarray:
+            """Frame images ``key`` of every frame, each the reference's size."""
+            out = []
+            for t, f in enumerate(fr):
+                im = _img(_file(d, f, key, n))
+                if im.shape != shape:
+                    raise ValueError(
+                        f"root: manifest record {n} frame {t} {key!r} is {im.shape[0]} x "
+                        f"{im.shape[1]} but its reference is {shape[0]} x {shape[1]}")
+                out.append(im)
+            return np.stack(out)
+
         item: dict[str, Any] = {
             "index": rec["index"], "kind": rec["kind"], "label": rec["label"],
             "label_id": rec["label_id"], "grasp_start": rec["grasp_start"],
@@ -208,13 +237,14 @@ class SequenceDataset:
             "rest": np.asarray(rec["rest"], np.float32).reshape(-1, 2),
             "present": np.asarray(rec["present"], bool),
             "merged": np.asarray(rec["merged"], bool),
-            "images": np.stack([_img(d / f["files"]["image"]) for f in fr]),
-            "images_markers": np.stack([_img(d / f["files"]["image_markers"]) for f in fr]),
-            "marker_masks": np.stack([_mask(d / f["files"]["marker_mask"], shape) for f in fr]),
-            "contact_masks": np.stack([_mask(d / f["files"]["contact_mask"], shape) for f in fr]),
+            "images": frames("image"),
+            "images_markers": frames("image_markers"),
+            "marker_masks": np.stack([_mask(_file(d, f, "marker_mask", n), shape) for f in fr]),
+            "contact_masks": np.stack([_mask(_file(d, f, "contact_mask", n), shape)
+                                       for f in fr]),
             "displacements": np.stack([np.asarray(f["displacement"], np.float32).reshape(-1, 2)
                                        for f in fr]),
             "slip": np.array([f["slip"] for f in fr], bool),
             "phase": [f["phase"] for f in fr], "params": rec["params"],
         }
-        return self.transform(item) if self.transform is not None else item
+        return item

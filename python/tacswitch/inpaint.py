@@ -8,6 +8,7 @@ Conventions: images are numpy ``H x W x C`` (C in 1, 3, 4; colour order **BGR**,
 
 from __future__ import annotations
 
+import functools
 import os
 from typing import Any, Literal
 
@@ -314,6 +315,28 @@ def _check_ns_input(arr: NDArray[Any], m: NDArray[np.uint8]) -> None:
             raise ValueError("img: unmasked pixels must be finite (NaN/Inf found)")
 
 
+@functools.lru_cache(maxsize=1)
+def _extract_keywords() -> tuple[str, ...]:
+    """The options of :func:`tacswitch.extract_markers` that :func:`remove_markers` passes on."""
+    import inspect
+
+    from tacswitch.markers import extract_markers
+
+    return tuple(p for p in inspect.signature(extract_markers).parameters
+                 if p not in ("img", "dilate"))
+
+
+def _check_extract_keywords(opts: dict[str, Any]) -> None:
+    """The extra keywords of :func:`remove_markers` must be options of
+    :func:`tacswitch.extract_markers` (else Python's own error would blame extract_markers,
+    or none at all when a mask is given)."""
+    allowed = _extract_keywords()
+    for key in opts:
+        if key not in allowed:
+            raise TypeError(f"{key}: not an argument of remove_markers (its extra keywords are "
+                            f"extract_markers' options: {', '.join(allowed)})")
+
+
 def remove_markers(
     img: NDArray[Any],
     mask: NDArray[Any] | None = None,
@@ -381,6 +404,7 @@ def remove_markers(
     if not isinstance(method, str) or method not in ("telea", "biharmonic", "ns", *_MODEL_METHODS):
         raise ValueError("method: must be 'telea', 'biharmonic', 'ns', 'tacdiff' or 'hybrid'; "
                          f"got {method!r}")
+    _check_extract_keywords(extract_opts)
     arr = _as_image(img)
     if method in _MODEL_METHODS:
         check_model_arg(model)

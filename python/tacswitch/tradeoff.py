@@ -37,6 +37,7 @@ class PairedFrame:
     contact: NDArray[np.bool_]
     reference: NDArray[np.uint8] | None = None  # no-contact frame of the same scene
     score: NDArray[np.bool_] | None = None
+    source: str = ""  # what the frame is: "simulated ... contacts", "real ... frames ..."
 
     @property
     def scored(self) -> NDArray[np.bool_]:
@@ -54,6 +55,8 @@ class Row:
     mae: float
     mae_contact: float
     psnr: float
+    #: What the row was measured on (e.g. "simulated gelsight contacts"), for the plot's title.
+    source: str = ""
 
 
 def default_methods(radii: Sequence[int] = (3, 5, 8, 12), opencv: bool = True
@@ -145,17 +148,18 @@ def simulated_frames(n: int, preset: str = "gelsight", seed: int = 0,
     if mask not in ("true", "extracted"):
         raise ValueError(f"mask: expected 'true' or 'extracted'; got {mask!r}")
     frames = []
+    source = f"simulated {preset} contacts"
     for i in range(n):
         s = render_sample(preset, (seed, i))
         true = dilate_mask(s.marker_mask)
         if mask == "true":
             frames.append(PairedFrame(s.image_markers, s.image, true, s.contact_mask,
-                                      s.reference))
+                                      s.reference, source=source))
             continue
         fill = extract_markers(s.image_markers, dilate=DEFAULT_DILATE,
                                exclude_border=False).mask
         frames.append(PairedFrame(s.image_markers, s.image, fill, s.contact_mask, s.reference,
-                                  score=fill | true))
+                                  score=fill | true, source=source))
     return frames
 
 
@@ -187,7 +191,8 @@ def proxy_frames(n: int, sensor: str = "gelsight", *,
         if "/".join(f.name.split("/")[2:]) not in want:
             continue
         frames.append(PairedFrame(f.img, f.clean, realproxy.default_mask(f.img), f.contact,
-                                  f.reference, score=f.footprint))
+                                  f.reference, score=f.footprint,
+                                  source=f"real {sensor} frames, painted markers"))
     return frames
 
 
@@ -215,7 +220,8 @@ def evaluate(frames: Sequence[PairedFrame], methods: dict[tuple[str, str], Inpai
         psnr = float(np.mean([masked_psnr(o, f.truth, f.scored) for o, f in zip(outs, frames,
                                                                              strict=True)]))
         rows.append(Row(key[0], key[1], 1e3 * float(np.median(times[key])), mae,
-                        float(np.mean(contact)) if contact else float("nan"), psnr))
+                        float(np.mean(contact)) if contact else float("nan"), psnr,
+                        source=" + ".join(dict.fromkeys(f.source for f in frames if f.source))))
     return rows
 
 
@@ -237,55 +243,133 @@ def pareto(rows: Sequence[Row]) -> list[Row]:
                        for o in rows)]
 
 
-def plot(rows: Sequence[Row], size: tuple[int, int] = (480, 720)) -> NDArray[np.uint8]:
-    """Time (log scale) against masked MAE, one colour per method, the Pareto front joined."""
+def plot_title(rows: Sequence[Row]) -> str:
+    """The plot's title: what the rows were measured on (:attr:`Row.source`), so the simulated
+    and the real-frame plots are told apart."""
+    sources = list(dict.fromkeys(r.source for r in rows if r.source))
+    on = f" on {' + '.join(sources)}" if sources else ""
+    return f"Marker removal{on}: time vs masked error"
+
+
+#: Text scale of the plot's tick labels, point labels and legend (Hershey simplex).
+_SMALL = 0.42
+
+
+def _text_box(text: str, org: tuple[int, int], scale: float = _SMALL
+              ) -> tuple[int, int, int, int]:
+    """``(x0, y0, x1, y1)`` of ``text`` drawn with its baseline at ``org``."""
     import cv2
 
-    h, w = size
+    (tw, th), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, 1)
+    return org[0], org[1] - th - 1, org[0] + tw, org[1] + base
+
+
+def _overlap(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> int:
+    return max(0, min(a[2], b[2]) - max(a[0], b[0])) * max(0, min(a[3], b[3]) - max(a[1], b[1]))
+
+
+def _place_label(text: str, p: tuple[int, int], taken: list[tuple[int, int, int, int]],
+                 box: tuple[int, int, int, int]) -> tuple[int, int]:
+    """Baseline origin of a point's label near ``p``: the first place (eight around it, then
+    the same a line, two and three lines farther up or down) that stays inside ``box`` and
+    overlaps nothing ``taken``, else the one that overlaps least."""
+    x0, y0, x1, _ = _text_box(text, (0, 0))
+    tw, th = x1 - x0, -y0
+    ring = [(p[0] + 8, p[1] - 4), (p[0] + 8, p[1] + th + 4), (p[0] - 8 - tw, p[1] - 4),
+            (p[0] - 8 - tw, p[1] + th + 4), (p[0] - tw // 2, p[1] - 9),
+            (p[0] - tw // 2, p[1] + th + 9), (p[0] + 8, p[1] + th // 2),
+            (p[0] - 8 - tw, p[1] + th // 2)]
+    cands = ring + [(x, y + sign * k * (th + 6)) for k in (1, 2, 3) for sign in (-1, 1)
+                    for x, y in ring]
+    best, best_cost = cands[0], None
+    for org in cands:
+        r = _text_box(text, org)
+        outside = (max(0, box[0] - r[0]) + max(0, r[2] - box[2]) + max(0, box[1] - r[1])
+                   + max(0, r[3] - box[3]))
+        cost = 10_000 * outside + sum(_overlap(r, t) for t in taken)
+        if best_cost is None or cost < best_cost:
+            best, best_cost = org, cost
+        if cost == 0:
+            break
+    return best
+
+
+def plot(rows: Sequence[Row], size: tuple[int, int] = (480, 720), *,
+         title: str | None = None) -> NDArray[np.uint8]:
+    """Time (log scale) against masked MAE, one colour and shape per method
+    (:func:`tacswitch.viz.series_style`: 20 colours, 40 styles), the Pareto front joined.
+
+    The legend sits right of the plot box, which shrinks (or the image widens) to fit it;
+    each point's setting is labelled beside it where it overlaps no other label or point and
+    stays inside the plot box. ``title``: default :func:`plot_title`. ``size``: ``(height,
+    width)`` px at least.
+    """
+    import cv2
+
+    from tacswitch.viz import draw_point, series_style
+
+    font, black = cv2.FONT_HERSHEY_SIMPLEX, (0, 0, 0)
+    methods = list(dict.fromkeys(r.method for r in rows))
+    legend_w = 34 + max((_text_box(m, (0, 0))[2] for m in methods), default=0)
+    line = 20
+    left, top, bottom = 70, 64, 50
+    h = max(size[0], top + bottom + line * len(methods) + 8)
+    w = max(size[1], left + 320 + legend_w + 16)
+    right = legend_w + 16  # the legend column, outside the plot box
     img = np.full((h, w, 3), 255, np.uint8)
-    left, right, top, bottom = 70, 20, 40, 50
     xs = np.log10([r.ms for r in rows])
     ys = np.array([r.mae for r in rows])
     x0, x1 = xs.min() - 0.1, xs.max() + 0.1
     y0, y1 = ys.min() * 0.95, ys.max() * 1.05
+    bx0, by0, bx1, by1 = left, top, w - right, h - bottom  # plot box
 
     def px(lx: float, y: float) -> tuple[int, int]:
-        return (round(left + (w - left - right) * (lx - x0) / (x1 - x0)),
-                round(h - bottom - (h - top - bottom) * (y - y0) / max(y1 - y0, 1e-9)))
+        return (round(bx0 + (bx1 - bx0) * (lx - x0) / (x1 - x0)),
+                round(by1 - (by1 - by0) * (y - y0) / max(y1 - y0, 1e-9)))
 
-    cv2.rectangle(img, (left, top), (w - right, h - bottom), (0, 0, 0), 1)
+    cv2.rectangle(img, (bx0, by0), (bx1, by1), black, 1)
     for dec in range(int(np.floor(x0)), int(np.ceil(x1)) + 1):
         for mult in (1, 2, 5):
             lx = dec + np.log10(mult)
             if x0 <= lx <= x1:
                 x, _ = px(lx, y0)
-                cv2.line(img, (x, h - bottom), (x, h - bottom + 4), (0, 0, 0), 1)
-                cv2.putText(img, f"{10 ** lx:g}", (x - 10, h - bottom + 18),
-                            cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1, cv2.LINE_AA)
+                cv2.line(img, (x, by1), (x, by1 + 4), black, 1)
+                text = f"{10 ** lx:g}"
+                tw = _text_box(text, (0, 0))[2]
+                cv2.putText(img, text, (x - tw // 2, by1 + 18), font, 0.4, black, 1, cv2.LINE_AA)
     for frac in np.linspace(0, 1, 5):
         y = y0 + frac * (y1 - y0)
         _, py = px(x0, y)
-        cv2.putText(img, f"{y:.2f}", (8, py + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1,
-                    cv2.LINE_AA)
-    cv2.putText(img, "ms per 640x480 frame (log)", (w // 2 - 100, h - 12),
-                cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
-    cv2.putText(img, "masked MAE (grey levels), lower is better", (left, top - 14),
-                cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+        cv2.putText(img, f"{y:.2f}", (8, py + 4), font, 0.4, black, 1, cv2.LINE_AA)
+    xlabel = "ms per 640x480 frame (log)"
+    cv2.putText(img, xlabel, ((bx0 + bx1 - _text_box(xlabel, (0, 0), 0.45)[2]) // 2, h - 12),
+                font, 0.45, black, 1, cv2.LINE_AA)
+    cv2.putText(img, "masked MAE (grey levels), lower is better", (bx0, by0 - 10), font, 0.45,
+                black, 1, cv2.LINE_AA)
+    cv2.putText(img, plot_title(rows) if title is None else title, (8, 24), font, 0.6, black, 1,
+                cv2.LINE_AA)
     front = sorted(pareto(rows), key=lambda r: r.ms)
     for a, b in itertools.pairwise(front):
         cv2.line(img, px(np.log10(a.ms), a.mae), px(np.log10(b.ms), b.mae), (160, 160, 160), 1,
                  cv2.LINE_AA)
-    palette = [(200, 80, 0), (0, 140, 0), (0, 0, 200), (140, 0, 140), (0, 140, 140)]
-    methods = list(dict.fromkeys(r.method for r in rows))
-    for r in rows:
-        colour = palette[methods.index(r.method) % len(palette)]
-        p = px(np.log10(r.ms), r.mae)
-        cv2.circle(img, p, 5, colour, -1, cv2.LINE_AA)
-        cv2.putText(img, r.knob, (p[0] + 7, p[1] - 5), cv2.FONT_HERSHEY_SIMPLEX, 0.35, colour, 1,
-                    cv2.LINE_AA)
+    points = [px(np.log10(r.ms), r.mae) for r in rows]
+    # Points first, then their labels, each placed clear of every point and earlier label.
+    taken = [(p[0] - 7, p[1] - 7, p[0] + 7, p[1] + 7) for p in points]
+    for r, p in zip(rows, points, strict=True):
+        colour, shape = series_style(methods.index(r.method))
+        draw_point(img, p, colour, shape)
+    box = (bx0 + 2, by0 + 2, bx1 - 2, by1 - 2)
+    for r, p in zip(rows, points, strict=True):
+        if not r.knob or r.knob == "-":
+            continue
+        colour, _ = series_style(methods.index(r.method))
+        org = _place_label(r.knob, p, taken, box)
+        taken.append(_text_box(r.knob, org))
+        cv2.putText(img, r.knob, org, font, _SMALL, colour, 1, cv2.LINE_AA)
+    lx = bx1 + 16
     for i, m in enumerate(methods):
-        colour = palette[i % len(palette)]
-        cv2.circle(img, (w - 190, top + 14 + 18 * i), 5, colour, -1, cv2.LINE_AA)
-        cv2.putText(img, m, (w - 178, top + 18 + 18 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.4, colour, 1,
-                    cv2.LINE_AA)
+        colour, shape = series_style(i)
+        cy = by0 + 10 + line * i
+        draw_point(img, (lx + 6, cy), colour, shape)
+        cv2.putText(img, m, (lx + 18, cy + 5), font, _SMALL, black, 1, cv2.LINE_AA)
     return img

@@ -52,6 +52,68 @@ def draw_motion(
     return out
 
 
+#: Series colours (BGR) of the plots: matplotlib's tab20, its ten dark shades first (tab10:
+#: ten distinct hues), then their light shades.
+SERIES_COLOURS: tuple[tuple[int, int, int], ...] = tuple(
+    (int(h[4:6], 16), int(h[2:4], 16), int(h[0:2], 16)) for h in (
+        "1f77b4", "ff7f0e", "2ca02c", "d62728", "9467bd", "8c564b", "e377c2", "7f7f7f",
+        "bcbd22", "17becf", "aec7e8", "ffbb78", "98df8a", "ff9896", "c5b0d5", "c49c94",
+        "f7b6d2", "c7c7c7", "dbdb8d", "9edae5"))
+#: Point shapes of the plots, changing every ten series (so a light shade differs from its dark
+#: one in shape too, and 40 series differ in colour or shape).
+SERIES_MARKERS = ("circle", "square", "triangle", "diamond")
+
+
+def series_style(i: int) -> tuple[tuple[int, int, int], str]:
+    """Colour (BGR) and point shape of series ``i`` (0-based) in a plot: 20 distinct colours,
+    40 distinct (colour, shape) pairs."""
+    return SERIES_COLOURS[i % len(SERIES_COLOURS)], SERIES_MARKERS[(i // 10) % len(SERIES_MARKERS)]
+
+
+def draw_point(img: NDArray[np.uint8], centre: tuple[int, int], colour: tuple[int, int, int],
+               shape: str, radius: int = 5) -> None:
+    """A filled point of ``shape`` (:data:`SERIES_MARKERS`) at ``centre``, in place."""
+    import cv2
+
+    x, y = centre
+    r = radius
+    if shape == "circle":
+        cv2.circle(img, centre, r, colour, -1, cv2.LINE_AA)
+        return
+    if shape == "square":
+        poly = [(x - r + 1, y - r + 1), (x + r - 1, y - r + 1), (x + r - 1, y + r - 1),
+                (x - r + 1, y + r - 1)]
+    elif shape == "triangle":
+        poly = [(x, y - r - 1), (x + r + 1, y + r), (x - r - 1, y + r)]
+    else:  # diamond
+        poly = [(x, y - r - 1), (x + r + 1, y), (x, y + r + 1), (x - r - 1, y)]
+    cv2.fillPoly(img, [np.array(poly, np.int32)], colour, cv2.LINE_AA)
+
+
+def difference_panel(result: NDArray[np.uint8], truth: NDArray[np.uint8],
+                     floor: float = 1.0) -> tuple[NDArray[np.uint8], float]:
+    """A visible picture of ``|result - truth|`` (uint8 images of one shape): the truth,
+    dimmed and grey, for context, under a heat map (black, red, yellow, white) of the error
+    amplified so that its 99th percentile over the changed pixels is white.
+
+    Errors of a few grey levels under small markers are otherwise an almost black image.
+    ``floor``: smallest error (grey levels) mapped to white (caps the gain where errors are
+    tiny). Returns ``(panel BGR uint8, gain)``: the heat map shows ``gain x`` the error.
+    """
+    import cv2
+
+    err = np.abs(result.astype(np.int16) - truth.astype(np.int16))
+    err = err.max(axis=2) if err.ndim == 3 else err
+    changed = err[err > 0]
+    top = max(float(np.percentile(changed, 99)) if changed.size else 0.0, floor)
+    gain = 255.0 / top
+    heat = cv2.applyColorMap(np.clip(err * gain, 0, 255).astype(np.uint8), cv2.COLORMAP_HOT)
+    grey = truth if truth.ndim == 2 else cv2.cvtColor(
+        truth if truth.shape[2] == 3 else truth[..., :3], cv2.COLOR_BGR2GRAY)
+    context = (np.asarray(grey, np.float32) * 0.4).astype(np.uint8)
+    return np.maximum(np.asarray(heat), context[..., None]), gain
+
+
 #: Caption and plot text: Hershey simplex at this scale draws capitals about 14 px high.
 TEXT_SCALE = 0.62
 _FONT = 0  # cv2.FONT_HERSHEY_SIMPLEX
@@ -161,7 +223,10 @@ def line_plot(
         if hline_label:
             _put(img, hline_label, (x1 - _text_width(hline_label, small) - 4, y - 6),
                  (0, 0, 200), small)
-    palette = [(200, 80, 0), (0, 150, 0), (0, 0, 200), (120, 0, 120)]
+    # Four colours of their own, then the shared series colours but the four hues they are
+    # (blue, green, red, purple): 20 distinct colours.
+    palette = [(200, 80, 0), (0, 150, 0), (0, 0, 200), (120, 0, 120),
+               *(c for i, c in enumerate(SERIES_COLOURS) if i not in (0, 2, 3, 4))]
     for k, (_name, v) in enumerate(series.items()):
         pts = [px(i, val) for i, val in enumerate(np.asarray(v, np.float64)) if np.isfinite(val)]
         for p, q in itertools.pairwise(pts):

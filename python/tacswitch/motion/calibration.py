@@ -125,7 +125,7 @@ def calibrate_press_gain(no_contact: Any, frames: Any, centres: Any = None, *,
     Raises:
         ValueError: bad arguments, or fewer than 10 usable patches (no grain to match).
     """
-    from tacswitch._checks import as_points
+    from tacswitch._checks import as_count, as_number, as_points
     from tacswitch.motion import grainmatch as gm
     from tacswitch.motion.mechanics import imprint
 
@@ -146,13 +146,14 @@ def calibrate_press_gain(no_contact: Any, frames: Any, centres: Any = None, *,
     for im in imgs:
         if im.shape != f0.shape:
             raise ValueError(f"frames: shape {im.shape} does not match no_contact {f0.shape}")
-    if not (isinstance(patch, (int, np.integer)) and patch >= 8):
-        raise ValueError(f"patch: need an integer >= 8 px; got {patch!r}")
-    if not (isinstance(step, (int, np.integer)) and step >= 1):
-        raise ValueError(f"step: need an integer >= 1 px; got {step!r}")
-    if not (np.isfinite(min_peak) and -1 <= min_peak < 1):
-        raise ValueError(f"min_peak: need a value in [-1, 1); got {min_peak!r}")
     h, w = f0.shape[:2]
+    patch = as_count(patch, "patch", 8)
+    if patch > min(h, w):
+        raise ValueError(f"patch: a {patch} px patch does not fit the {h} x {w} frames")
+    step = as_count(step, "step", 1)
+    min_peak = as_number(min_peak, "min_peak", -1.0, 1.0)
+    if min_peak >= 1:
+        raise ValueError(f"min_peak: need a value in [-1, 1); got {min_peak!r}")
     if centres is None:
         ys, xs = np.mgrid[patch // 2:h - patch // 2:step, patch // 2:w - patch // 2:step]
         pts = np.stack([xs.ravel(), ys.ravel()], 1).astype(np.float32)

@@ -286,17 +286,39 @@ def _smooth_wide(field: NDArray[np.float32], sigma: float) -> NDArray[np.float32
     return np.asarray(cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR), np.float32)
 
 
+#: Longest side cv2.remap takes for its source and maps (SHRT_MAX, exclusive).
+_REMAP_MAX_SIDE = 32767
+#: Points per row of the maps :func:`sample_field` hands to cv2.remap.
+_REMAP_ROW = 16384
+
+
 def sample_field(field: NDArray[np.float32], pts: NDArray[np.float32]) -> NDArray[np.float32]:
     """Bilinear samples of an ``H x W x 2`` field at ``N x 2`` points ``(x, y)`` (pixel centres at
     integers); points outside take the nearest border value."""
     import cv2
 
-    if len(pts) == 0:
+    n = len(pts)
+    if n == 0:
         return np.zeros((0, 2), np.float32)
-    mx = np.ascontiguousarray(pts[:, :1], np.float32)
-    my = np.ascontiguousarray(pts[:, 1:], np.float32)
-    s = cv2.remap(field, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    return np.asarray(s, np.float32).reshape(-1, 2)
+    if max(field.shape[:2]) >= _REMAP_MAX_SIDE:
+        raise ValueError(f"img: a {field.shape[0]} x {field.shape[1]} px field is too large to "
+                         f"sample (OpenCV's remap takes sides below {_REMAP_MAX_SIDE} px)")
+    # cv2.remap needs each side of its maps below SHRT_MAX: the points are laid out as rows of
+    # at most _REMAP_ROW points (padded with the last one), one remap call per block of rows.
+    cols = min(n, _REMAP_ROW)
+    rows = -(-n // cols)
+    flat = np.empty((rows * cols, 2), np.float32)
+    flat[:n] = pts
+    flat[n:] = pts[n - 1]
+    mx = np.ascontiguousarray(flat[:, 0].reshape(rows, cols))
+    my = np.ascontiguousarray(flat[:, 1].reshape(rows, cols))
+    out = np.empty((rows, cols, field.shape[2]), np.float32)
+    for r0 in range(0, rows, _REMAP_ROW):
+        r1 = min(rows, r0 + _REMAP_ROW)
+        out[r0:r1] = np.asarray(cv2.remap(field, mx[r0:r1], my[r0:r1], cv2.INTER_LINEAR,
+                                          borderMode=cv2.BORDER_REPLICATE),
+                                np.float32).reshape(r1 - r0, cols, -1)
+    return out.reshape(-1, field.shape[2])[:n]
 
 
 def flow_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8], centres: NDArray[np.float32], *,

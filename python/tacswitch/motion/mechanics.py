@@ -83,9 +83,15 @@ def check_gain(gain: Any) -> float:
                                                                     np.floating)):
         raise ValueError(f"gain: expected a number >= 0 or a sensor name; got "
                          f"{type(gain).__name__}")
-    if not (np.isfinite(gain) and gain >= 0):
-        raise ValueError(f"gain: must be a finite number >= 0; got {gain!r}")
-    return float(gain)
+    from tacswitch._checks import short_repr
+
+    try:
+        value = float(gain)
+    except OverflowError:  # an integer beyond float range (10**400): out of range, not a crash
+        value = float("inf")
+    if not (np.isfinite(value) and value >= 0):
+        raise ValueError(f"gain: must be a finite number >= 0; got {short_repr(gain)}")
+    return value
 
 
 def _step(width: int) -> int:
@@ -130,7 +136,11 @@ def mechanics_field(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None, *,
     if top <= 0:
         return np.zeros((gh, gw, 2), np.float32), st
     smooth = thickness_blur(coarse / np.float32(top), t_px / st)
-    gy, gx = np.gradient(smooth.astype(np.float64), float(st))
+    sm = smooth.astype(np.float64)
+    # A very thin frame (9 x 2000 px) has a single row (or column) of cells: no gradient
+    # across it, rather than np.gradient's error.
+    gy, gx = (np.gradient(sm, float(st), axis=a) if sm.shape[a] > 1 else np.zeros_like(sm)
+              for a in (0, 1))
     return (-gain * t_px * t_px * np.stack([gx, gy], -1)).astype(np.float32), st
 
 
@@ -140,8 +150,6 @@ def mechanics_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None,
     """Motion ``N x 2`` float32 ``(dx, dy)`` px of markers at rest ``centres`` (``(x, y)`` px) by
     the mechanics rule (module doc); ``ref`` may be None (single frame). Exactly zero for
     identical frames and where nothing rises above the noise floor."""
-    import cv2
-
     gain = check_gain(gain)
     n = len(centres)
     if n == 0 or (ref is not None and np.array_equal(img, ref)):
@@ -149,9 +157,8 @@ def mechanics_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None,
     if thickness_px is not None and not (np.isfinite(thickness_px) and thickness_px > 0):
         raise ValueError(f"thickness_px: must be a positive number of pixels; got "
                          f"{thickness_px!r}")
+    from tacswitch.motion.flow import sample_field
+
     fld, st = mechanics_field(img, ref, gain=gain, thickness_px=thickness_px)
-    pts = (np.asarray(centres, np.float32) + 0.5) / st - 0.5
-    mx = np.ascontiguousarray(pts[:, :1], np.float32)
-    my = np.ascontiguousarray(pts[:, 1:], np.float32)
-    out: Any = cv2.remap(fld, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    return np.asarray(out, np.float32).reshape(-1, 2)
+    pts = ((np.asarray(centres, np.float32) + 0.5) / st - 0.5).astype(np.float32)
+    return sample_field(fld, pts)

@@ -147,9 +147,15 @@ def near_contact(img: Any, no_contact: Any, centres: Any, reach: float = CONTACT
 
 def contact_energy_ratio(img: NDArray[np.uint8], ref: NDArray[np.uint8]) -> float:
     """Shading-gradient energy of ``ref`` over that of ``img`` where the two frames differ
-    (validated uint8 frames of one shape, BGR or grey); 1.0 when nothing changed (identical
+    (uint8 frames of one shape, BGR, BGRA or grey); 1.0 when nothing changed (identical
     frames, a pure brightness change). Small: ``ref`` shows flat gel where ``img`` has a
     contact (see the module doc)."""
+    from tacswitch._checks import as_image_u8
+
+    img = as_image_u8(img, "img")
+    ref = as_image_u8(ref, "ref")
+    if ref.shape != img.shape:
+        raise ValueError(f"ref: shape {ref.shape} does not match img {img.shape}")
     bi, br, region, _ = _changed(img, ref)
     if float(region.sum()) < max(4.0, MIN_CHANGED_FRAC * region.size):
         return 1.0

@@ -67,10 +67,12 @@ class MarkerlessTracker:
     def __init__(self, no_contact: Any = None, centres: Any = None, *,
                  gain: float | str | None = None,
                  model: str | os.PathLike[str] | None = None) -> None:
-        from tacswitch._checks import as_points
+        from tacswitch._checks import as_points, check_model_arg
         from tacswitch.motion.infer import _bgr, _rule_gain
         from tacswitch.motion.mechanics import MECHANICS_GAIN
 
+        # Checked now: it is first used at the first update (for the default centres).
+        check_model_arg(model)
         self._model = model
         self.no_contact: NDArray[np.uint8] | None = None
         self.centres: NDArray[np.float32] | None = (

@@ -155,6 +155,7 @@ def generate_dataset(out: str | Path, *, preset: str = "gelsight", n: int = 100,
     Returns:
         A summary: ``{"generated", "skipped", "seconds", "items_per_s"}``.
     """
+    from tacswitch._checks import as_jpeg_quality
     from tacswitch._io import atomic_open
     from tacswitch.sim.indenters import CLASSES
     from tacswitch.sim.presets import get_preset
@@ -164,6 +165,9 @@ def generate_dataset(out: str | Path, *, preset: str = "gelsight", n: int = 100,
         raise ValueError(f"n: must be >= 0; got {n}")
     out = Path(out)
     opts = dict(options or {})
+    if opts.get("jpeg_quality") is not None:
+        # Checked before anything is written (OpenCV would silently clamp 101 or -1).
+        opts["jpeg_quality"] = as_jpeg_quality(opts["jpeg_quality"])
     header = {"format": FORMAT, "version": VERSION, "preset": preset, "n": n, "seed": seed,
               "sequences": sequences, "options": opts, "classes": list(CLASSES)}
     head_path = out / "dataset.json"

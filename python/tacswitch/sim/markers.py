@@ -4,16 +4,18 @@ frame (:func:`paint_markers`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
-from tacswitch.sim.presets import SensorPreset
+from tacswitch.sim.presets import SensorPreset, as_preset
 
 
 def _rng(seed: int | np.random.Generator | None) -> np.random.Generator:
-    return seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    from tacswitch._checks import as_rng
+
+    return as_rng(seed, "seed")
 
 
 def marker_grid(
@@ -91,9 +93,9 @@ def render_markers(
         noise_sigma: Gaussian camera noise added after painting, grey levels.
         seed: randomness for the noise.
     """
+    pts = _centres(centres)
     img = np.array(background, dtype=np.float32, copy=True)
     h, w = img.shape[:2]
-    pts = np.asarray(centres, dtype=np.float64).reshape(-1, 2)
     diam = np.broadcast_to(np.asarray(diameter, dtype=np.float64), (pts.shape[0],))
     edge = max(float(edge_px), 1e-3)
     shade = np.ones((h, w), np.float32)
@@ -117,15 +119,36 @@ def render_markers(
     return np.clip(np.rint(img), 0, 255).astype(np.uint8)
 
 
+def _centres(centres: Any) -> NDArray[np.float64]:
+    """``centres`` as ``N x 2`` float64 ``(x, y)`` (any array of 2N numbers); errors name it."""
+    try:
+        arr = np.asarray(centres, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise TypeError(f"centres: expected an N x 2 array of (x, y) points ({exc})") from None
+    if arr.size % 2:
+        raise ValueError(f"centres: expected an N x 2 array of (x, y) points; got shape "
+                         f"{arr.shape}")
+    pts = arr.reshape(-1, 2)
+    bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
+    if bad.size:
+        raise ValueError(f"centres: point {int(bad[0])} is not finite "
+                         f"({pts[bad[0], 0]}, {pts[bad[0], 1]})")
+    return pts
+
+
 def render_preset(
-    preset: SensorPreset,
+    preset: SensorPreset | str,
     centres: NDArray | None = None,
     *,
     background: NDArray | None = None,
     noise: bool = True,
     seed: int | np.random.Generator | None = None,
 ) -> NDArray[np.uint8]:
-    """Renders a preset's markers (at ``centres``, default its rest grid) on its background."""
+    """Renders a preset's markers (at ``centres``, default its rest grid) on its background;
+    ``preset``: a :class:`SensorPreset` or its name."""
+    preset = as_preset(preset)
+    if centres is not None:
+        centres = _centres(centres)
     rng = _rng(seed)
     if background is None:
         background = gel_background(preset.height, preset.width, seed=rng)

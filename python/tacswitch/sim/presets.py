@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 
 @dataclass(frozen=True)
@@ -118,3 +119,13 @@ def get_preset(name: str) -> SensorPreset:
         return PRESETS[name]
     except KeyError:
         raise ValueError(f"preset: unknown {name!r}; choose from {sorted(PRESETS)}") from None
+
+
+def as_preset(preset: Any, name: str = "preset") -> SensorPreset:
+    """A :class:`SensorPreset` from itself or its name; an error naming ``name`` otherwise."""
+    if isinstance(preset, SensorPreset):
+        return preset
+    if not isinstance(preset, str):
+        raise TypeError(f"{name}: expected a preset name ({', '.join(sorted(PRESETS))}) or a "
+                        f"SensorPreset; got {type(preset).__name__}")
+    return get_preset(preset)

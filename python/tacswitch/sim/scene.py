@@ -26,6 +26,7 @@ from typing import Any, Literal, cast
 import numpy as np
 from numpy.typing import NDArray
 
+from tacswitch._checks import as_jpeg_quality
 from tacswitch.sim import deform
 from tacswitch.sim.deform import deform_gel
 from tacswitch.sim.grain import (
@@ -46,7 +47,7 @@ from tacswitch.sim.optics import (
     shade_phong,
     shade_taxim,
 )
-from tacswitch.sim.presets import SensorPreset, get_preset
+from tacswitch.sim.presets import SensorPreset, as_preset
 
 Optics = Literal["auto", "taxim", "phong"]
 Appearance = Literal["preset", "random"]
@@ -113,9 +114,9 @@ class Sample(Frame):
 
 def _as_rng(seed: int | np.random.Generator | np.random.SeedSequence | None
             ) -> np.random.Generator:
-    if isinstance(seed, np.random.Generator):
-        return seed
-    return np.random.default_rng(seed)
+    from tacswitch._checks import as_rng
+
+    return as_rng(seed, "seed")
 
 
 class Scene:
@@ -139,8 +140,9 @@ class Scene:
                  label: str | None = None, optics: Optics = "auto", vary_grid: bool = False,
                  jpeg_quality: int | None = None, appearance: Appearance = "preset",
                  grain: bool = True) -> None:
-        p = get_preset(preset) if isinstance(preset, str) else preset
+        p = as_preset(preset)
         rng = _as_rng(seed)
+        jpeg_quality = as_jpeg_quality(jpeg_quality)
         self.preset = p
         h, w = p.height, p.width
         if optics not in ("auto", "taxim", "phong"):

@@ -136,7 +136,7 @@ def test_cli_rejects_bad_arguments(tmp_path: Path, capsys):
                           (["--epochs", "0"], "--epochs"),
                           (["--preset", "nope"], "preset")):
         assert main(["evaluate", "downstream", "--data", str(tmp_path / "d"), "--quick",
-                     *extra]) == 1
+                     *extra]) == 2  # usage errors
         assert needle in capsys.readouterr().err
 
 

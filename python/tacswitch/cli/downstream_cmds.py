@@ -6,7 +6,7 @@ import argparse
 import dataclasses
 from pathlib import Path
 
-from tacswitch.cli.options import UsageError
+from tacswitch.cli.options import UsageError, preset_option
 
 
 def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
@@ -57,7 +57,6 @@ def run(args: argparse.Namespace) -> int:
     from tacswitch._io import atomic_open
     from tacswitch.downstream.data import INPUTS, QUICK, TASKS, StudyScale, build_dataset
     from tacswitch.downstream.study import markdown, run_study, summarise
-    from tacswitch.sim.presets import get_preset
 
     scale = QUICK if args.quick else StudyScale()
     changes: dict[str, object] = {}
@@ -73,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"--epochs: must be >= 1; got {args.epochs}")
         changes |= {"texture_epochs": args.epochs, "contact_epochs": args.epochs}
     if args.preset is not None:
-        get_preset(args.preset)  # raises ValueError naming the preset
+        preset_option(args.preset)
         changes["preset"] = args.preset
     scale = dataclasses.replace(scale, **changes)  # type: ignore[arg-type]
     tasks = _choices(args.tasks, TASKS, "--tasks")

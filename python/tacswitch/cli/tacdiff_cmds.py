@@ -149,7 +149,10 @@ def run_train(args: argparse.Namespace) -> int:
 
     assert MULTIPLE == 16, "update _check_train"  # the check above ran without torch
     paint = [paint_source(d, args.pitch, args.diameter) for d in args.paint]
-    device = pick_device(args.device, "--device")  # before any rendering
+    try:
+        device = pick_device(args.device, "--device")  # before any rendering
+    except ValueError as exc:  # it names --device
+        raise UsageError(str(exc)) from None
     init, arch = None, None
     if args.init is not None:
         from tacswitch.tacdiff.infer import model_path
@@ -163,12 +166,18 @@ def run_train(args: argparse.Namespace) -> int:
         if args.base is not None and args.base != arch.base:
             raise UsageError(f"--base: {args.base} differs from --init's {arch.base}")
     prior = args.prior if args.prior is not None else arch.prior if arch else DEFAULT_PRIOR
-    check_prior(prior)
+    try:
+        check_prior(prior)
+    except ValueError as exc:
+        raise UsageError(f"--{exc}") from None
     if arch is not None and input_channels(prior) != input_channels(arch.prior):
         raise UsageError(f"--prior: {prior!r} takes other inputs than --init's {arch.prior!r}")
-    radius = check_radius(args.prior_radius if args.prior_radius is not None
-                          else arch.prior_radius if arch else DEFAULT_PRIOR_RADIUS,
-                          "--prior-radius")
+    try:
+        radius = check_radius(args.prior_radius if args.prior_radius is not None
+                              else arch.prior_radius if arch else DEFAULT_PRIOR_RADIUS,
+                              "--prior-radius")
+    except ValueError as exc:  # it names --prior-radius
+        raise UsageError(str(exc)) from None
     if args.simulate:
         render_pairs(args.data, args.simulate, seed=args.seed, progress=not args.quiet,
                      realism=args.realism, workers=args.workers, prior=prior,

@@ -141,7 +141,8 @@ def test_remove_markers_resumes(tmp_path: Path, grasp) -> None:
         cv2.imwrite(str(src / f"{i}.png"), grasp.frames[i])
     out = tmp_path / "out"
     assert main(["remove-markers", str(src), "-o", str(out), "-q"]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["0.png", "1.png", "2.png"]
+    assert sorted(p.name for p in out.iterdir()) == [".tacswitch-remove-markers.json", "0.png",
+                                                     "1.png", "2.png"]
     stamp = (out / "1.png").stat().st_mtime_ns
     assert main(["remove-markers", str(src), "-o", str(out), "-q"]) == 0
     assert (out / "1.png").stat().st_mtime_ns == stamp
@@ -299,7 +300,7 @@ def test_motion_command_matches_predict_motion(tmp_path: Path, motion_pair: dict
                                    atol=1e-3)
     centres.write_bytes(b"\x93NUMPY")
     assert main(["motion", str(tmp_path / "img.png"), "--ref", str(tmp_path / "ref.png"),
-                 "--centres", str(centres), "-o", str(out), "-q"]) == 1
+                 "--centres", str(centres), "-o", str(out), "-q"]) == 2  # names --centres
 
 
 def test_motion_sequence_is_the_markerless_tracker(tmp_path: Path, mini) -> None:
@@ -378,7 +379,7 @@ def test_train_motion_tiny_run_exports_a_usable_model(tmp_path: Path,
     assert main(args) == 0
     assert len((run / "log.jsonl").read_text().splitlines()) == 1
     # Pair targets without the reference frame as input cannot be learned: refused.
-    assert main([a for a in args if a != "--use-ref"]) == 1
+    assert main([a for a in args if a != "--use-ref"]) == 2
 
 
 def test_evaluate_motion_tiny_run(tmp_path: Path) -> None:
@@ -397,4 +398,4 @@ def test_evaluate_motion_tiny_run(tmp_path: Path) -> None:
         if "tracking" in r:  # tracking on the true marker images: near exact
             assert r["tracking"]["e_rmse_median"] < 0.2
     assert res["slip"]["predicted"]["n"] == 3 and res["slip"]["tracked"]["n"] == 3
-    assert main(["evaluate", "motion", "--data", str(tmp_path / "d"), "--n", "1", "-q"]) == 1
+    assert main(["evaluate", "motion", "--data", str(tmp_path / "d"), "--n", "1", "-q"]) == 2

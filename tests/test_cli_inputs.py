@@ -65,7 +65,8 @@ def test_remove_markers_skips_and_names_unreadable_images(
         tmp_path: Path, folder: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "out"
     assert main(["remove-markers", str(folder), "-o", str(out), "--workers", "2"]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["0.png", "1.png", "3.png", "4.png"]
+    assert sorted(p.name for p in out.iterdir()) == [".tacswitch-remove-markers.json", "0.png",
+                                                     "1.png", "3.png", "4.png"]
     cap = capsys.readouterr()
     assert "4 written, 0 already done, 2 unreadable skipped" in cap.out
     assert "warning: skipped 2 unreadable inputs" in cap.err
@@ -143,7 +144,7 @@ def test_ffv1_video_output_is_bit_exact(tmp_path: Path, grasp: sim.GraspSequence
     video = write_video(tmp_path / "rec.mkv", frames, "FFV1")
     out = tmp_path / "out"
     assert main(["remove-markers", str(video), "-o", str(out), "--codec", "ffv1", "-q"]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["rec.mkv"]
+    assert sorted(p.name for p in out.iterdir()) == [".tacswitch-remove-markers.json", "rec.mkv"]
     got = decode(out / "rec.mkv")
     assert len(got) == len(frames)
     for before, after in zip(frames, got, strict=True):

@@ -57,7 +57,9 @@ def marker_mask(frame: np.ndarray) -> np.ndarray:
 def test_video_becomes_a_markerless_video(tmp_path: Path, video: Path) -> None:
     out = tmp_path / "out"
     assert main(["remove-markers", str(video), "-o", str(out), "-q"]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["grasp.mp4"]  # no temporary file left
+    # No temporary file left; the record of the options that made each output.
+    assert sorted(p.name for p in out.iterdir()) == [".tacswitch-remove-markers.json",
+                                                     "grasp.mp4"]
     src, src_fps = decode(video)
     got, fps = decode(out / "grasp.mp4")
     assert len(got) == len(src) == N_FRAMES and fps == pytest.approx(src_fps)
@@ -112,7 +114,7 @@ def test_video_resumes_and_an_interrupted_video_is_redone(
     monkeypatch.setattr(ts, "remove_markers", real)
     (out / ".grasp.x1y2.part.mp4").write_bytes(b"left by a killed run")
     assert main(["remove-markers", str(video), "-o", str(out), "-q"]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["grasp.mp4"]
+    assert sorted(p.name for p in out.iterdir()) == [".tacswitch-remove-markers.json", "grasp.mp4"]
     assert len(decode(out / "grasp.mp4")[0]) == N_FRAMES
     stamp = (out / "grasp.mp4").stat().st_mtime_ns
     capsys.readouterr()
@@ -180,8 +182,8 @@ def test_workers_give_the_same_bytes_as_a_serial_run(tmp_path: Path, video: Path
                                         for p in sorted(out.rglob("*")) if p.is_file()}
     for method in ("telea", "ns"):
         serial = outputs[method, 1]
-        # The images twice (both runs), the video, its frames.
-        assert len(serial) == 2 * 6 + 1 + N_FRAMES
+        # The images twice (both runs), the video, its frames, each folder's record.
+        assert len(serial) == 2 * 6 + 1 + N_FRAMES + 2
         assert Path("grasp.mp4") in serial and Path("frames/grasp/000008.png") in serial
         assert outputs[method, 3] == serial
 

@@ -88,7 +88,7 @@ def study_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_cli_end_to_end_writes_every_run_and_a_report(study_run: Path):
-    out = study_run / "data" / "study"
+    out = study_run / "data"  # the report lies next to the frames
     lines = (out / "results.jsonl").read_text().splitlines()
     assert len(lines) == 2 * 2 * 2  # tasks x seeds x inputs
     recs = [json.loads(x) for x in lines]
@@ -108,7 +108,7 @@ def test_cli_end_to_end_writes_every_run_and_a_report(study_run: Path):
 
 def test_cli_resumes_and_redoes_only_runs_whose_frames_changed(study_run: Path):
     data_dir = study_run / "data"
-    results = data_dir / "study" / "results.jsonl"
+    results = data_dir / "results.jsonl"
     before = results.read_text()
     assert main(["evaluate", "downstream", "--data", str(data_dir), *SMALL]) == 0
     assert results.read_text() == before  # nothing redone
@@ -136,7 +136,7 @@ def test_cli_rejects_bad_arguments(tmp_path: Path, capsys):
                           (["--epochs", "0"], "--epochs"),
                           (["--preset", "nope"], "preset")):
         assert main(["evaluate", "downstream", "--data", str(tmp_path / "d"), "--quick",
-                     *extra]) == 1
+                     *extra]) == 2  # usage errors
         assert needle in capsys.readouterr().err
 
 

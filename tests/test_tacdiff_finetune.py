@@ -200,7 +200,7 @@ def test_finetune_keeps_the_start_model_when_nothing_beats_it(tmp_path: Path,
     assert (ck["config"]["loss"], ck["config"]["terminal_fraction"]) == ("v_mse", 0.9)
     assert ft.start_objective(model_path("default")) == ("x0_l1", 0.9)
     for bad in (["--val-every", "0"], ["--val-frames", "0"], ["--steps", "0"]):
-        assert main([*args[:4], str(tmp_path / "x"), *args[5:], *bad]) == 1
+        assert main([*args[:4], str(tmp_path / "x"), *args[5:], *bad]) == 2
 
 
 def _dense_frames(n: int = 2) -> list[np.ndarray]:

@@ -190,7 +190,7 @@ def test_train_cli_paint_and_gpu_options_are_checked(tmp_path: Path, mini_presse
     names = ("NOPE", "EMPTY", "NOSPEC", "MIXED", "LIST", "BADMASK")
     args = [str(tmp_path / a) if a in names else a for a in extra]
     out = [] if not extra else ["--out", str(tmp_path / "run")]
-    assert main(["train", "tacdiff", "--data", str(tmp_path / "d"), *out, *args, "-q"]) == 1
+    assert main(["train", "tacdiff", "--data", str(tmp_path / "d"), *out, *args, "-q"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0]
     assert not (tmp_path / "d").exists()  # refused before rendering anything

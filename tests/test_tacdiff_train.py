@@ -181,7 +181,7 @@ def test_finetune_on_marker_frames(tmp_path: Path, marker_frames, marker_frame_d
                             model=run / "model.onnx")
     assert out.shape == marker_frames[0].shape
     assert main(["finetune", "--images", str(src), "--out", str(tmp_path / "x"), "--offset",
-                 "nope", "-q"]) == 1
+                 "nope", "-q"]) == 2
 
 
 def test_fills_follow_the_prior_radius(marker_frames):
@@ -230,7 +230,7 @@ def test_train_records_the_prior_radius(tmp_path: Path, marker_frames):
         train([pairs], tmp_path / "bad", TrainConfig(base=8, steps=1, prior_radius=0),
               progress=False)
     assert main(["train", "tacdiff", "--data", str(tmp_path / "none"), "--prior-radius", "200",
-                 "--out", str(tmp_path / "x"), "-q"]) == 1
+                 "--out", str(tmp_path / "x"), "-q"]) == 2
 
 
 def test_x0_l1_loss_is_the_absolute_error_of_the_x0_estimate(marker_frames):
@@ -296,7 +296,7 @@ def test_train_cli_refuses_a_bad_terminal_fraction(tmp_path: Path, flag: str, va
                                                    capsys):
     pytest.importorskip("torch")  # without it the command stops earlier, on the import
     assert main(["train", "tacdiff", "--data", str(tmp_path / "none"), flag, value,
-                 "--out", str(tmp_path / "x"), "-q"]) == 1
+                 "--out", str(tmp_path / "x"), "-q"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--terminal-fraction" in err[0]
 

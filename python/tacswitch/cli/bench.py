@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -33,6 +32,23 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
+def _missing_for_real(cases: tuple[tuple[str, str], ...]) -> list[str]:
+    """The packages the real-frame proxy of ``cases`` needs that are not installed: taxim
+    (its real presses), PyAV for an H.264 capture."""
+    from importlib.util import find_spec
+
+    def absent(name: str) -> bool:
+        try:
+            return find_spec(name) is None
+        except (ImportError, ValueError):  # a broken or blocked package counts as absent
+            return True
+
+    missing = ["the taxim package"] if absent("taxim") else []
+    if any(capture == "h264" for _, capture in cases) and absent("av"):
+        missing.append("PyAV (av)")
+    return missing
+
+
 def run(args: argparse.Namespace) -> int:
     import os
 
@@ -41,13 +57,15 @@ def run(args: argparse.Namespace) -> int:
 
     from tacswitch import tradeoff
     from tacswitch._io import atomic_open, write_image
+    from tacswitch.cli.options import UsageError, output_dir, preset_option
+    from tacswitch.cli.progress import warn
     from tacswitch.inpaint import DEFAULT_RADIUS
 
     cv2.setNumThreads(1)
     try:
         radii = [int(r) for r in args.radii.split(",") if r.strip()]
     except ValueError:
-        raise ValueError(f"--radii: expected integers like 3,5,8; got {args.radii!r}") from None
+        raise UsageError(f"--radii: expected integers like 3,5,8; got {args.radii!r}") from None
     frames, rounds = args.frames, args.rounds
     cases = tradeoff.PROXY_CASES
     if args.quick:
@@ -57,11 +75,20 @@ def run(args: argparse.Namespace) -> int:
     try:
         steps = [int(k) for k in args.steps.split(",") if k.strip()]
     except ValueError:
-        raise ValueError(f"--steps: expected integers like 1,2,4; got {args.steps!r}") from None
-    if frames < 1 or rounds < 1 or not radii or min(radii) < 1 or min(steps, default=1) < 1:
-        raise ValueError("--frames, --rounds, --radii and --steps must be positive")
-    if args.real < 0:
-        raise ValueError(f"--real: must be >= 0; got {args.real}")
+        raise UsageError(f"--steps: expected integers like 1,2,4; got {args.steps!r}") from None
+    for flag, bad in (("--frames", frames < 1), ("--rounds", rounds < 1),
+                      ("--radii", not radii or min(radii) < 1),
+                      ("--steps", min(steps, default=1) < 1), ("--real", args.real < 0)):
+        if bad:
+            raise UsageError(f"{flag}: must be {'>= 0' if flag == '--real' else 'positive'}")
+    preset_option(args.preset)
+    out = output_dir(args.out, "--out")
+    # Checked before any work: the base install lacks what the real-frame table needs.
+    missing = _missing_for_real(cases) if args.real else []
+    if missing:
+        warn("bench", f"--real: skipped the real-frame table: it needs {' and '.join(missing)} "
+             "(pip install 'tacswitch[test,train]'); --real 0 runs without it")
+        args.real = 0
     data = tradeoff.simulated_frames(frames, args.preset)
     methods = tradeoff.default_methods(radii)
     if steps:
@@ -74,7 +101,6 @@ def run(args: argparse.Namespace) -> int:
         # mask remove_markers builds; one timing round (the simulated table times the knobs).
         real = tradeoff.proxy_frames(args.real, cases=cases)
         real_rows = tradeoff.evaluate(real, methods, rounds=1)
-    out = Path(args.out)
     h, w = data[0].truth.shape[:2]
     table = tradeoff.markdown(rows)
     real_table = tradeoff.markdown(real_rows) if real_rows else ""

@@ -170,10 +170,13 @@ def run(args: argparse.Namespace) -> int:
     import tacswitch as ts
     from tacswitch import sim, viz
     from tacswitch._io import write_image
+    from tacswitch.cli.options import UsageError, preset_option
 
     if args.frames < 8:
-        raise ValueError(f"--frames: must be >= 8; got {args.frames}")
-    preset = sim.get_preset(args.preset)
+        raise UsageError(f"--frames: must be >= 8; got {args.frames}")
+    if args.seed < 0:
+        raise UsageError(f"--seed: must be >= 0; got {args.seed}")
+    preset = sim.get_preset(preset_option(args.preset))
     say = (lambda *a: None) if args.quiet else print
     out = Path(args.out)
 

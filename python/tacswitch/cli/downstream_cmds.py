@@ -6,6 +6,8 @@ import argparse
 import dataclasses
 from pathlib import Path
 
+from tacswitch.cli.options import UsageError, preset_option
+
 
 def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
     """Registers ``evaluate downstream``."""
@@ -18,11 +20,15 @@ def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
         "area) per input type and seed, and writes OUT/report.md with mean ± spread and the "
         "paired difference from the raw marker frames. Finished runs are kept in "
         "OUT/results.jsonl; rerunning the command resumes. The default scale takes under an "
-        "hour on a 2-core CPU; --quick takes about a minute (numbers meaningless).")
+        "hour on a 2-core CPU; --quick runs every step at a tiny scale, a smoke test of a few "
+        "minutes (about 5 on a 2-core CPU; numbers meaningless).")
     m.add_argument("--data", required=True, help="folder of the rendered frames (built if "
                    "missing, resumable)")
-    m.add_argument("--out", default=None, help="results folder (default: DATA/study)")
-    m.add_argument("--quick", action="store_true", help="tiny scale for smoke tests")
+    m.add_argument("--out", default=None,
+                   help="results folder (default: DATA itself: DATA/report.md, "
+                        "DATA/results.jsonl)")
+    m.add_argument("--quick", action="store_true",
+                   help="tiny scale for smoke tests (a few minutes; numbers meaningless)")
     m.add_argument("--seeds", type=int, default=None, help="seeds per run (default: 3)")
     m.add_argument("--per-class", type=int, default=None,
                    help="texture samples per class (default: 30)")
@@ -51,7 +57,6 @@ def run(args: argparse.Namespace) -> int:
     from tacswitch._io import atomic_open
     from tacswitch.downstream.data import INPUTS, QUICK, TASKS, StudyScale, build_dataset
     from tacswitch.downstream.study import markdown, run_study, summarise
-    from tacswitch.sim.presets import get_preset
 
     scale = QUICK if args.quick else StudyScale()
     changes: dict[str, object] = {}
@@ -60,21 +65,23 @@ def run(args: argparse.Namespace) -> int:
         value = getattr(args, flag)
         if value is not None:
             if value < 2:
-                raise ValueError(f"--{flag.replace('_', '-')}: must be >= 2; got {value}")
+                raise UsageError(f"--{flag.replace('_', '-')}: must be >= 2; got {value}")
             changes[field] = value
     if args.epochs is not None:
         if args.epochs < 1:
-            raise ValueError(f"--epochs: must be >= 1; got {args.epochs}")
+            raise UsageError(f"--epochs: must be >= 1; got {args.epochs}")
         changes |= {"texture_epochs": args.epochs, "contact_epochs": args.epochs}
     if args.preset is not None:
-        get_preset(args.preset)  # raises ValueError naming the preset
+        preset_option(args.preset)
         changes["preset"] = args.preset
     scale = dataclasses.replace(scale, **changes)  # type: ignore[arg-type]
     tasks = _choices(args.tasks, TASKS, "--tasks")
     inputs = _choices(args.inputs, INPUTS, "--inputs")
     say = None if args.quiet else print
     build_dataset(args.data, scale, model=args.model, progress=say)
-    out = Path(args.out) if args.out else Path(args.data) / "study"
+    # The report goes next to the frames it was made from (DATA/study/ read as study/study/
+    # with the documented `--data study/`).
+    out = Path(args.out) if args.out else Path(args.data)
     records = run_study(args.data, out, scale, tasks=tasks, inputs=inputs, threads=args.threads,
                         progress=say)
     report = markdown(summarise(records))
@@ -89,5 +96,5 @@ def _choices(text: str, allowed: tuple[str, ...], flag: str) -> list[str]:
     items = [t.strip() for t in text.split(",") if t.strip()]
     bad = [t for t in items if t not in allowed]
     if bad or not items:
-        raise ValueError(f"{flag}: expected some of {','.join(allowed)}; got {text!r}")
+        raise UsageError(f"{flag}: expected some of {','.join(allowed)}; got {text!r}")
     return items

@@ -8,6 +8,7 @@ import json
 from pathlib import Path
 
 from tacswitch.cli import downstream_cmds, slip_cmds, tacdiff_cmds
+from tacswitch.cli.options import UsageError
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -42,9 +43,9 @@ def _fmt(v: float) -> str:
 
 def run(args: argparse.Namespace) -> int:
     if args.n < 2:
-        raise ValueError(f"--n: must be >= 2 (the press and pair splits use n // 2); got {args.n}")
+        raise UsageError(f"--n: must be >= 2 (the press and pair splits use n // 2); got {args.n}")
     if args.slip < 0:
-        raise ValueError(f"--slip: must be >= 0 (0 skips slip detection); got {args.slip}")
+        raise UsageError(f"--slip: must be >= 0 (0 skips slip detection); got {args.slip}")
     from tacswitch._io import atomic_open
     from tacswitch.motion import data as mdata
     from tacswitch.motion.evaluate import evaluate_slip, evaluate_split

@@ -91,6 +91,24 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from tacswitch.cli.options import UsageError
+
+    # The options first: a mistake is named before torch is even looked for.
+    offset = None
+    if args.offset is not None:
+        try:
+            dx, dy = (int(v) for v in args.offset.split(","))
+        except ValueError:
+            raise UsageError(f"--offset: expected DX,DY in px; got {args.offset!r}") from None
+        offset = (dx, dy)
+    if args.ring < 0:
+        raise UsageError(f"--ring: must be >= 0 px; got {args.ring}")
+    for name in ("steps", "batch", "val_every", "val_frames", "shifts"):
+        if getattr(args, name) < 1:
+            raise UsageError(f"--{name.replace('_', '-')}: must be >= 1; got "
+                             f"{getattr(args, name)}")
+    if args.terminal_fraction is not None and not 0 <= args.terminal_fraction <= 1:
+        raise UsageError(f"--terminal-fraction: must be in [0, 1]; got {args.terminal_fraction}")
     try:
         import torch  # noqa: F401
     except ImportError:
@@ -101,19 +119,6 @@ def run(args: argparse.Namespace) -> int:
 
     files = collect_images(args.images)
     frames = [read_image(f) for f in files]
-    offset = None
-    if args.offset is not None:
-        try:
-            dx, dy = (int(v) for v in args.offset.split(","))
-        except ValueError:
-            raise ValueError(f"--offset: expected DX,DY in px; got {args.offset!r}") from None
-        offset = (dx, dy)
-    if args.ring < 0:
-        raise ValueError(f"--ring: must be >= 0 px; got {args.ring}")
-    for name in ("steps", "batch", "val_every", "val_frames", "shifts"):
-        if getattr(args, name) < 1:
-            raise ValueError(f"--{name.replace('_', '-')}: must be >= 1; got "
-                             f"{getattr(args, name)}")
     result = finetune(frames, args.out, init=args.init, steps=args.steps, batch=args.batch,
                       crop=args.crop, lr=args.lr, seed=args.seed, offset=offset,
                       transplant=args.transplant, ring=args.ring, val_every=args.val_every,

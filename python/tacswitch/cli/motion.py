@@ -11,7 +11,13 @@ from pathlib import Path
 LEARNED_PART = ("ensemble",)
 
 
+#: Largest --scale: arrows longer than a few frame widths show nothing more.
+MAX_SCALE = 1000.0
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
+    from tacswitch.cli.options import bounded
+
     p = sub.add_parser("motion", help="predict marker motion from markerless images",
                        description="Predicts the (dx, dy) each marker would have had from "
                                    "markerless frames; writes a CSV and an arrow overlay per "
@@ -55,26 +61,34 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "frame; without it the video starts in contact and its first frame is "
                         "the anchor); method auto only. Videos are always read so")
     p.add_argument("-o", "--out", default="motion-out", help="output folder (default: %(default)s)")
-    p.add_argument("--scale", type=float, default=3.0, help="arrow length per px of motion")
+    p.add_argument("--scale", type=bounded(0.0, MAX_SCALE), default=3.0, metavar="S",
+                   help="overlay arrow length per px of motion, in (0, "
+                        f"{MAX_SCALE:g}] (default: %(default)s)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")
     p.set_defaults(run=run)
 
 
 def _read_centres(path: str):  # type: ignore[no-untyped-def]
-    """Marker centres ``N x 2`` float32 (x, y) px from a CSV with ``x`` and ``y`` columns."""
+    """Marker centres ``N x 2`` float32 (x, y) px from a CSV with ``x`` and ``y`` columns;
+    :class:`UsageError` naming ``--centres`` for a file that is not one."""
     import numpy as np
+
+    from tacswitch.cli.options import UsageError
 
     try:
         with open(path, newline="") as fh:
             rows = list(csv.DictReader(fh))
     except UnicodeDecodeError:
-        raise ValueError(f"--centres: {path!r} is not a text CSV file") from None
+        raise UsageError(f"--centres: {path!r} is not a text CSV file") from None
     if not rows or "x" not in rows[0] or "y" not in rows[0]:
-        raise ValueError(f"--centres: {path!r} needs a header with x and y columns")
+        raise UsageError(f"--centres: {path!r} needs a header with x and y columns")
     try:
-        return np.array([[float(r["x"]), float(r["y"])] for r in rows], np.float32)
+        centres = np.array([[float(r["x"]), float(r["y"])] for r in rows], np.float32)
     except (TypeError, ValueError):
-        raise ValueError(f"--centres: {path!r} has a row whose x or y is not a number") from None
+        raise UsageError(f"--centres: {path!r} has a row whose x or y is not a number") from None
+    if not np.isfinite(centres).all():
+        raise UsageError(f"--centres: {path!r} has a row whose x or y is not finite")
+    return centres
 
 
 def _gain_option(text: str | None, method: str) -> float | str | None:
@@ -175,10 +189,16 @@ def run(args: argparse.Namespace) -> int:
 def _arrows(img, pts, motion, scale: float):  # type: ignore[no-untyped-def]
     """``img`` with an arrow per marker, ``scale`` px per px of motion."""
     import cv2
+    import numpy as np
 
     vis = img.copy()
+    # Tips far outside the frame are clipped (OpenCV clips the line there anyway): a huge
+    # predicted motion must not overflow the integer pixel coordinates.
+    reach = 4.0 * max(img.shape[:2])
     for (x, y), (dx, dy) in zip(pts, motion, strict=True):
-        tip = (round(float(x + scale * dx)), round(float(y + scale * dy)))
+        tx, ty = (float(np.clip(np.nan_to_num(v), -reach, reach)) for v in
+                  (x + scale * dx, y + scale * dy))
+        tip = (round(tx), round(ty))
         cv2.arrowedLine(vis, (round(float(x)), round(float(y))), tip, (0, 0, 255), 1,
                         cv2.LINE_AA, tipLength=0.3)
     return vis

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import errno
 import os
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
@@ -59,8 +60,7 @@ def output_dir(path: str | os.PathLike[str], option: str) -> Path:
     if folder.exists() and not folder.is_dir():
         raise UsageError(f"{option}: {str(folder)!r} is a file; give a folder")
     _make_dir(folder, option, f"cannot create folder {str(folder)!r}")
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise UsageError(f"{option}: cannot write in {str(folder)!r}: permission denied")
+    _check_writable(folder, option)
     return folder
 
 
@@ -72,11 +72,33 @@ def output_file(path: str | os.PathLike[str], option: str) -> Path:
         raise UsageError(f"{option}: {str(target)!r} is a folder; give a file name")
     parent = target.parent
     _make_dir(parent, option, f"cannot write {str(target)!r}")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise UsageError(f"{option}: cannot write in {str(parent)!r}: permission denied")
+    _check_writable(parent, option)
     if target.exists() and not os.access(target, os.W_OK):
         raise UsageError(f"{option}: cannot overwrite {str(target)!r}: permission denied")
     return target
+
+
+def csv_output(path: str | os.PathLike[str], option: str) -> Path:
+    """:func:`output_file` for a CSV: the name must end in ``.csv``, so a typo such as
+    ``-o frame.png`` never replaces an image (or anything else) with CSV text."""
+    target = Path(path)
+    if not target.is_dir() and target.suffix.lower() != ".csv":  # a folder: output_file says so
+        raise UsageError(f"{option}: {str(path)!r} is not a .csv file name; this command "
+                         "writes CSV")
+    return output_file(path, option)
+
+
+def _check_writable(folder: Path, option: str) -> None:
+    """:class:`UsageError` naming ``option`` unless a file can be created in ``folder``: a
+    real try, since ``os.access`` passes root, read-only mounts and ``/proc`` alike."""
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise UsageError(f"{option}: cannot write in {str(folder)!r}: permission denied")
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        raise UsageError(f"{option}: cannot write in {str(folder)!r}: "
+                         f"{_os_reason(exc)}") from None
 
 
 def input_file(path: str | os.PathLike[str], option: str) -> Path:
@@ -89,6 +111,17 @@ def input_file(path: str | os.PathLike[str], option: str) -> Path:
     if not os.access(p, os.R_OK):
         raise UsageError(f"{option}: cannot read {str(p)!r}: permission denied")
     return p
+
+
+def preset_option(name: str, option: str = "--preset") -> str:
+    """``name`` if it is a simulator preset; :class:`UsageError` naming ``option`` (and the
+    presets) otherwise."""
+    from tacswitch.sim.presets import PRESETS
+
+    if name not in PRESETS:
+        raise UsageError(f"{option}: unknown preset {name!r}; choose from "
+                         f"{', '.join(sorted(PRESETS))}")
+    return name
 
 
 def load_model_option(loader: Callable[[Any], T], value: str | None,
@@ -104,16 +137,18 @@ def load_model_option(loader: Callable[[Any], T], value: str | None,
         raise
 
 
-# --- marker extraction options (tacswitch.extract_markers keyword arguments) -----------------
+# --- argparse value types: a bad value is argparse's own usage error (exit 2, naming the flag) --
 
-def _odd_size(text: str) -> int:
-    value = _count(text)
+def odd_size(text: str) -> int:
+    """An odd whole number >= 3 (a box size, px)."""
+    value = count(text)
     if value < 3 or value % 2 == 0:
         raise argparse.ArgumentTypeError(f"expected an odd number of pixels >= 3, got {text!r}")
     return value
 
 
-def _count(text: str) -> int:
+def count(text: str) -> int:
+    """A whole number >= 0."""
     try:
         value = int(text)
     except ValueError:
@@ -127,13 +162,14 @@ def _dilate(text: str) -> int | str:
     if text == "auto":
         return text
     try:
-        return _count(text)
+        return count(text)
     except argparse.ArgumentTypeError:
         raise argparse.ArgumentTypeError(f"expected a whole number >= 0 or 'auto', "
                                          f"got {text!r}") from None
 
 
-def _positive(text: str) -> float:
+def positive(text: str) -> float:
+    """A finite number > 0 (NaN and infinity refused)."""
     try:
         value = float(text)
     except ValueError:
@@ -143,11 +179,37 @@ def _positive(text: str) -> float:
     return value
 
 
-def _fraction(text: str) -> float:
-    value = _positive(text)
+def fraction(text: str) -> float:
+    value = positive(text)
     if value > 1:
         raise argparse.ArgumentTypeError(f"expected a number in (0, 1], got {text!r}")
     return value
+
+
+def ratio(text: str) -> float:
+    """A finite ratio >= 1 (an aspect ratio)."""
+    value = positive(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a ratio >= 1, got {text!r}")
+    return value
+
+
+def bounded(low: float, high: float) -> Callable[[str], float]:
+    """An argparse type: a number in ``(low, high]`` (finite; NaN refused)."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        if not low < value <= high:
+            raise argparse.ArgumentTypeError(f"expected a number in ({low:g}, {high:g}], "
+                                             f"got {text!r}")
+        return value
+
+    return parse
+
+
+# --- marker extraction options (tacswitch.extract_markers keyword arguments) -----------------
 
 
 #: (flag, extract_markers keyword, argparse keywords) of each extraction option.
@@ -155,20 +217,20 @@ EXTRACTION_OPTIONS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("--polarity", "polarity", {"choices": ("dark", "bright"),
                                 "help": "markers darker (painted dots, default) or brighter "
                                         "(pins) than the gel"}),
-    ("--threshold", "threshold", {"type": _positive, "metavar": "GREY",
+    ("--threshold", "threshold", {"type": positive, "metavar": "GREY",
                                   "help": "marker contrast threshold in grey levels (default: "
                                           "chosen per image)"}),
-    ("--block-size", "block_size", {"type": _odd_size, "metavar": "PX",
+    ("--block-size", "block_size", {"type": odd_size, "metavar": "PX",
                                     "help": "odd box size for the local background, px "
                                             "(default: max(15, min(H, W) // 8))"}),
-    ("--min-area", "min_area", {"type": _count, "metavar": "PX",
+    ("--min-area", "min_area", {"type": count, "metavar": "PX",
                                 "help": "smallest marker, px (default: max(4, 5e-5 * H * W))"}),
-    ("--max-area", "max_area", {"type": _count, "metavar": "PX",
+    ("--max-area", "max_area", {"type": count, "metavar": "PX",
                                 "help": "largest marker, px (default: 0.02 * H * W)"}),
-    ("--min-fill", "min_fill", {"type": _fraction, "metavar": "F",
+    ("--min-fill", "min_fill", {"type": fraction, "metavar": "F",
                                 "help": "smallest area / bounding-box area (default: 0.35; "
                                         "a disc has 0.785)"}),
-    ("--max-aspect", "max_aspect", {"type": _positive, "metavar": "R",
+    ("--max-aspect", "max_aspect", {"type": ratio, "metavar": "R",
                                     "help": "largest bounding-box aspect ratio (default: 3)"}),
 )
 

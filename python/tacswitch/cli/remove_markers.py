@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from tacswitch.cli.options import UsageError
+from tacswitch.cli.resume import OutputRecord
 from tacswitch.cli.sources import VIDEO_SUFFIXES, collect_inputs
 
 #: Methods that run the TacDiff model (onnxruntime already uses every core: run serially).
@@ -33,8 +35,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "with --frames a folder OUT/<stem>/ of lossless PNG frames named by frame index. "
         "Folders are searched for both. Frames that do not decode are skipped and counted; "
         "unreadable images and videos are skipped, counted and named at the end. Existing "
-        "outputs are skipped, so an interrupted run resumes (a video file is redone, a "
-        "--frames folder resumes frame by frame); every write is atomic.",
+        "outputs made with the same options are skipped, so an interrupted run resumes (a "
+        "video file is redone, a --frames folder resumes frame by frame); outputs made with "
+        "other options are redone (OUT/.tacswitch-remove-markers.json records which options "
+        "made each output); every write is atomic.",
         epilog="Exit status: 0 when every readable input is done (unreadable ones are named "
         "in a warning on stderr), 1 when no input could be read or an input cannot be "
         "processed, 2 for an unusable option value (e.g. a file that is not a TacDiff "
@@ -44,9 +48,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--out", required=True, help="output folder")
     p.add_argument("--method", choices=("telea", "biharmonic", "ns", *MODEL_METHODS),
                    default="telea",
-                   help="telea (fast, default), biharmonic (smooth fill, better on contact "
-                        "shading), ns (OpenCV), tacdiff (diffusion model), hybrid (tacdiff near "
-                        "the contact, telea elsewhere)")
+                   help="telea (fast, default; the most accurate classical fill on real "
+                        "frames), biharmonic (smooth fill: on real frames it leaves grey "
+                        "ghosts where TELEA does not), ns (OpenCV), tacdiff (diffusion model), "
+                        "hybrid (tacdiff near the contact, telea elsewhere)")
     p.add_argument("--radius", type=int, default=None,
                    help=f"inpainting radius, px (default: {DEFAULT_RADIUS} for telea and "
                         f"hybrid, the best on real frames; {NS_RADIUS} for ns)")
@@ -68,7 +73,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "(default: the shipped model)")
     p.add_argument("--codec", choices=tuple(CODECS), default="mp4v",
                    help="video output: mp4v -> OUT/<stem>.mp4 (lossy, plays anywhere; "
-                        "default), ffv1 -> OUT/<stem>.mkv (lossless, bit-exact frames)")
+                        "default), ffv1 -> OUT/<stem>.mkv (lossless, bit-exact frames; use it, "
+                        "or --frames, for videos that `tacswitch slip --markerless` or "
+                        "`tacswitch motion` will read)")
     p.add_argument("--frames", action="store_true",
                    help="write a video's frames as PNGs (lossless) into OUT/<stem>/ instead of "
                         "a video")
@@ -76,7 +83,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="telea/biharmonic/ns: threads over images and video frames (default: "
                         "all cores); tacdiff/hybrid run one item at a time, onnxruntime uses "
                         "all cores")
-    p.add_argument("--overwrite", action="store_true", help="redo existing outputs")
+    p.add_argument("--overwrite", action="store_true",
+                   help="redo existing outputs, even those made with the same options")
     p.add_argument("-q", "--quiet", action="store_true",
                    help="no progress bars or messages (warnings still go to stderr)")
     add_extraction_options(p, border_default="keep", dilate=True)
@@ -96,6 +104,21 @@ def _remover(args: argparse.Namespace, ref: np.ndarray | None) -> Remover:
         return ts.remove_markers(img, method=args.method, radius=args.radius, **opts)
 
     return remove
+
+
+def _output_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The options that shape the outputs, by flag (those the method ignores left out): an
+    output is only skipped on a rerun with the same ones."""
+    from tacswitch.cli.options import extraction_options
+
+    opts: dict[str, Any] = {"--method": args.method, "--radius": args.radius}
+    if args.method in MODEL_METHODS:
+        opts |= {"--steps": args.steps, "--separation": args.separation,
+                 "--orientations": args.orientations, "--model": args.model}
+    if args.method == "hybrid":
+        opts["--ref"] = str(Path(args.ref).resolve()) if args.ref is not None else None
+    opts |= {f"--{k.replace('_', '-')}": v for k, v in extraction_options(args).items()}
+    return opts
 
 
 def _video_target(path: Path, out: Path, args: argparse.Namespace) -> Path:
@@ -167,18 +190,19 @@ def run(args: argparse.Namespace) -> int:
     if args.ref is not None and args.method == "hybrid":
         ref = read_quiet(input_file(args.ref, "--ref"))
         if ref is None:
-            raise ValueError(f"--ref: cannot read an image from {args.ref!r}")
+            raise UsageError(f"--ref: cannot read an image from {args.ref!r}")
     output_dir(out, "--out")
     workers = 1 if args.method in MODEL_METHODS else (args.workers or default_workers())
-    done, skipped, failed = _images(images, out, _remover(args, ref), workers, args)
-    bad = 0
-    for path in videos:
-        try:
-            d, s, b = _video(path, out, ref, workers, args)
-        except _Unreadable as exc:
-            failed.append((path, str(exc)))
-            continue
-        done, skipped, bad = done + d, skipped + s, bad + b
+    with OutputRecord(out, "remove-markers", _output_options(args)) as record:
+        done, skipped, failed = _images(images, out, _remover(args, ref), workers, args, record)
+        bad = 0
+        for path in videos:
+            try:
+                d, s, b = _video(path, out, ref, workers, args, record)
+            except _Unreadable as exc:
+                failed.append((path, str(exc)))
+                continue
+            done, skipped, bad = done + d, skipped + s, bad + b
     report_unreadable("remove-markers", failed, done + skipped)
     say(f"{done} written, {skipped} already done"
         + (f", {len(failed)} unreadable skipped" if failed else "")
@@ -192,17 +216,19 @@ class _Unreadable(ValueError):
 
 
 def _images(images: list[Path], out: Path, remove: Remover, workers: int,
-            args: argparse.Namespace) -> tuple[int, int, list[tuple[Path, str]]]:
-    """Marker removal on image files, ``workers`` at a time; (written, already done,
-    unreadable files with the reason). Files are decoded on this thread (quietly: libpng's
-    own messages are kept off the terminal), filled and written on the workers."""
+            args: argparse.Namespace, record: OutputRecord
+            ) -> tuple[int, int, list[tuple[Path, str]]]:
+    """Marker removal on image files, ``workers`` at a time; (written, already done with the
+    same options, unreadable files with the reason). Files are decoded on this thread
+    (quietly: libpng's own messages are kept off the terminal), filled and written on the
+    workers."""
     from tacswitch._io import write_image
     from tacswitch.cli.batch import ordered_map
     from tacswitch.cli.progress import progress, say
     from tacswitch.cli.sources import read_quiet
 
     jobs = [(p, out / f"{p.stem}.png") for p in images]
-    todo = [(p, t) for p, t in jobs if args.overwrite or not t.exists()]
+    todo = [(p, t) for p, t in jobs if args.overwrite or not record.made_here(t)]
     failed: list[tuple[Path, str]] = []
 
     def decoded() -> Iterator[tuple[Path, Path, np.ndarray | None]]:
@@ -221,6 +247,7 @@ def _images(images: list[Path], out: Path, remove: Remover, workers: int,
         for path, target, ok in results:
             bar.update()
             if ok:
+                record.add(target)
                 say(f"{path} -> {target}", quiet=args.quiet)
             else:
                 failed.append((path, f"inputs: cannot read an image from {str(path)!r}"))
@@ -236,17 +263,18 @@ def _stale_parts(out: Path, stem: str) -> None:
 
 
 def _video(path: Path, out: Path, ref: np.ndarray | None, workers: int,
-           args: argparse.Namespace) -> tuple[int, int, int]:
+           args: argparse.Namespace, record: OutputRecord) -> tuple[int, int, int]:
     """One video: a markerless ``OUT/<stem>.mp4`` (``.mkv`` for ffv1) or, with ``--frames``,
     PNG frames in ``OUT/<stem>/``. Returns (outputs written, outputs already done, unreadable
-    frames); :class:`_Unreadable` if not one frame decodes."""
+    frames); :class:`_Unreadable` if not one frame decodes. Only outputs ``record`` holds as
+    made with the same options are kept: a frames folder made with others is redone whole."""
     from tacswitch._io import write_image
     from tacswitch.cli.batch import AtomicVideoWriter, ordered_map
     from tacswitch.cli.progress import progress, say
     from tacswitch.cli.sources import video_frames, video_info
 
     target = _video_target(path, out, args)
-    if not args.frames and target.exists() and not args.overwrite:
+    if not args.frames and record.made_here(target) and not args.overwrite:
         return 0, 1, 0
     try:
         fps, count = video_info(path, "inputs")
@@ -269,12 +297,21 @@ def _video(path: Path, out: Path, ref: np.ndarray | None, workers: int,
 
     bar = progress(total=count, desc=path.name, unit="frame", quiet=quiet)
     if args.frames:
+        fresh = not target.exists() or not any(target.iterdir())
+        # Frame by frame resume only in a folder of these options' frames; a new folder is
+        # recorded at once (every frame in it will be this run's), one of other options only
+        # once all its frames are redone.
+        redo = args.overwrite or not (fresh or record.made_here(target))
+        if fresh:
+            record.add(target)
+            record.save()
+
         def one(item: tuple[int, np.ndarray | None]) -> str:
             i, frame = item
             if frame is None:
                 return "bad"
             png = target / f"{i:06d}.png"
-            if png.exists() and not args.overwrite:
+            if png.exists() and not redo:
                 return "skip"
             assert remove is not None
             write_image(png, remove(frame))
@@ -287,6 +324,7 @@ def _video(path: Path, out: Path, ref: np.ndarray | None, workers: int,
                 bar.update()
         if tally["done"] + tally["skip"] == 0:
             raise _Unreadable(f"inputs: no readable frame in video {str(path)!r}")
+        record.add(target)
         say(f"{path} -> {target}/ ({tally['done']} frames written, {tally['skip']} already "
             f"done, {tally['bad']} unreadable skipped)", quiet=quiet)
         return tally["done"], tally["skip"], tally["bad"]
@@ -309,5 +347,6 @@ def _video(path: Path, out: Path, ref: np.ndarray | None, workers: int,
         if writer.frames == 0:
             raise _Unreadable(f"inputs: no readable frame in video {str(path)!r}")
         writer.commit()
+    record.add(target)
     say(f"{path} -> {target} ({writer.frames} frames, {bad} unreadable skipped)", quiet=quiet)
     return 1, 0, bad

@@ -15,9 +15,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--preset", default="gelsight",
                    help="sensor preset: gelsight, gelsight_mini, digit, dense "
                         "(default: %(default)s)")
-    p.add_argument("--n", type=int, default=100, help="samples or sequences (default: %(default)s)")
+    from tacswitch.cli.options import count
+
+    p.add_argument("--n", type=count, default=100,
+                   help="samples or sequences (default: %(default)s)")
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=count, default=0,
+                   help="dataset seed, a whole number >= 0 (default: %(default)s)")
     p.add_argument("--sequences", action="store_true",
                    help="grasp sequences (press, shear, hold/slip/vibration) instead of samples")
     p.add_argument("--frames", type=int, default=30, help="frames per sequence (default: 30)")
@@ -33,8 +37,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from tacswitch.cli.options import UsageError, output_dir, preset_option
+    from tacswitch.cli.progress import stderr_is_terminal
     from tacswitch.sim.dataset import generate_dataset
 
+    preset_option(args.preset)
+    if args.frames < 1:
+        raise UsageError(f"--frames: must be >= 1; got {args.frames}")
+    if args.workers is not None and args.workers < 1:
+        raise UsageError(f"--workers: must be >= 1; got {args.workers}")
+    output_dir(args.out, "--out")
     workers = args.workers if args.workers is not None else (os.cpu_count() or 1)
     options = {"optics": args.optics, "vary_grid": bool(args.vary_grid),
                "jpeg_quality": args.jpeg}
@@ -42,7 +54,10 @@ def run(args: argparse.Namespace) -> int:
         options["frames"] = args.frames
     summary = generate_dataset(args.out, preset=args.preset, n=args.n, seed=args.seed,
                                sequences=args.sequences, workers=workers,
-                               progress=not args.quiet, options=options)
+                               # A bar redrawn with carriage returns only on a terminal,
+                               # never into a log file.
+                               progress=not args.quiet and stderr_is_terminal(),
+                               options=options)
     if not args.quiet:
         print(f"{args.out}: {summary['generated']} generated, {summary['skipped']} already there, "
               f"{summary['items_per_s']:.2f} items/s with {workers} worker(s)")

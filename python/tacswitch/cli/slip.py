@@ -34,7 +34,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "no log rows, and frame numbers stay the source's.",
     )
     p.add_argument("source", help="video file, folder of images, or camera index (0, 1, ...)")
-    p.add_argument("--log", default="slip-log.csv", help="CSV log (default: %(default)s)")
+    p.add_argument("--log", default="slip-log.csv",
+                   help="CSV log, a .csv file name (default: %(default)s)")
     p.add_argument("--rule", choices=RULES, default=None,
                    help="'learned' (default): a classifier of how the marker field moves over "
                         "time, trained on real lifted and shaken grasps, run from the contact "
@@ -84,7 +85,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="judge slip on every marker (default: only the markers near the "
                         "grasp-start frame's contact, where the gel moves most; far from it a "
                         "compressed video's drifting texture reads as motion)")
-    p.add_argument("--show", action="store_true", help="show an overlay window (needs a display)")
+    p.add_argument("--show", action="store_true",
+                   help="show an overlay window (needs a display and an OpenCV build with a "
+                        "GUI: opencv-contrib-python instead of the -headless package)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(run=run)
 
@@ -95,12 +98,34 @@ PAPER_OPTIONS = ("threshold_px", "rigid_threshold_px", "smooth_frames", "method"
 
 
 def _px_or_auto(text: str) -> float | str:
+    """Pixels > 0 (finite) or ``'auto'``."""
+    from tacswitch.cli.options import positive
+
     if text == "auto":
         return text
     try:
-        return float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected pixels or 'auto', got {text!r}") from None
+        return positive(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"expected pixels > 0 or 'auto', got {text!r}") from None
+
+
+def _window_problem() -> str | None:
+    """Why ``--show`` cannot open a window here (None: it can): the headless OpenCV build
+    tacswitch depends on has no GUI (``cv2.imshow`` raises "not implemented"), and on Linux a
+    window needs a display."""
+    import re
+
+    import cv2
+
+    gui = re.search(r"^\s*GUI:\s*(\S+)", cv2.getBuildInformation(), re.MULTILINE)
+    if gui is not None and gui.group(1).upper() == "NONE":
+        return ("this OpenCV build has no GUI (opencv-contrib-python-headless); for a window "
+                "pip install opencv-contrib-python in place of the -headless package, or drop "
+                "--show")
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
+                                                 or os.environ.get("WAYLAND_DISPLAY")):
+        return "no display to open a window on ($DISPLAY is not set); drop --show"
+    return None
 
 
 LOG_COLUMNS = ["frame", "phase", "grasp", "grasp_start", "slip", "criterion",
@@ -143,11 +168,15 @@ def _check(args: argparse.Namespace) -> None:
     if args.rigid_only and args.rigid_threshold_px is None:
         raise UsageError("--rigid-only: needs --rigid-threshold-px (pixels or 'auto'), or "
                          "nothing is checked")
+    if args.show:
+        problem = _window_problem()
+        if problem is not None:
+            raise UsageError(f"--show: {problem}")
 
 
 def run(args: argparse.Namespace) -> int:
     import tacswitch as ts
-    from tacswitch.cli.options import output_file
+    from tacswitch.cli.options import csv_output
     from tacswitch.cli.progress import progress, warn
 
     _check(args)
@@ -155,11 +184,11 @@ def run(args: argparse.Namespace) -> int:
         _warn_inter_frame_codec(args.source)
     rule: _PaperLoop | _LearnedLoop = (_LearnedLoop(args) if args.rule == "learned"
                                        else _PaperLoop(args))
-    show = args.show and (sys.platform == "win32" or bool(os.environ.get("DISPLAY")))
+    show = args.show  # _check refused it where no window can open
     n = skipped = slips = 0
     starts: list[int] = []
     t0 = time.perf_counter()
-    log_path = output_file(args.log, "--log")
+    log_path = csv_output(args.log, "--log")
     status = 0
     total = frame_count(args.source, args.max_frames)
     # The window shows the state; the bar (frames/s) is for runs without it.
@@ -394,6 +423,7 @@ class MarkerlessMotion:
         self.positions = self.reference.copy()
         self.grasp_ref: np.ndarray | None = None
         self.all_markers = bool(args.all_markers)
+        self.ref_given = args.ref is not None
         # The markers near the grasp-start frame's contact (None: all of them are judged).
         self.grasp_near: np.ndarray | None = None
         self.warned = False
@@ -423,9 +453,14 @@ class MarkerlessMotion:
             near = None if self.all_markers else near_contact(frame, self.ref, self.reference,
                                                               fallback=False)
             if near is None and not self.all_markers and not self.warned:
+                # With --ref given, asking for one would argue with the user: say what it
+                # means instead.
+                hint = ("is --ref a no-contact frame of this sensor and recording?"
+                        if self.ref_given else "pass --ref NO_CONTACT.png when the video "
+                        "starts in contact (the first frame is the reference without it)")
                 print("tacswitch slip: warning: --ref: the grasp-start frame shows no contact "
-                      "against the reference frame, so every marker is judged; pass --ref "
-                      "NO_CONTACT.png when the video starts in contact", file=sys.stderr)
+                      f"against the reference frame, so every marker is judged; {hint}",
+                      file=sys.stderr)
                 self.warned = True
             self.grasp_near = near
         motion = predict_motion(frame, self.grasp_ref, self.reference, method=self.method,
@@ -449,7 +484,9 @@ def _warn_inter_frame_codec(source: str) -> None:
         print(f"tacswitch slip: warning: source: {codec!r} video; on inter-frame codecs the "
               "gel's texture drifts between frames and raises false slip alarms (real-texture "
               "H.264 grasps with noisy frames: GelSight 24-29 of 36 right, 36 lossless or "
-              "MJPEG); record lossless or MJPEG for --markerless", file=sys.stderr)
+              "MJPEG); record lossless or MJPEG for --markerless (from tacswitch "
+              "remove-markers: --codec ffv1 or --frames, not its default mp4v)",
+              file=sys.stderr)
 
 
 def _smooth_frames(args: argparse.Namespace) -> int:

@@ -14,6 +14,8 @@ import json
 import sys
 from pathlib import Path
 
+from tacswitch.cli.options import UsageError
+
 
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("data", help="folder with labels.csv and OBJECT/EXPERIMENT/*.avi videos")
@@ -64,7 +66,7 @@ def _load(args: argparse.Namespace):  # type: ignore[no-untyped-def]
     from tacswitch.grasp.dataset import experiment_clips, read_labels
 
     if args.workers < 1:
-        raise ValueError(f"--workers: must be >= 1; got {args.workers}")
+        raise UsageError(f"--workers: must be >= 1; got {args.workers}")
     try:
         exps = read_labels(args.data, args.labels)
     except ValueError as exc:
@@ -86,11 +88,11 @@ def run_evaluate(args: argparse.Namespace) -> int:
         try:
             rigid = float(rigid)
         except ValueError:
-            raise ValueError(f"--rigid-threshold-px: pixels or 'auto'; got {rigid!r}") from None
+            raise UsageError(f"--rigid-threshold-px: pixels or 'auto'; got {rigid!r}") from None
     if args.rule == "learned" and rigid is not None:
-        raise ValueError("--rigid-threshold-px: applies to --rule paper only")
+        raise UsageError("--rigid-threshold-px: applies to --rule paper only")
     if args.cv and args.cv < 2:
-        raise ValueError(f"--cv: at least 2 folds; got {args.cv}")
+        raise UsageError(f"--cv: at least 2 folds; got {args.cv}")
     exps, clips = _load(args)
     labels = [e.slip for e in exps]
     if args.cv:
@@ -125,22 +127,25 @@ def run_evaluate(args: argparse.Namespace) -> int:
 
 
 def run_train(args: argparse.Namespace) -> int:
+    from tacswitch.cli.options import UsageError, output_file
+
+    if args.workers < 1:
+        raise UsageError(f"--workers: must be >= 1; got {args.workers}")
+    if args.epochs is not None and args.epochs < 1:
+        raise UsageError(f"--epochs: must be >= 1; got {args.epochs}")
+    if args.simulated is not None and not 0 <= args.simulated <= 1000:
+        raise UsageError(f"--simulated: must be in [0, 1000]; got {args.simulated}")
+    out = output_file(args.out, "--out")
     try:
         import torch  # noqa: F401
     except ImportError:
         raise ValueError("train slip: needs torch: pip install 'tacswitch[train]'") from None
-    from tacswitch.cli.options import output_file
     from tacswitch.grasp.train import EPOCHS, export_scorer, train_scorer
 
-    out = output_file(args.out, "--out")
     epochs = args.epochs if args.epochs is not None else EPOCHS
-    if epochs < 1:
-        raise ValueError(f"--epochs: must be >= 1; got {epochs}")
     from tacswitch.grasp.simulated import SIMULATED_PER_KIND, SIMULATED_SEED, simulated_clips
 
     n_sim = SIMULATED_PER_KIND if args.simulated is None else args.simulated
-    if not 0 <= n_sim <= 1000:
-        raise ValueError(f"--simulated: must be in [0, 1000]; got {n_sim}")
     exps, clips = _load(args)
     labels = [e.slip for e in exps]
     feats = [[c.features() for c in exp] for exp in clips]

@@ -15,6 +15,23 @@ VIDEO_SUFFIXES = {".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v"}
 MAX_FAILED_READS = 30
 
 
+def natural_key(path: Path) -> tuple[tuple[int, int | str], ...]:
+    """Sort key of a file name in natural order: runs of digits compare as numbers, so
+    ``60.png`` comes before ``540.png`` and ``frame_2`` before ``frame_10`` (frame folders
+    are rarely zero-padded)."""
+    import re
+
+    return tuple((0, int(part)) if part.isdigit() else (1, part)
+                 for part in re.split(r"(\d+)", path.name) if part)
+
+
+def sorted_files(folder: Path, suffixes: set[str]) -> list[Path]:
+    """The files of ``folder`` whose suffix (lower case) is in ``suffixes``, in natural order
+    (:func:`natural_key`)."""
+    return sorted((p for p in folder.iterdir() if p.suffix.lower() in suffixes),
+                  key=natural_key)
+
+
 def _quiet_decoder() -> None:
     """Silences FFmpeg's own log (a damaged frame prints hundreds of lines on stderr; the
     commands count and report skipped frames instead). Takes effect at the first capture of
@@ -73,12 +90,13 @@ def report_unreadable(command: str, failed: list[tuple[Path, str]], done: int) -
 
 
 def collect_images(inputs: list[str]) -> list[Path]:
-    """Image files named or found (sorted) in the named folders; ``FileNotFoundError`` if none."""
+    """Image files named or found (natural order) in the named folders; ``FileNotFoundError``
+    if none."""
     files: list[Path] = []
     for item in inputs:
         path = Path(item)
         if path.is_dir():
-            files += sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+            files += sorted_files(path, IMAGE_SUFFIXES)
         elif path.is_file():
             files.append(path)
         else:
@@ -89,7 +107,7 @@ def collect_images(inputs: list[str]) -> list[Path]:
 
 
 def collect_inputs(inputs: list[str]) -> tuple[list[Path], list[Path]]:
-    """Images and videos named or found (sorted) in the named folders, told apart by suffix
+    """Images and videos named or found (natural order) in the named folders, told apart by suffix
     (:data:`VIDEO_SUFFIXES`; any other named file counts as an image). ``FileNotFoundError``
     naming the input if one does not exist, or if there is nothing to do."""
     images: list[Path] = []
@@ -97,9 +115,8 @@ def collect_inputs(inputs: list[str]) -> tuple[list[Path], list[Path]]:
     for item in inputs:
         path = Path(item)
         if path.is_dir():
-            found = sorted(path.iterdir())
-            images += [p for p in found if p.suffix.lower() in IMAGE_SUFFIXES]
-            videos += [p for p in found if p.suffix.lower() in VIDEO_SUFFIXES]
+            images += sorted_files(path, IMAGE_SUFFIXES)
+            videos += sorted_files(path, VIDEO_SUFFIXES)
         elif path.is_file():
             (videos if path.suffix.lower() in VIDEO_SUFFIXES else images).append(path)
         else:
@@ -222,7 +239,7 @@ def frames(source: str) -> Iterator[np.ndarray | None]:
 
     path = Path(source)
     if path.is_dir():
-        files = sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+        files = sorted_files(path, IMAGE_SUFFIXES)
         if not files:
             raise FileNotFoundError(f"source: no images in folder {source!r}")
         for f in files:

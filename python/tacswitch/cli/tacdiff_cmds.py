@@ -7,6 +7,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+from tacswitch.cli.options import UsageError
+
 
 def add_train_parser(what: argparse._SubParsersAction) -> None:
     """``tacswitch train tacdiff``: simulated pairs -> trained denoiser -> ONNX."""
@@ -100,7 +102,35 @@ def add_train_parser(what: argparse._SubParsersAction) -> None:
     m.set_defaults(run=run_train)
 
 
+def _check_train(args: argparse.Namespace) -> None:
+    """The option values that can be checked before torch is even looked for."""
+    from tacswitch.cli.options import UsageError
+
+    # tacswitch.tacdiff.model.MULTIPLE (that module needs torch).
+    multiple = 16
+    if args.crop % multiple or args.crop < multiple:
+        raise UsageError(f"--crop: must be a positive multiple of {multiple}; got {args.crop}")
+    if args.steps < 1 or args.batch < 1 or (args.base is not None and args.base < 4):
+        raise UsageError("--steps and --batch must be >= 1, --base >= 4")
+    if args.warmup < 0 or args.save_every < 1 or args.threads < 0:
+        raise UsageError("--warmup and --threads must be >= 0, --save-every >= 1")
+    if not args.time_budget >= 0 or args.time_budget == float("inf"):
+        raise UsageError(f"--time-budget: must be seconds >= 0; got {args.time_budget}")
+    if args.workers < 1 or args.snapshot_every < 0 or args.paint_pairs < 1:
+        raise UsageError("--workers and --paint-pairs must be >= 1, --snapshot-every >= 0")
+    if args.out is None and not args.render_only:
+        raise UsageError("--out: required unless --render-only")
+    for name in ("contact_share", "hole_share", "terminal_fraction"):
+        if not 0 <= getattr(args, name) <= 1:
+            raise UsageError(f"--{name.replace('_', '-')}: must be in [0, 1]; got "
+                             f"{getattr(args, name)}")
+    if args.contact_share + args.hole_share > 1:
+        raise UsageError("--contact-share + --hole-share: must be <= 1; got "
+                         f"{args.contact_share + args.hole_share}")
+
+
 def run_train(args: argparse.Namespace) -> int:
+    _check_train(args)
     try:
         import torch  # noqa: F401
     except ImportError:
@@ -117,27 +147,12 @@ def run_train(args: argparse.Namespace) -> int:
     )
     from tacswitch.tacdiff.train import TrainConfig, config_dict, pick_device, save_weights, train
 
-    if args.crop % MULTIPLE or args.crop < MULTIPLE:
-        raise ValueError(f"--crop: must be a positive multiple of {MULTIPLE}; got {args.crop}")
-    if args.steps < 1 or args.batch < 1 or (args.base is not None and args.base < 4):
-        raise ValueError("--steps and --batch must be >= 1, --base >= 4")
-    if args.warmup < 0 or args.save_every < 1 or args.threads < 0:
-        raise ValueError("--warmup and --threads must be >= 0, --save-every >= 1")
-    if not args.time_budget >= 0 or args.time_budget == float("inf"):
-        raise ValueError(f"--time-budget: must be seconds >= 0; got {args.time_budget}")
-    if args.workers < 1 or args.snapshot_every < 0 or args.paint_pairs < 1:
-        raise ValueError("--workers and --paint-pairs must be >= 1, --snapshot-every >= 0")
-    if args.out is None and not args.render_only:
-        raise ValueError("--out: required unless --render-only")
+    assert MULTIPLE == 16, "update _check_train"  # the check above ran without torch
     paint = [paint_source(d, args.pitch, args.diameter) for d in args.paint]
-    device = pick_device(args.device, "--device")  # before any rendering
-    for name in ("contact_share", "hole_share", "terminal_fraction"):
-        if not 0 <= getattr(args, name) <= 1:
-            raise ValueError(f"--{name.replace('_', '-')}: must be in [0, 1]; got "
-                             f"{getattr(args, name)}")
-    if args.contact_share + args.hole_share > 1:
-        raise ValueError("--contact-share + --hole-share: must be <= 1; got "
-                         f"{args.contact_share + args.hole_share}")
+    try:
+        device = pick_device(args.device, "--device")  # before any rendering
+    except ValueError as exc:  # it names --device
+        raise UsageError(str(exc)) from None
     init, arch = None, None
     if args.init is not None:
         from tacswitch.tacdiff.infer import model_path
@@ -146,17 +161,23 @@ def run_train(args: argparse.Namespace) -> int:
         # A shipped model's ONNX holds its float32 weights (its .safetensors are float16).
         init = model_path(args.init)
         if not init.is_file():
-            raise ValueError(f"--init: no weights file at {str(init)!r}")
+            raise UsageError(f"--init: no weights file at {str(init)!r}")
         arch = load_network(init).cfg
         if args.base is not None and args.base != arch.base:
-            raise ValueError(f"--base: {args.base} differs from --init's {arch.base}")
+            raise UsageError(f"--base: {args.base} differs from --init's {arch.base}")
     prior = args.prior if args.prior is not None else arch.prior if arch else DEFAULT_PRIOR
-    check_prior(prior)
+    try:
+        check_prior(prior)
+    except ValueError as exc:
+        raise UsageError(f"--{exc}") from None
     if arch is not None and input_channels(prior) != input_channels(arch.prior):
-        raise ValueError(f"--prior: {prior!r} takes other inputs than --init's {arch.prior!r}")
-    radius = check_radius(args.prior_radius if args.prior_radius is not None
-                          else arch.prior_radius if arch else DEFAULT_PRIOR_RADIUS,
-                          "--prior-radius")
+        raise UsageError(f"--prior: {prior!r} takes other inputs than --init's {arch.prior!r}")
+    try:
+        radius = check_radius(args.prior_radius if args.prior_radius is not None
+                              else arch.prior_radius if arch else DEFAULT_PRIOR_RADIUS,
+                              "--prior-radius")
+    except ValueError as exc:  # it names --prior-radius
+        raise UsageError(str(exc)) from None
     if args.simulate:
         render_pairs(args.data, args.simulate, seed=args.seed, progress=not args.quiet,
                      realism=args.realism, workers=args.workers, prior=prior,
@@ -223,50 +244,50 @@ def paint_source(folder: str, pitch: float | None, diameter: float | None
 
     root = Path(folder)
     if not root.is_dir():
-        raise ValueError(f"--paint: no folder at {folder!r}")
+        raise UsageError(f"--paint: no folder at {folder!r}")
     images = [p for p in root.iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg", ".bmp")]
     files = sorted(p for p in images if not p.stem.lower().endswith(".contact"))
     masks = {p.stem[: -len(".contact")]: p for p in images if p.stem.lower().endswith(".contact")}
     if not files:
-        raise ValueError(f"--paint: no PNG/JPEG frames in {folder!r}")
+        raise UsageError(f"--paint: no PNG/JPEG frames in {folder!r}")
     frames: list[Any] = []
     contacts: list[Any] = []
     for f in files:
         img = cv2.imread(str(f), cv2.IMREAD_COLOR)
         if img is None:
-            raise ValueError(f"--paint: cannot read {str(f)!r} as an image")
+            raise UsageError(f"--paint: cannot read {str(f)!r} as an image")
         if frames and img.shape != frames[0].shape:
-            raise ValueError(f"--paint: {f.name} is {img.shape[1]}x{img.shape[0]}, the first "
+            raise UsageError(f"--paint: {f.name} is {img.shape[1]}x{img.shape[0]}, the first "
                              f"frame {frames[0].shape[1]}x{frames[0].shape[0]}; one size per "
                              "folder")
         frames.append(img)
         cpath = masks.get(f.stem)
         c = None if cpath is None else cv2.imread(str(cpath), cv2.IMREAD_GRAYSCALE)
         if cpath is not None and c is None:
-            raise ValueError(f"--paint: cannot read {str(cpath)!r} as a contact mask")
+            raise UsageError(f"--paint: cannot read {str(cpath)!r} as a contact mask")
         if c is not None and c.shape != img.shape[:2]:
-            raise ValueError(f"--paint: {f.stem}.contact mask is not the size of its frame")
+            raise UsageError(f"--paint: {f.stem}.contact mask is not the size of its frame")
         contacts.append(None if c is None else c > 0)
     spec: dict[str, Any] = {}
     if (root / "markers.json").is_file():
         try:
             spec = json.loads((root / "markers.json").read_text())
         except (OSError, json.JSONDecodeError) as exc:
-            raise ValueError(f"--paint: unreadable {str(root / 'markers.json')!r}: {exc}"
+            raise UsageError(f"--paint: unreadable {str(root / 'markers.json')!r}: {exc}"
                              ) from None
         if not isinstance(spec, dict):
-            raise ValueError(f"--paint: {str(root / 'markers.json')!r} must hold an object "
+            raise UsageError(f"--paint: {str(root / 'markers.json')!r} must hold an object "
                              '{"pitch": P, "diameter": D}')
     p = spec.get("pitch", pitch)
     d = spec.get("diameter", diameter)
     if p is None or d is None:
-        raise ValueError(f"--paint: {folder!r} has no markers.json; give --pitch and --diameter")
+        raise UsageError(f"--paint: {folder!r} has no markers.json; give --pitch and --diameter")
     try:
         p, d = float(p), float(d)
     except (TypeError, ValueError):
-        raise ValueError(f"--paint: pitch and diameter of {folder!r} must be numbers") from None
+        raise UsageError(f"--paint: pitch and diameter of {folder!r} must be numbers") from None
     if not (np.isfinite(p) and np.isfinite(d) and 0 < d < p):
-        raise ValueError(f"--pitch, --diameter: need 0 < diameter < pitch; got {p}, {d} for "
+        raise UsageError(f"--pitch, --diameter: need 0 < diameter < pitch; got {p}, {d} for "
                          f"{folder!r}")
     name = "".join(c if c.isalnum() or c in "_-" else "_" for c in root.resolve().name)
     return name or "frames", frames, contacts, p, d
@@ -306,9 +327,9 @@ def run_evaluate(args: argparse.Namespace) -> int:
     try:
         steps = [int(k) for k in args.steps.split(",") if k.strip()]
     except ValueError:
-        raise ValueError(f"--steps: expected integers like 1,2,4; got {args.steps!r}") from None
+        raise UsageError(f"--steps: expected integers like 1,2,4; got {args.steps!r}") from None
     if args.frames < 1:
-        raise ValueError(f"--frames: must be >= 1; got {args.frames}")
+        raise UsageError(f"--frames: must be >= 1; got {args.frames}")
     results = {}
     for preset in [p.strip() for p in args.presets.split(",") if p.strip()]:
         frames = tradeoff.simulated_frames(args.frames, preset, seed=HELD_OUT_SEED,

@@ -20,11 +20,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "reference instead (said on stderr); the frames before it have no rows.",
     )
     p.add_argument("source", help="video file, folder of images, or camera index")
-    p.add_argument("-o", "--out", default="track.csv", help="CSV output (default: %(default)s)")
-    p.add_argument("--max-dist", type=float, default=None,
+    from tacswitch.cli.options import positive
+
+    p.add_argument("-o", "--out", default="track.csv",
+                   help="CSV output, a .csv file name (default: %(default)s)")
+    p.add_argument("--max-dist", type=positive, default=None, metavar="PX",
                    help="per-frame gate in pixels (default: half the marker pitch)")
-    p.add_argument("--polarity", choices=("dark", "bright"), default="dark")
-    p.add_argument("--max-frames", type=int, default=None)
+    p.add_argument("--polarity", choices=("dark", "bright"), default="dark",
+                   help="markers darker (painted dots, default) or brighter (pins) than the gel")
+    p.add_argument("--max-frames", type=int, default=None, metavar="N",
+                   help="stop after the first N frames (default: the whole source)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(run=run)
 
@@ -33,12 +38,12 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     import tacswitch as ts
-    from tacswitch.cli.options import UsageError, output_file
+    from tacswitch.cli.options import UsageError, csv_output
     from tacswitch.cli.progress import progress, warn
 
     if args.max_frames is not None and args.max_frames < 1:
         raise UsageError(f"--max-frames: must be >= 1; got {args.max_frames}")
-    out = output_file(args.out, "--out")
+    out = csv_output(args.out, "--out")
     tracker: ts.MarkerTracker | None = None
     n = skipped = 0
     total = frame_count(args.source, args.max_frames)

@@ -57,31 +57,47 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     slip_cmds.add_train_parser(what)
 
 
+def _check(args: argparse.Namespace) -> None:
+    """Option values that cannot work (before torch is even looked for)."""
+    from tacswitch.cli.options import UsageError, preset_option
+
+    if (args.design == "consistent") != (args.split == "gel_train"):
+        raise UsageError("--design consistent and --split gel_train go together (the design "
+                         "trains on both frames' motions from rest, which only gel_ splits hold)")
+    if args.split == "pair_train" and not args.use_ref:
+        raise UsageError("--split pair_train: the targets are motions since an earlier frame, "
+                         "which the network only sees with --use-ref")
+    if args.frames is not None and args.reference is None:
+        raise UsageError("--reference: needed with --frames (the no-contact frame)")
+    if args.frames is None and args.data is None:
+        raise UsageError("--data: give a data folder (or --frames for your own sensor)")
+    for flag, value, low in (("--epochs", args.epochs, 1), ("--batch", args.batch, 1),
+                             ("--simulate", args.simulate, 0), ("--seed", args.seed, 0),
+                             ("--max-steps", args.max_steps, 0)):
+        if value < low:
+            raise UsageError(f"{flag}: must be >= {low}; got {value}")
+    if not args.lr > 0 or args.lr == float("inf"):
+        raise UsageError(f"--lr: must be a positive number; got {args.lr}")
+    if args.preset != "mixed":
+        preset_option(args.preset)
+
+
 def run(args: argparse.Namespace) -> int:
+    _check(args)
     try:
         import torch  # noqa: F401
     except ImportError:
         raise ValueError('training needs torch: pip install "tacswitch[train]"') from None
-    if (args.design == "consistent") != (args.split == "gel_train"):
-        raise ValueError("--design consistent and --split gel_train go together (the design "
-                         "trains on both frames' motions from rest, which only gel_ splits hold)")
-    if args.split == "pair_train" and not args.use_ref:
-        raise ValueError("--split pair_train: the targets are motions since an earlier frame, "
-                         "which the network only sees with --use-ref")
     from tacswitch.motion import data as mdata
     from tacswitch.motion.export import export_onnx
     from tacswitch.motion.train import TrainConfig, train
 
     if args.frames is not None:
-        if args.reference is None:
-            raise ValueError("--reference: needed with --frames (the no-contact frame)")
         arrays = mdata.pairs_from_marker_frames(args.frames, args.reference,
                                                 progress=not args.quiet)
         source: dict[str, object] = {"frames": str(args.frames),
                                      "reference": str(args.reference)}
     else:
-        if args.data is None:
-            raise ValueError("--data: give a data folder (or --frames for your own sensor)")
         if args.simulate:
             mdata.generate_split(args.data, args.split, args.simulate, preset=args.preset,
                                  seed=args.seed, progress=not args.quiet)

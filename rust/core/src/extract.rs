@@ -340,7 +340,9 @@ pub fn extract_markers_with(
             keep[label] = false;
             continue;
         }
-        if report[label] {
+        // A cut marker's completed centre can land past the frame edge: with exclude_border
+        // such a marker is left out of the report (the mask keeps it).
+        if report[label] && !(params.exclude_border && centre_outside(&marker.centre, h, w)) {
             markers.push(marker);
         }
         if want_mask && params.grow == MaskGrowth::Adaptive {
@@ -1231,6 +1233,13 @@ fn drop_border_cut(
             None => !c.cut_by_border(h, w),
         };
     }
+}
+
+/// Whether a centre `(x, y)` lies outside the pixel-centre span of the frame, `[0, w - 1] x
+/// [0, h - 1]` (a marker centred there is at least half cut off).
+fn centre_outside(centre: &[f32; 2], h: usize, w: usize) -> bool {
+    let (x, y) = (centre[0], centre[1]);
+    !(x >= 0.0 && y >= 0.0 && x <= (w - 1) as f32 && y <= (h - 1) as f32)
 }
 
 /// A marker cut by the border has its visible part's centroid pulled inward. Along each cut axis,

@@ -299,6 +299,8 @@ def test_track_options_have_help() -> None:
     (["simulate", "--n", "-1"], "--n"),
     (["simulate", "--preset", "nope"], "--preset"),
     (["simulate", "--seed", "-1"], "--seed"),
+    (["simulate", "--jpeg", "101"], "--jpeg"),
+    (["simulate", "--jpeg", "-1"], "--jpeg"),
     (["motion", "IMG", "--centres", "BAD"], "--centres"),
     (["motion", "IMG", "--scale", "1e308"], "--scale"),
     (["motion", "IMG", "--scale", "nan"], "--scale"),

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 import tacswitch as ts
 from tacswitch import sim
@@ -176,3 +178,21 @@ def test_train_and_export_roundtrip(tmp_path) -> None:  # type: ignore[no-untype
     assert torch is not None
     with pytest.raises(ValueError, match="labels"):
         train_scorer(feats[:1], labels[:1])
+
+
+@given(st.lists(st.floats(-1e6, 1e6, allow_nan=False), max_size=60),
+       st.integers(1, 12), st.one_of(st.none(), st.floats(-1e6, 1e6, allow_nan=False)))
+def test_rolling_median_matches_numpy_over_the_window(values: list[float], size: int,
+                                                      extra: float | None) -> None:
+    from tacswitch.grasp.phases import RollingMedian
+
+    rm = RollingMedian(size)
+    for i, v in enumerate(values):
+        rm.append(v)
+        window = values[max(0, i + 1 - size):i + 1]
+        assert len(rm) == len(window)
+        assert rm.median() == pytest.approx(float(np.median(window)))
+        with_extra = window + ([] if extra is None else [extra])
+        assert rm.median(extra) == pytest.approx(float(np.median(with_extra)))
+    if not values:
+        assert rm.median() == 0.0

@@ -37,6 +37,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from tacswitch._checks import as_jpeg_quality
     from tacswitch.cli.options import UsageError, output_dir, preset_option
     from tacswitch.cli.progress import stderr_is_terminal
     from tacswitch.sim.dataset import generate_dataset
@@ -46,6 +47,10 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--frames: must be >= 1; got {args.frames}")
     if args.workers is not None and args.workers < 1:
         raise UsageError(f"--workers: must be >= 1; got {args.workers}")
+    try:
+        as_jpeg_quality(args.jpeg, "--jpeg")
+    except (TypeError, ValueError) as e:
+        raise UsageError(str(e)) from None
     output_dir(args.out, "--out")
     workers = args.workers if args.workers is not None else (os.cpu_count() or 1)
     options = {"optics": args.optics, "vary_grid": bool(args.vary_grid),

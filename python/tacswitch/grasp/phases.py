@@ -29,6 +29,7 @@ markers move and settle, or never; pass an explicit start (``--start``) for such
 
 from __future__ import annotations
 
+import bisect
 from collections import deque
 from dataclasses import dataclass
 
@@ -56,6 +57,38 @@ def top_statistic(values: NDArray[np.floating]) -> float:
         return 0.0
     k = min(max(2, int(np.ceil(0.02 * v.size))), v.size)
     return float(np.partition(v, v.size - k)[v.size - k])
+
+
+class RollingMedian:
+    """Median of the last ``size`` values, updated in O(size) without sorting per read: a FIFO
+    of the values and the same values kept sorted (the slip loop asks for it every frame)."""
+
+    def __init__(self, size: int) -> None:
+        self._fifo: deque[float] = deque()
+        self._sorted: list[float] = []
+        self.size = int(size)
+
+    def __len__(self) -> int:
+        return len(self._fifo)
+
+    def append(self, value: float) -> None:
+        if len(self._fifo) == self.size:
+            old = self._fifo.popleft()
+            del self._sorted[bisect.bisect_left(self._sorted, old)]
+        self._fifo.append(value)
+        bisect.insort(self._sorted, value)
+
+    def median(self, extra: float | None = None) -> float:
+        """Median of the window (and ``extra`` when given, without keeping it); 0 if empty.
+        NaN values are not expected (the motion statistics are finite)."""
+        v = self._sorted
+        if extra is not None:
+            v = v.copy()
+            bisect.insort(v, extra)
+        n = len(v)
+        if n == 0:
+            return 0.0
+        return v[n // 2] if n % 2 else 0.5 * (v[n // 2 - 1] + v[n // 2])
 
 
 @dataclass(frozen=True)
@@ -110,13 +143,12 @@ class GraspSegmenter:
         self._above = 0  # frames in a row above the onset level (no contact) or below it (grasp)
         # Per-frame motion statistics without contact: the last NOISE_FRAMES of them, so a
         # long stream costs the same per frame.
-        self._noise_v: deque[float] = deque(maxlen=NOISE_FRAMES)
+        self._noise_v = RollingMedian(NOISE_FRAMES)
         self._prev: NDArray[np.float64] | None = None
 
     def _jitter(self, extra: float | None = None) -> float:
         """Median per-frame motion statistic of the no-contact frames (and ``extra``), px."""
-        values = [*self._noise_v] + ([] if extra is None else [extra])
-        return float(np.median(values)) if values else 0.0
+        return self._noise_v.median(extra)
 
     @property
     def on_level(self) -> float:

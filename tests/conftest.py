@@ -94,7 +94,7 @@ def grid() -> np.ndarray:
 # importorskip reason there, and `.ci/run` runs them afterwards with `python -m pytest -m train`.
 # A test gets the marker when it, or its module's top level, calls pytest.importorskip on one of
 # the extra's modules; a test that needs them another way is marked @pytest.mark.train by hand.
-TRAIN_MODULES = ("torch", "torchvision", "safetensors", "onnx", "onnxscript", "av")
+TRAIN_MODULES = ("torch", "torchvision", "safetensors", "onnx", "onnxscript")
 _TRAIN_SKIP = re.compile(r"importorskip\(\s*[\"'](" + "|".join(TRAIN_MODULES) + r")[\"'.]")
 
 

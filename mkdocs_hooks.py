@@ -9,6 +9,9 @@ the README links to ``docs/api.md``. MkDocs only sees ``docs/``, so this hook
 A link to a repository file that is not a page (``examples/``, ``benches/x.py``) becomes plain
 text naming that path; a link to a path that does not exist anywhere is left alone, so
 ``mkdocs build --strict`` still fails on it.
+
+``SphinxRoles`` (a griffe extension, named in mkdocs.yml) shows the docstrings' Sphinx roles,
+``:func:`remove_markers```, as code, ``remove_markers``, in the API reference.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ import re
 from pathlib import Path
 from typing import Any
 
+import griffe
 from mkdocs.structure.files import File, Files
 
 ROOT = Path(__file__).resolve().parent
@@ -30,6 +34,7 @@ EXTRA_PAGES = {
     "python/tacswitch/models/MODEL_CARD_slip.md": "model-cards/slip.md",
     "python/tacswitch/models/MODEL_CARD_tacdiff.md": "model-cards/tacdiff.md",
 }
+ROLE = re.compile(r":(?:func|class|meth|mod|data|attr|obj|exc):`~?([^`]+)`")
 LINK = re.compile(r"(\]\()([^)\s]+)(\))")
 FENCE = re.compile(r"^(```|~~~)")
 
@@ -114,3 +119,11 @@ def _rewrite_links(line: str, page_repo: str, page_site: str) -> str:
         pos = m.end()
     result.append(line[pos:])
     return "".join(result)
+
+
+class SphinxRoles(griffe.Extension):
+    """Docstrings' ``:func:`x```-style roles as code ``x`` (mkdocstrings shows them raw)."""
+
+    def on_instance(self, *, obj: griffe.Object, **kwargs: Any) -> None:
+        if obj.docstring is not None:
+            obj.docstring.value = ROLE.sub(r"`\1`", obj.docstring.value)

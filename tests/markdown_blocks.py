@@ -6,7 +6,7 @@ uses a name it does not define fails, as it would for a reader.
 An HTML comment on the line just before a block's fence (blank lines allowed between) changes how
 it is tested:
 
-- ``<!-- requires: torch, av -->``: the block needs these optional modules (the ``train`` extra);
+- ``<!-- requires: torch, onnx -->``: the block needs these optional modules (the ``train`` extra);
   it runs when they import and is skipped with that reason when they do not. Such blocks carry
   the ``train`` marker, so ``python -m pytest -m train`` runs them after ``pip install ".[train]"``.
 - ``<!-- not-tested: the reason -->``: never run (e.g. a GPU, a long training run, real data the

@@ -92,8 +92,9 @@ def grid() -> np.ndarray:
 # --- the train marker --------------------------------------------------------------------------
 # The README's test command installs no torch: tests that need the train extra skip with the
 # importorskip reason there, and `.ci/run` runs them afterwards with `python -m pytest -m train`.
-# A test gets the marker when it, or its module's top level, calls pytest.importorskip on one of
-# the extra's modules; a test that needs them another way is marked @pytest.mark.train by hand.
+# A test gets the marker when it, a fixture it uses, or its module's top level calls
+# pytest.importorskip on one of the extra's modules; a test that needs them another way is marked
+# @pytest.mark.train by hand.
 TRAIN_MODULES = ("torch", "torchvision", "safetensors", "onnx", "onnxscript")
 _TRAIN_SKIP = re.compile(r"importorskip\(\s*[\"'](" + "|".join(TRAIN_MODULES) + r")[\"'.]")
 
@@ -106,14 +107,23 @@ def _module_needs_train(path: str) -> bool:
                if isinstance(node, (ast.Expr, ast.Assign)))
 
 
+@functools.cache
+def _source_needs_train(fn: Any) -> bool:
+    """Whether the source of the function ``fn`` importorskips a train module."""
+    try:
+        return bool(_TRAIN_SKIP.search(inspect.getsource(fn)))
+    except (OSError, TypeError):
+        return False
+
+
 def pytest_collection_modifyitems(config: Any, items: list[pytest.Item]) -> None:
     for item in items:
         fn = getattr(item, "function", None)
         if fn is None or item.get_closest_marker("train"):
             continue
-        try:
-            needs = bool(_TRAIN_SKIP.search(inspect.getsource(fn)))
-        except (OSError, TypeError):
-            needs = False
-        if needs or _module_needs_train(str(item.path)):
+        info = getattr(item, "_fixtureinfo", None)
+        fixtures = [d.func for defs in (info.name2fixturedefs.values() if info else ())
+                    for d in defs]
+        if (_module_needs_train(str(item.path))
+                or any(_source_needs_train(f) for f in [fn, *fixtures])):
             item.add_marker(pytest.mark.train)

@@ -60,6 +60,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "motion from rest by tacswitch.MarkerlessTracker (--ref: the no-contact "
                         "frame; without it the video starts in contact and its first frame is "
                         "the anchor); method auto only. Videos are always read so")
+    from tacswitch.cli.options import add_device_option
+
+    add_device_option(p, "the learned model (--method model, ensemble, auto without --ref)")
     p.add_argument("-o", "--out", default="motion-out", help="output folder (default: %(default)s)")
     p.add_argument("--scale", type=bounded(0.0, MAX_SCALE), default=3.0, metavar="S",
                    help="overlay arrow length per px of motion, in (0, "
@@ -114,7 +117,13 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from tacswitch._io import atomic_open, read_image, write_image
-    from tacswitch.cli.options import UsageError, input_file, load_model_option, output_dir
+    from tacswitch.cli.options import (
+        UsageError,
+        device_option,
+        input_file,
+        load_model_option,
+        output_dir,
+    )
     from tacswitch.cli.progress import progress, say
     from tacswitch.cli.sources import collect_inputs, read_quiet, report_unreadable
     from tacswitch.motion.infer import load_model, predict_motion
@@ -125,13 +134,14 @@ def run(args: argparse.Namespace) -> int:
     if args.sequence and args.method != "auto":
         raise UsageError(f"--sequence: the tracker chooses its own methods (the mechanics rule "
                          f"at the contact, flow from it); drop --method {args.method}")
-    model = load_model_option(load_model, args.model)
+    device = device_option(args.device)
+    model = load_model_option(lambda m: load_model(m, device), args.model)
     if args.method in LEARNED_PART:
         from tacswitch.motion.ensemble import learned_model
 
         # Refused before any image is read (a model that needs a reference cannot be the
         # ensemble's single-frame half).
-        load_model_option(learned_model, args.model)
+        load_model_option(lambda m: learned_model(m, device), args.model)
     ref = read_image(input_file(args.ref, "--ref"), "--ref", quiet=True) if args.ref else None
     # "auto" runs the ensemble without --ref or against a no-contact --ref, flow otherwise
     # (which ignores the gain): check --gain as the ensemble's.
@@ -169,7 +179,7 @@ def run(args: argparse.Namespace) -> int:
                 motion = (model(img, ref=ref, centres=pts) if args.method == "model" else
                           predict_motion(img, ref, pts, method=args.method, gain=gain,
                                          model=args.model if args.method in LEARNED_PART
-                                         else None))
+                                         else None, device=device))
             buf = io.StringIO()
             w = csv.writer(buf)
             w.writerow(["x", "y", "dx", "dy"])

@@ -71,6 +71,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--model", default=None,
                    help="tacdiff/hybrid ONNX model, or 'fast' for the shipped narrow model "
                         "(default: the shipped model)")
+    from tacswitch.cli.options import add_device_option
+
+    add_device_option(p, "tacdiff/hybrid's network")
     p.add_argument("--codec", choices=tuple(CODECS), default="mp4v",
                    help="video output: mp4v -> OUT/<stem>.mp4 (lossy, plays anywhere; "
                         "default), ffv1 -> OUT/<stem>.mkv (lossless, bit-exact frames; use it, "
@@ -98,7 +101,7 @@ def _remover(args: argparse.Namespace, ref: np.ndarray | None) -> Remover:
     opts: dict[str, Any] = extraction_options(args)
     if args.method in MODEL_METHODS:
         opts.update(steps=args.steps, ref=ref, model=args.model, separation=args.separation,
-                    orientations=args.orientations)
+                    orientations=args.orientations, device=args.device)
 
     def remove(img: np.ndarray) -> np.ndarray:
         return ts.remove_markers(img, method=args.method, radius=args.radius, **opts)
@@ -149,7 +152,7 @@ def _targets(images: list[Path], videos: list[Path], out: Path,
 
 def _check_options(args: argparse.Namespace) -> None:
     """Option values that cannot work, and options the method ignores (a warning)."""
-    from tacswitch.cli.options import UsageError, load_model_option
+    from tacswitch.cli.options import UsageError, device_option, load_model_option
     from tacswitch.cli.progress import warn
 
     if args.workers is not None and args.workers < 1:
@@ -164,6 +167,7 @@ def _check_options(args: argparse.Namespace) -> None:
         ("--steps", args.steps, MODEL_METHODS), ("--model", args.model, MODEL_METHODS),
         ("--separation", args.separation, MODEL_METHODS),
         ("--orientations", args.orientations, MODEL_METHODS),
+        ("--device", None if args.device == "auto" else args.device, MODEL_METHODS),
         ("--ref", args.ref, ("hybrid",))) if value is not None and args.method not in used_by]
     if ignored:
         users = {"--ref": "hybrid"}
@@ -173,7 +177,9 @@ def _check_options(args: argparse.Namespace) -> None:
     if args.method in MODEL_METHODS:
         from tacswitch.tacdiff.infer import load_model
 
-        load_model_option(load_model, args.model)  # a wrong file fails here, in one line
+        device = device_option(args.device)
+        # A wrong file fails here, in one line.
+        load_model_option(lambda m: load_model(m, device), args.model)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -81,6 +81,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "flow from the reference; the learned rule reads MarkerlessTracker's "
                         "motion)")
     m.add_argument("--model", default=None, help="ONNX motion model for --method model")
+    from tacswitch.cli.options import add_device_option
+
+    add_device_option(m, "--method model's network (the slip scorer always runs on the CPU)")
     m.add_argument("--all-markers", action="store_true",
                    help="judge slip on every marker (default: only the markers near the "
                         "grasp-start frame's contact, where the gel moves most; far from it a "
@@ -147,8 +150,13 @@ def _check(args: argparse.Namespace) -> None:
         raise UsageError(f"--smooth-frames: must be in [1, 1000]; got {args.smooth_frames}")
     if args.threshold_px is not None and not args.threshold_px > 0:
         raise UsageError(f"--threshold-px: must be > 0; got {args.threshold_px}")
+    if args.markerless:
+        from tacswitch.cli.options import device_option
+
+        device_option(args.device)
     if not args.markerless:
-        for flag, value in (("--ref", args.ref), ("--centres", args.centres),
+        for flag, value in (("--device", None if args.device == "auto" else args.device),
+                            ("--ref", args.ref), ("--centres", args.centres),
                             ("--model", args.model), ("--all-markers", args.all_markers or None)):
             if value is not None:
                 raise UsageError(f"{flag}: applies to --markerless only")
@@ -423,6 +431,7 @@ class MarkerlessMotion:
         self.positions = self.reference.copy()
         self.grasp_ref: np.ndarray | None = None
         self.all_markers = bool(args.all_markers)
+        self.device = args.device
         self.ref_given = args.ref is not None
         # The markers near the grasp-start frame's contact (None: all of them are judged).
         self.grasp_near: np.ndarray | None = None
@@ -436,7 +445,7 @@ class MarkerlessMotion:
         from tacswitch.motion.infer import predict_motion
 
         motion = predict_motion(frame, self.ref, self.reference, method=self.method,
-                                model=self.model)
+                                model=self.model, device=self.device)
         self.positions = self.reference + motion
         return motion, np.ones(len(motion), bool)
 
@@ -464,7 +473,7 @@ class MarkerlessMotion:
                 self.warned = True
             self.grasp_near = near
         motion = predict_motion(frame, self.grasp_ref, self.reference, method=self.method,
-                                model=self.model)
+                                model=self.model, device=self.device)
         if self.grasp_near is None:
             return motion, np.ones(len(motion), bool)
         return motion, self.grasp_near.copy()

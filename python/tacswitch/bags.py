@@ -360,7 +360,7 @@ class BagSink:
             try:
                 if close is not None:
                     close()
-            except Exception:  # noqa: S110 - cleaning up after the real error
+            except Exception:  # cleaning up after the real error, which is raised
                 pass
         _remove(self.tmp)
 

@@ -68,6 +68,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="overlay arrow length per px of motion, in (0, "
                         f"{MAX_SCALE:g}] (default: %(default)s)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")
+    from tacswitch.cli.bagio import add_bag_options
+
+    add_bag_options(p, "<topic>/marker_motion (sensor_msgs/PointCloud2: x, y, dx, dy, valid "
+                       "per marker); a bag is one sequence, as a video")
     p.set_defaults(run=run)
 
 
@@ -147,6 +151,17 @@ def run(args: argparse.Namespace) -> int:
     # (which ignores the gain): check --gain as the ensemble's.
     gain = _gain_option(args.gain, "ensemble" if args.method == "auto" else args.method)
     centres = _read_centres(str(input_file(args.centres, "--centres"))) if args.centres else None
+    from tacswitch.cli.bagio import bag_sink, only_bag
+
+    bag = only_bag(args.inputs, args)
+    if bag is not None:
+        if args.method != "auto":
+            raise UsageError(f"--method: a bag is one sequence, tracked by MarkerlessTracker "
+                             f"(the flow from rest); drop --method {args.method}")
+        out = output_dir(args.out, "--out")
+        with bag_sink(bag, args) as sink:
+            _track_video(bag.path, ref, centres, gain, args, out, stream=bag, sink=sink)
+        return 0
     files, videos = collect_inputs(args.inputs)
     if videos and args.method != "auto":
         raise UsageError(f"--method: a video is one sequence, tracked by MarkerlessTracker "
@@ -215,11 +230,14 @@ def _arrows(img, pts, motion, scale: float):  # type: ignore[no-untyped-def]
 
 
 def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # type: ignore[no-untyped-def]
-                 out: Path) -> None:
+                 out: Path, stream=None, sink=None) -> None:
     """Every frame of the video ``path`` through one :class:`MarkerlessTracker` (``ref``: the
     no-contact frame, or None: the video starts in contact); ``<stem>.csv`` with a row per
     frame and marker, ``<stem>_motion.png`` the last frame's arrows. Frames that do not decode
-    are skipped (their rows are absent); a video with none raises ``ValueError``."""
+    are skipped (their rows are absent); a video with none raises ``ValueError``. ``stream``:
+    the frames when they come from elsewhere (a :class:`tacswitch.bags.BagSource`, whose
+    ``frames`` then give ``sink``, a :class:`tacswitch.bags.BagSink` or None, each frame's
+    stamps)."""
     import numpy as np
 
     from tacswitch._io import atomic_open, write_image
@@ -233,12 +251,16 @@ def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # ty
     w.writerow(["frame", "x", "y", "dx", "dy"])
     last = None
     n = 0
-    for t, img in enumerate(video_frames(path, "inputs")):
+    from tacswitch.cli.bagio import motion_fields
+
+    for t, img in enumerate(video_frames(path, "inputs") if stream is None else stream):
         if img is None:
             continue
         motion = tracker.update(img)
         pts = tracker.centres
         assert pts is not None  # set by the first update
+        if sink is not None:
+            sink.points(stream.frames[t], motion_fields(pts, motion))
         for (x, y), (dx, dy) in zip(pts, motion, strict=True):
             w.writerow([t, f"{x:.3f}", f"{y:.3f}", f"{dx:.4f}", f"{dy:.4f}"])
         last = (img, pts, motion)

@@ -15,10 +15,10 @@ from tacswitch.cli import main
 
 pytest.importorskip("rosbags", reason="needs the rosbags package (pip install 'tacswitch[ros]')")
 
-from rosbags.highlevel import AnyReader  # noqa: E402
-from rosbags.typesys import Stores, get_typestore  # noqa: E402
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import Stores, get_typestore
 
-from tacswitch import bags  # noqa: E402
+from tacswitch import bags
 
 TOPIC = "/gelsight/image_raw"
 KINDS = ("sqlite3", "mcap", "ros1")
@@ -94,7 +94,7 @@ def make_bag(path: Path, kind: str, frames: list[np.ndarray], encoding: str = "b
             header = (t["std_msgs/msg/Header"](seq=i, stamp=stamp, frame_id="gel_optical")
                       if ros1 else t["std_msgs/msg/Header"](stamp=stamp, frame_id="gel_optical"))
             if compressed:
-                ok, buf = cv2.imencode(f".{'jpg' if encoding == 'jpeg' else 'png'}", img)
+                _ok, buf = cv2.imencode(f".{'jpg' if encoding == 'jpeg' else 'png'}", img)
                 msg = t[msgtype](header=header, format=encoding,
                                  data=np.asarray(buf, np.uint8).reshape(-1))
             else:
@@ -363,3 +363,20 @@ def test_cli_without_rosbags_names_the_extra(tmp_path: Path, grasp: list[np.ndar
     assert main(["slip", str(src), "--topic", TOPIC]) == 1
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and 'pip install "tacswitch[ros]"' in err, err
+
+
+def test_markers_reads_one_frame_and_writes_every_frame(tmp_path: Path,
+                                                         grasp: list[np.ndarray]) -> None:
+    src = bag_path(tmp_path, "ros1")
+    stamps = make_bag(src, "ros1", grasp[:3], "bgra8")
+    assert main(["markers", str(src), "--topic", TOPIC, "-o", str(tmp_path / "m"), "--frame",
+                 "1", "-q", "--out-bag", str(tmp_path / "out.bag")]) == 0
+    import csv
+
+    rows = list(csv.DictReader((tmp_path / "m" / "in.csv").open()))
+    want = ts.extract_markers(grasp[1])
+    assert len(rows) == len(want) > 0
+    msgs = read_bag(tmp_path / "out.bag")[f"{TOPIC}/markers"]
+    assert [stamp(m) for _, m, _ in msgs] == stamps
+    c = cloud(msgs[1][1])
+    assert np.allclose(c["x"], want.centres[:, 0]) and np.allclose(c["area"], want.areas)

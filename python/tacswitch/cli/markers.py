@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from tacswitch.cli.options import UsageError
 from tacswitch.cli.sources import VIDEO_SUFFIXES, collect_inputs
 
 
@@ -38,6 +39,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-q", "--quiet", action="store_true",
                    help="no progress bar or messages (warnings still go to stderr)")
     add_extraction_options(p, border_default="exclude", dilate=False)
+    from tacswitch.cli.bagio import add_bag_options
+
+    add_bag_options(p, "every frame's markers on <topic>/markers (sensor_msgs/PointCloud2: x, "
+                       "y, area, contrast); a bag is read as a video (--frame N for the CSV)")
     p.set_defaults(run=run)
 
 
@@ -76,6 +81,11 @@ def run(args: argparse.Namespace) -> int:
 
     if args.frame < 0:
         raise UsageError(f"--frame: must be >= 0; got {args.frame}")
+    from tacswitch.cli.bagio import only_bag
+
+    bag = only_bag(args.inputs, args)
+    if bag is not None:
+        return _bag(bag, args)
     images, videos = collect_inputs(args.inputs)
     out = output_dir(args.out, "--out")
     opts = extraction_options(args)
@@ -122,4 +132,57 @@ def run(args: argparse.Namespace) -> int:
                 warn("markers", f"no markers found in {source}; check --polarity and "
                      "--threshold")
     report_unreadable("markers", failed, done)
+    return 0
+
+
+def _write(target: Path, m: Any, record: dict[str, Any], fmt: str) -> None:
+    """The markers ``m`` as CSV or JSON (``record``: the JSON's leading fields)."""
+    from tacswitch._io import atomic_open
+
+    rows = _rows(m)
+    with atomic_open(target) as fh:
+        if fmt == "json":
+            json.dump(record | {"threshold": m.threshold, "markers": rows}, fh, indent=1)
+        else:
+            buf = io.StringIO()
+            writer = csv.DictWriter(buf, fieldnames=list(rows[0]) if rows else ["x", "y"])
+            writer.writeheader()
+            writer.writerows(rows)
+            fh.write(buf.getvalue())
+
+
+def _bag(src: Any, args: argparse.Namespace) -> int:
+    """A ROS bag: frame ``--frame`` of the topic to ``OUT/<stem>.csv`` (as a video), and with
+    ``--out-bag`` every frame's markers on ``<topic>/markers``."""
+    import tacswitch as ts
+    from tacswitch.cli.bagio import bag_sink
+    from tacswitch.cli.options import extraction_options, output_dir
+    from tacswitch.cli.progress import progress, say
+
+    out = output_dir(args.out, "--out")
+    opts = extraction_options(args)
+    wrote = None
+    with bag_sink(src, args) as sink, \
+            progress(total=len(src) or None, desc="markers", unit="frame",
+                     quiet=args.quiet or sink is None) as bar:
+        for i, frame in enumerate(src):
+            bar.update()
+            if sink is None and i > args.frame:
+                break
+            if frame is None:
+                continue
+            m = ts.extract_markers(frame, **opts)
+            if sink is not None:
+                sink.points(src.frames[i], {"x": m.centres[:, 0], "y": m.centres[:, 1],
+                                            "area": m.areas, "contrast": m.contrast},
+                            suffix="markers")
+            if i == args.frame:
+                wrote = out / f"{src.path.stem}.{args.format}"
+                _write(wrote, m, {"bag": str(src.path), "topic": src.topic, "frame": i},
+                       args.format)
+                say(f"{src.path} {src.topic} (frame {i}): {len(m)} markers -> {wrote}",
+                    quiet=args.quiet)
+    if wrote is None:
+        raise UsageError(f"--frame: {src.topic} in {str(src.path)!r} has no readable frame "
+                         f"{args.frame}")
     return 0

@@ -65,6 +65,8 @@ class MotionModel:
         path: ONNX file written by :func:`tacswitch.motion.export.export_onnx`; default: the
             shipped model.
         threads: intra-op threads (default ``os.cpu_count()``).
+        device: ``"auto"`` (default: a CUDA GPU when onnxruntime offers one, else the CPU),
+            ``"cpu"`` or ``"cuda"`` (:func:`tacswitch._ort.providers`).
 
     Attributes:
         arch: architecture name; ``use_ref``: whether the model needs the reference frame;
@@ -75,9 +77,10 @@ class MotionModel:
     """
 
     def __init__(self, path: str | os.PathLike[str] | None = None, *,
-                 threads: int | None = None) -> None:
+                 threads: int | None = None, device: str = "auto") -> None:
         self.path = model_path(path)
-        self.session, meta = open_session(self.path, threads, kind="motion")
+        self.session, meta = open_session(self.path, threads, kind="motion", device=device)
+        self.device = device
         self.metadata = dict(meta)
         self.arch = meta.get("tacswitch.arch", "?")
         self.use_ref = json.loads(meta.get("tacswitch.use_ref", "false"))
@@ -173,9 +176,10 @@ def _downsample(img: NDArray[np.uint8], k: int) -> NDArray[np.uint8]:
     return out
 
 
-def load_model(path: str | os.PathLike[str] | None = None) -> MotionModel:
-    """The cached :class:`MotionModel` of ``path`` (one onnxruntime session per model file)."""
-    return cached(MotionModel, model_path(path))
+def load_model(path: str | os.PathLike[str] | None = None, device: str = "auto") -> MotionModel:
+    """The cached :class:`MotionModel` of ``path`` on ``device`` (one onnxruntime session per
+    model file and device; ``device`` as :class:`MotionModel` takes it)."""
+    return cached(MotionModel, model_path(path), device)
 
 
 #: Smallest frame side (px) the training-free methods accept: DIS works on 8 x 8 patches and
@@ -189,7 +193,8 @@ METHODS = ("auto", "ensemble", "model", "flow", "outward", "mechanics")
 def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: str = "auto",
                    model: str | os.PathLike[str] | None = None, algorithm: str | None = None,
                    preset: str | None = None, suppress_imprint: bool | None = None,
-                   gain: float | str | None = None) -> NDArray[np.float32]:
+                   gain: float | str | None = None, device: str = "auto"
+                   ) -> NDArray[np.float32]:
     """The 2D motion each marker would have had, from a markerless frame.
 
     Args:
@@ -252,12 +257,19 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             number >= 0 that replaces the model's recorded single-frame scale
             (``MotionModel.single_frame_gain``, measured on real GelSight presses; 0.48 for the
             shipped model); single frame only.
+        device: where the learned model runs (``method="model"`` and the ensemble's learned
+            part): ``"auto"`` (default: a CUDA GPU when onnxruntime offers one, else the CPU),
+            ``"cpu"`` or ``"cuda"`` (``ValueError`` naming ``device`` when onnxruntime has no
+            CUDA here; :func:`tacswitch._ort.providers`).
 
     Returns:
         ``N x 2`` float32 ``(dx, dy)`` px in ``img``'s pixels, one row per centre, never NaN
         (a centre outside the frame gets the motion at the nearest border).
     """
     check_model_arg(model)
+    from tacswitch._ort import providers
+
+    providers(device)  # checked whichever method runs
     if method not in METHODS:
         raise ValueError(f"method: unknown {method!r}; choose from {list(METHODS)}")
     auto = method == "auto"
@@ -285,8 +297,7 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
         if isinstance(gain, str):
             raise ValueError("gain: applies to method='model' as a number >= 0 (its single-frame "
                              f"scale), not a sensor name; got {gain!r}")
-        return load_model(model)(img, ref=ref, centres=centres,
-                                 gain=gain)
+        return load_model(model, device)(img, ref=ref, centres=centres, gain=gain)
     frame = _bgr(img, "img")
     check_downsampled_size(frame.shape, 1, MIN_IMAGE_SIDE_PX, "img")
     ref_arr = None
@@ -318,7 +329,7 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
 
         # "auto" keeps the shipped learned part: its `model` names the default centres only.
         return ensemble_motion(frame, ref_arr, pts, gain=rule_gain,
-                               model=None if auto else model)
+                               model=None if auto else model, device=device)
     if method == "mechanics":
         from tacswitch.motion.mechanics import mechanics_motion
 

@@ -47,6 +47,7 @@ from numpy.typing import NDArray
 
 from tacswitch._checks import as_image_u8
 from tacswitch._ort import cached, open_session
+from tacswitch._ort import providers as _ort_providers
 from tacswitch.tacdiff.prior import (
     PRIOR_RADIUS,
     check_prior,
@@ -139,12 +140,16 @@ class TacDiffModel:
         path: ONNX file written by :func:`tacswitch.tacdiff.export.export_onnx`, or a shipped
             model by name (``"default"``, ``"fast"``); default: the shipped default model.
         threads: intra-op threads (default ``os.cpu_count()``).
+        device: ``"auto"`` (default: a CUDA GPU when onnxruntime offers one, else the CPU),
+            ``"cpu"`` or ``"cuda"`` (``ValueError`` naming ``device`` when onnxruntime has no
+            CUDA here); see :func:`tacswitch._ort.providers`.
     """
 
     def __init__(self, path: str | os.PathLike[str] | None = None, *,
-                 threads: int | None = None) -> None:
+                 threads: int | None = None, device: str = "auto") -> None:
         self.path = model_path(path)
-        self.session, meta = open_session(self.path, threads, kind="tacdiff")
+        self.session, meta = open_session(self.path, threads, kind="tacdiff", device=device)
+        self.device = device
         if meta.get("tacswitch.kind") != "tacdiff":
             raise ValueError(f"model: {str(self.path)!r} is not a TacDiff model")
         if meta.get("tacswitch.colour_order", "BGR") != "BGR":
@@ -209,9 +214,11 @@ def prior_radius(meta: dict[str, str], path: Path) -> float:
     return r
 
 
-def load_model(path: str | os.PathLike[str] | None = None) -> TacDiffModel:
-    """The cached :class:`TacDiffModel` of ``path`` (one session per file and process)."""
-    return cached(TacDiffModel, model_path(path))
+def load_model(path: str | os.PathLike[str] | None = None,
+               device: str = "auto") -> TacDiffModel:
+    """The cached :class:`TacDiffModel` of ``path`` on ``device`` (one session per file,
+    device and process)."""
+    return cached(TacDiffModel, model_path(path), device)
 
 
 #: Fixed cost of one network call (window or tile) in pixel-equivalents for ``patch="auto"``:
@@ -580,7 +587,8 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
                     patch: PatchArg = "auto", overlap: int = DEFAULT_OVERLAP,
                     context: int | None = None, separation: int = SEPARATION,
                     model: str | os.PathLike[str] | None = None,
-                    orientations: int | None = None) -> NDArray[np.uint8]:
+                    orientations: int | None = None,
+                    device: str = "auto") -> NDArray[np.uint8]:
     """Fills the masked pixels of a BGR frame with the TacDiff diffusion model.
 
     Args:
@@ -620,6 +628,9 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
             :data:`DEFAULT_ORIENTATIONS` (4), or 1 for a narrow model such as the shipped fast
             one (:func:`default_orientations`). Each pixel keeps its noise draw in every
             orientation.
+        device: ``"auto"`` (default: a CUDA GPU when onnxruntime offers one, else the CPU),
+            ``"cpu"`` or ``"cuda"`` (``ValueError`` naming ``device`` when onnxruntime has no
+            CUDA here); see :func:`tacswitch._ort.providers`.
 
     Returns:
         A new ``H x W x 3`` uint8 image; pixels outside ``mask`` are bit-identical to ``img``.
@@ -637,11 +648,12 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
     sep = as_count(separation, "separation", 0, None)
     n_orient = check_orientations(orientations)
     check_model_arg(model)
+    _ort_providers(device)  # a bad device fails even when there is nothing to fill
     if not m.any():
         return arr.copy()
     if m.all():
         raise ValueError("mask: covers the whole image; nothing is known to inpaint from")
-    net = load_model(model)
+    net = load_model(model, device)
     orients = _orientation_list(n_orient, net)
     if patch not in (None, "auto", "holes", "crops"):
         side = as_count(patch, "patch", net.multiple)

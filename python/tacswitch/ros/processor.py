@@ -437,16 +437,18 @@ class TactileProcessor:
 
     def _begin(self, frame: NDArray[np.uint8], at: BagFrame) -> None:
         """Makes ``frame`` the reference and processes it (its motion: zero)."""
-        import tacswitch as ts
+        from tacswitch.grasp.detector import GraspSlipDetector
+        from tacswitch.motion.sequence import MarkerlessTracker
+        from tacswitch.tracking import MarkerTracker
 
         cfg = self.config
         self._recapture = False
         self._held = []
         if cfg.motion == "markers":
-            self.tracker = ts.MarkerTracker(frame)
+            self.tracker = MarkerTracker(frame)
             points = self.tracker.reference
         else:
-            self.tracker = ts.MarkerlessTracker(frame)
+            self.tracker = MarkerlessTracker(frame)
             points = self.tracker.centres
         self.points = np.asarray(points, np.float32)
         self.detector = None
@@ -454,12 +456,12 @@ class TactileProcessor:
             if cfg.rule == "learned":
                 model = self.slip_model or ("markers" if cfg.motion == "markers"
                                             else "markerless")
-                self.detector = ts.GraspSlipDetector(self.points, image_width=frame.shape[1],
+                self.detector = GraspSlipDetector(self.points, image_width=frame.shape[1],
                                                      model=model,
                                                      threshold=cfg.score_threshold)
             else:
                 smooth = 1 if cfg.motion == "markers" else MARKERLESS_SMOOTH_FRAMES
-                self.detector = ts.GraspSlipDetector(self.points, image_width=frame.shape[1],
+                self.detector = GraspSlipDetector(self.points, image_width=frame.shape[1],
                                                      rule="paper",
                                                      threshold_px=cfg.threshold_px,
                                                      smooth_frames=smooth)
@@ -495,18 +497,23 @@ def motion_fields(points: Any, motion: Any, valid: Any) -> dict[str, NDArray[np.
 
 def _count(frame: NDArray[np.uint8]) -> int:
     """Markers found on a frame (the default extraction, as the trackers use)."""
-    import tacswitch as ts
+    from tacswitch.markers import extract_markers
 
-    return len(ts.extract_markers(frame))
+    return len(extract_markers(frame))
 
 
 def _remove(frame: NDArray[np.uint8], cfg: ProcessorConfig) -> NDArray[np.uint8]:
-    import tacswitch as ts
+    # remove_markers moves from tacswitch.inpaint to tacswitch.removal with issue 33's
+    # one-way imports (a module below the front door imports the module defining a name).
+    try:
+        from tacswitch.removal import remove_markers  # type: ignore[import-not-found, unused-ignore]
+    except ImportError:
+        from tacswitch.inpaint import remove_markers  # type: ignore[attr-defined, no-redef, unused-ignore]
 
     method: Any = cfg.method  # checked against REMOVAL_METHODS by ProcessorConfig
     if method in ("tacdiff", "hybrid"):
-        return ts.remove_markers(frame, method=method, device=cfg.device)
-    return ts.remove_markers(frame, method=method)
+        return remove_markers(frame, method=method, device=cfg.device)
+    return remove_markers(frame, method=method)
 
 
 def process_all(processor: TactileProcessor, messages: Iterable[Any]) -> list[Output]:

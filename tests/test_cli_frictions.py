@@ -346,6 +346,10 @@ def test_unwritable_outputs_exit_2(image: Path, capsys: pytest.CaptureFixture[st
     (["train", "slip", "OUT", "--out", "OUT/s.onnx", "--epochs", "0"], "--epochs"),
     (["train", "slip", "OUT", "--out", "OUT/s.onnx", "--workers", "0"], "--workers"),
     (["train", "tacdiff", "--data", "OUT", "--out", "OUT", "--crop", "20"], "--crop"),
+    (["export", "tacdiff", "OUT/none.pt", "-o", "OUT/m.onnx"], "checkpoint"),
+    (["export", "motion", "IMG", "-o", "OUT/m.onnx", "--preset", "nope"], "--preset"),
+    (["export", "tacdiff", "IMG", "-o", "/proc/m.onnx"], "--out"),
+    (["evaluate", "downstream", "--data", "OUT", "--seeds", "1"], "--seeds"),
 ])
 def test_training_commands_check_options_before_torch(
         tmp_path: Path, image: Path, monkeypatch: pytest.MonkeyPatch,

@@ -350,6 +350,8 @@ def test_unwritable_outputs_exit_2(image: Path, capsys: pytest.CaptureFixture[st
     (["export", "motion", "IMG", "-o", "OUT/m.onnx", "--preset", "nope"], "--preset"),
     (["export", "tacdiff", "IMG", "-o", "/proc/m.onnx"], "--out"),
     (["evaluate", "downstream", "--data", "OUT", "--seeds", "1"], "--seeds"),
+    (["evaluate", "tacdiff", "--fid", "--presets", "gelsight,nope"], "--presets"),
+    (["evaluate", "tacdiff", "--fid", "--steps", "0"], "--steps"),
 ])
 def test_training_commands_check_options_before_torch(
         tmp_path: Path, image: Path, monkeypatch: pytest.MonkeyPatch,
@@ -359,6 +361,20 @@ def test_training_commands_check_options_before_torch(
     code, _, err = run(args, capsys)
     usage_error(code, err, argv[0], option)
     assert "torch" not in err
+
+
+def test_evaluate_fid_without_torch_says_so_before_rendering(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.setitem(sys.modules, "torch", None)
+    from tacswitch import tradeoff
+
+    def refuse(*a: object, **k: object) -> None:
+        raise AssertionError("rendered frames before looking for torch")
+
+    monkeypatch.setattr(tradeoff, "simulated_frames", refuse)
+    code, _, err = run(["evaluate", "tacdiff", "--fid", "--frames", "1"], capsys)
+    assert code == 1 and "--fid needs torch" in err and "Traceback" not in err, err
 
 
 def test_training_without_torch_says_so_once_the_options_pass(

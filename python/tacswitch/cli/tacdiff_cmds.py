@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from tacswitch.cli.options import UsageError
+from tacswitch.cli.options import UsageError, preset_option
 
 
 def add_train_parser(what: argparse._SubParsersAction) -> None:
@@ -330,8 +330,19 @@ def run_evaluate(args: argparse.Namespace) -> int:
         raise UsageError(f"--steps: expected integers like 1,2,4; got {args.steps!r}") from None
     if args.frames < 1:
         raise UsageError(f"--frames: must be >= 1; got {args.frames}")
+    if not steps or min(steps) < 1:
+        raise UsageError(f"--steps: must be integers >= 1; got {args.steps!r}")
+    presets = [preset_option(p.strip(), "--presets") for p in args.presets.split(",")
+               if p.strip()]
+    if not presets:
+        raise UsageError(f"--presets: expected preset names; got {args.presets!r}")
+    if args.fid:  # before any frame is rendered
+        try:
+            import torch  # noqa: F401
+        except ImportError:
+            raise ValueError('--fid needs torch: pip install "tacswitch[train]"') from None
     results = {}
-    for preset in [p.strip() for p in args.presets.split(",") if p.strip()]:
+    for preset in presets:
         frames = tradeoff.simulated_frames(args.frames, preset, seed=HELD_OUT_SEED,
                                            mask=args.mask)
         methods = tradeoff.default_methods((3,)) | tradeoff.tacdiff_methods(

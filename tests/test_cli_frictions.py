@@ -81,6 +81,24 @@ def test_bench_without_taxim_skips_the_real_table_in_one_line(
     assert (out / "bench.png").is_file() and not (out / "bench_real.png").exists()
 
 
+def test_bench_quick_without_pyav_skips_the_real_table_in_one_line(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    # The quick real-frame cases include an H.264 capture, which needs PyAV (the train extra).
+    from tacswitch import tradeoff
+
+    monkeypatch.setitem(sys.modules, "av", None)  # `import av` fails, as without it
+    monkeypatch.setattr(tradeoff, "tacdiff_methods", lambda *a, **k: {})  # time: not the point
+    out = tmp_path / "bench"
+    code, _, err = run(["bench", "--quick", "-o", str(out), "-q"], capsys)
+    assert code == 0, err
+    assert "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "PyAV" in lines[0] and "--real" in lines[0], err
+    assert "--quick" in (out / "bench.md").read_text()
+    assert (out / "bench.png").is_file() and not (out / "bench_real.png").exists()
+
+
 # --- 2. slip --show without a GUI or a display ----------------------------------------------
 
 @pytest.mark.parametrize("build, display, says", [

@@ -79,3 +79,24 @@ def test_readme_stays_short_and_self_contained() -> None:
     text = README.read_text(encoding="utf-8")
     assert len(text.splitlines()) <= 200
     assert "../shared" not in text and "/work/" not in text
+
+
+#: The data labels BENCHMARKS.md defines in its intro.
+DATA_LABELS = ("real", "real pseudo-markerless", "real + painted",
+               "real texture, modelled motion", "simulated")
+
+
+def test_results_table_labels_every_row() -> None:
+    # Every headline figure says what its frames were, with one of BENCHMARKS.md's labels
+    # (a speed figure too: the frames it was timed on).
+    intro = (ROOT / "BENCHMARKS.md").read_text(encoding="utf-8").split("## Contents")[0]
+    for label in DATA_LABELS:
+        assert f"**{label}**" in intro, label
+    text = README.read_text(encoding="utf-8")
+    table = text.split("## Results", 1)[1].split("\n## ", 1)[0]
+    rows = [r for r in table.splitlines() if r.startswith("| ") and not r.startswith("| what")]
+    assert len(rows) >= 10
+    for row in rows:
+        last = row.rstrip(" |").rsplit("|", 1)[1]
+        labels = [m.strip() for m in re.findall(r"\*\*(.+?)\*\*", last)]
+        assert labels and all(lab in DATA_LABELS for lab in labels), row

@@ -62,7 +62,8 @@ from tacswitch.tacdiff.schedule import Sampler, Solver, alpha_sigma, timesteps, 
 DEFAULT_MODEL = "tacdiff_unet.onnx"
 #: Shipped models by name (``model="fast"``): the default, and a narrower one for speed.
 SHIPPED = {"default": DEFAULT_MODEL, "fast": "tacdiff_unet_fast.onnx"}
-#: Default sampler steps (the speed/accuracy table in BENCHMARKS.md says why).
+#: Default sampler steps (docs/notes/2026-11-marker-removal.md, "TacDiff 0.5: trained for the
+#: one-step sampler" and "TacDiff speed per setting", say why).
 DEFAULT_STEPS = 1
 #: Default tile side and overlap, px, when tiling (multiples of the model's size multiple).
 DEFAULT_PATCH, DEFAULT_OVERLAP = 128, 32
@@ -78,8 +79,9 @@ DEFAULT_CONTEXT = 16
 #: on 96 px crops). On the real-frame proxy (taxim's 640 x 480 GelSight presses with painted
 #: markers, 3 presses x 7 capture cases, adaptive masks) 48 x 48 crops with this context change
 #: the masked MAE of whole-frame runs by +0.9 % (fast model) and +1.0 % (default), on 4 held-out
-#: simulated GelSight frames by +1.0 % / -1.2 %, at 36 % of the pixels (BENCHMARKS.md, TacDiff
-#: speed). 16 px (64 x 64 crops) is within 0.5 % but barely cheaper than the whole frame.
+#: simulated GelSight frames by +1.0 % / -1.2 %, at 36 % of the pixels
+#: (docs/notes/2026-11-marker-removal.md, "TacDiff speed per setting"). 16 px (64 x 64 crops) is
+#: within 0.5 % but barely cheaper than the whole frame.
 CROP_CONTEXT = 8
 #: Default hole separation (px) of :func:`inpaint_tacdiff`: holes within this Chebyshev distance
 #: of one another are filled in separate passes (:mod:`~tacswitch.tacdiff.passes`). The network
@@ -89,7 +91,8 @@ CROP_CONTEXT = 8
 #: GelSight Mini frames (holes 5-9 px apart) and every proxy and simulated frame are one pass,
 #: while the FOTS held-out checks, whose held-out holes lie 3-4 px from the real markers, are
 #: split: there 8 gave the same held-out MAE but ran the real frames alone in 3 passes and moved
-#: their ghost from -0.07 to -0.18 grey levels (BENCHMARKS.md, crowded holes in separate passes).
+#: their ghost from -0.07 to -0.18 grey levels
+#: (docs/notes/2026-11-marker-removal.md, "TacDiff: crowded holes in separate passes").
 SEPARATION = 4
 
 #: Orientation counts :func:`inpaint_tacdiff` accepts: 1 (as is), 2 (+ mirrored left-right),
@@ -595,7 +598,8 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
         img: ``H x W x 3`` uint8 **BGR** (the model was trained on BGR).
         mask: ``H x W`` bool/uint8, True = fill (markers, dilated once as the paper does).
         steps: sampler steps K, 1..1000 (1: one network call, the fastest; more: sharper
-            texture, slower; see BENCHMARKS.md).
+            texture, slower; see docs/notes/2026-11-marker-removal.md,
+            "TacDiff speed per setting").
         sampler: ``"dpmpp2m"`` (DPM-Solver++(2M)) or ``"ddim"``.
         seed: seed of the initial noise (None: fresh randomness); the default 0 makes the output
             reproducible.

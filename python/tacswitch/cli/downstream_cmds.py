@@ -43,7 +43,7 @@ def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
                    help="comma-separated input types (default: %(default)s)")
     m.add_argument("--model", default=None, help="TacDiff ONNX model (default: shipped)")
     m.add_argument("--threads", type=int, default=None, help="torch threads (default: all)")
-    m.add_argument("-q", "--quiet", action="store_true")
+    m.add_argument("-q", "--quiet", action="store_true", help="no progress or messages")
     m.set_defaults(run=run)
 
 

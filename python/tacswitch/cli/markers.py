@@ -32,7 +32,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("inputs", nargs="+", help="image files, video files or folders of them")
     p.add_argument("-o", "--out", default="markers-out",
                    help="output folder (default: %(default)s)")
-    p.add_argument("--format", choices=("csv", "json"), default="csv")
+    p.add_argument("--format", choices=("csv", "json"), default="csv",
+                   help="output file format (default: %(default)s)")
     p.add_argument("--overlay", action="store_true", help="also write an overlay PNG per input")
     p.add_argument("--frame", type=int, default=0, metavar="N",
                    help="videos: the frame to extract from (0 = first, default)")

@@ -75,7 +75,7 @@ def _rows(m: Any) -> list[dict[str, Any]]:
 def run(args: argparse.Namespace) -> int:
     import tacswitch as ts
     from tacswitch import viz
-    from tacswitch._io import atomic_open, write_image
+    from tacswitch._io import write_image
     from tacswitch.cli.options import UsageError, extraction_options, output_dir
     from tacswitch.cli.progress import progress, say, warn
     from tacswitch.cli.sources import read_quiet, report_unreadable
@@ -110,21 +110,11 @@ def run(args: argparse.Namespace) -> int:
                     continue
                 source = str(path)
             m = ts.extract_markers(img, **opts)
-            rows = _rows(m)
             target = out / f"{path.stem}.{args.format}"
-            with atomic_open(target) as fh:
-                if args.format == "json":
-                    record: dict[str, Any] = {"image": str(path)}
-                    if is_video:
-                        record["frame"] = args.frame
-                    record |= {"threshold": m.threshold, "markers": rows}
-                    json.dump(record, fh, indent=1)
-                else:
-                    buf = io.StringIO()
-                    writer = csv.DictWriter(buf, fieldnames=list(rows[0]) if rows else ["x", "y"])
-                    writer.writeheader()
-                    writer.writerows(rows)
-                    fh.write(buf.getvalue())
+            record: dict[str, Any] = {"image": str(path)}
+            if is_video:
+                record["frame"] = args.frame
+            _write(target, m, record, args.format)
             if args.overlay:
                 write_image(out / f"{path.stem}_markers.png", viz.draw_markers(img, m.centres))
             done += 1

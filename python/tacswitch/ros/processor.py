@@ -76,16 +76,17 @@ from tacswitch.bags import (
     decode_image,
     header_stamp_ns,
 )
+from tacswitch.tracking import REST_LOOK_AHEAD, REST_USABLE_FRACTION, usable_rest_frame
 
 MOTION_MODES = ("markers", "markerless")
 REFERENCE_MODES = ("first", "frame", "service")
 RULES = ("learned", "paper")
 REMOVAL_METHODS = ("telea", "biharmonic", "ns", "tacdiff", "hybrid")
 OUTPUTS = ("markerless", "motion", "slip")
-#: The rest-frame rule of ``tacswitch.cli.rest_frame`` (its LOOK_AHEAD and USABLE_FRACTION;
-#: tests/test_ros_processor.py keeps them equal).
-LOOK_AHEAD = 30
-USABLE_FRACTION = 0.5
+#: The rest-frame rule of ``tacswitch track`` / ``slip``
+#: (:func:`tacswitch.tracking.usable_rest_frame`).
+LOOK_AHEAD = REST_LOOK_AHEAD
+USABLE_FRACTION = REST_USABLE_FRACTION
 #: The paper rule's moving average on a markerless sensor (as ``tacswitch slip --markerless``).
 MARKERLESS_SMOOTH_FRAMES = 2
 #: A stamp gap above this many median frame intervals counts as dropped frames.
@@ -418,14 +419,13 @@ class TactileProcessor:
         """The reference among the frames held: the first showing at least
         :data:`USABLE_FRACTION` of the most markers any of them shows (module doc)."""
         held, self._held = self._held, []
-        best = max(h.markers for h in held)
-        if best == 0:
+        index = usable_rest_frame([h.markers for h in held], USABLE_FRACTION)
+        if index is None:
             self._stats.before_reference += len(held)
             self.warn(f"tacswitch: none of {len(held)} frames shows a marker (a blank or "
                       "markerless stream? set motion to 'markerless'); looking again")
             return
-        index = next(i for i, h in enumerate(held)
-                     if h.markers > 0 and h.markers >= USABLE_FRACTION * best)
+        best = max(h.markers for h in held)
         if index:
             self.warn(f"tacswitch: frame 0 shows {held[0].markers} markers, so frame {index} "
                       f"of the first {len(held)} is the reference ({held[index].markers}; the "

@@ -218,4 +218,4 @@ def test_usable_rest_frame_rule() -> None:
     assert usable_rest_frame([40, 42, 41]) == 0
     assert usable_rest_frame([0, 25, 41]) == 1   # 25 >= half of 41
     assert usable_rest_frame([10, 20, 41]) == 2  # 10 and 20 below half of 41
-    assert usable_rest_frame([10, 20, 41], fraction=0.2) == 1
+    assert usable_rest_frame([10, 20, 41], fraction=0.4) == 1

@@ -95,6 +95,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
     add_bag_options(p, "<topic>/markerless (sensor_msgs/Image, bgr8); default for a bag input: "
                        "OUT/<bag name> (OUT/<stem>.bag for ROS 1)")
+    from tacswitch.cli.cluster import add_ray_option
+
+    add_ray_option(p)
     p.set_defaults(run=run)
 
 
@@ -197,6 +200,9 @@ def run(args: argparse.Namespace) -> int:
 
     bag = only_bag(args.inputs, args)
     if bag is not None:
+        if args.ray is not None:
+            raise UsageError("--ray: runs image and video files; a bag is read in one stream "
+                             "(drop --ray)")
         return _bag(bag, args)
     images, videos = collect_inputs(args.inputs)
     out = Path(args.out)
@@ -209,8 +215,13 @@ def run(args: argparse.Namespace) -> int:
     output_dir(out, "--out")
     workers = 1 if args.method in MODEL_METHODS else (args.workers or default_workers())
     with OutputRecord(out, "remove-markers", _output_options(args)) as record:
-        done, skipped, failed = _images(images, out, _remover(args, ref), workers, args, record)
-        bad = 0
+        if args.ray is not None:
+            done, skipped, failed, bad = _on_ray(images, videos, out, ref, args, record)
+            videos = []
+        else:
+            done, skipped, failed = _images(images, out, _remover(args, ref), workers, args,
+                                            record)
+            bad = 0
         for path in videos:
             try:
                 d, s, b = _video(path, out, ref, workers, args, record)
@@ -426,3 +437,69 @@ def _video(path: Path, out: Path, ref: np.ndarray | None, workers: int,
     record.add(target)
     say(f"{path} -> {target} ({writer.frames} frames, {bad} unreadable skipped)", quiet=quiet)
     return 1, 0, bad
+
+
+#: Stands for the input's path in a Ray task's error message (the task sees a temporary copy).
+_INPUT = "\0input\0"
+
+
+def _on_ray(images: list[Path], videos: list[Path], out: Path, ref: np.ndarray | None,
+            args: argparse.Namespace, record: OutputRecord
+            ) -> tuple[int, int, list[tuple[Path, str]], int]:
+    """Every image and video as a Ray task (:mod:`tacswitch.cli.cluster`): (files written,
+    already done with the same options, unreadable files with the reason, unreadable video
+    frames skipped). A task runs :func:`_images` / :func:`_video` on a copy of its input, so
+    the outputs equal a run without ``--ray``."""
+    from tacswitch.cli.cluster import FileResult, connected, map_files, write_outputs
+    from tacswitch.cli.progress import progress, say
+
+    jobs = [(p, out / f"{p.stem}.png", "image") for p in images]
+    jobs += [(p, _video_target(p, out, args), "video") for p in videos]
+    todo = [(p, t, k) for p, t, k in jobs if args.overwrite or not record.made_here(t)]
+    target_of = {p: t for p, t, _ in todo}
+    task_args = argparse.Namespace(**{**vars(args), "quiet": True})
+    failed: list[tuple[Path, str]] = []
+    tally = {"done": 0, "bad": 0}
+
+    with connected(args.ray, args.workers) as ray, \
+            progress(total=len(todo), desc="files", unit="file", quiet=args.quiet) as bar:
+        def arrived(path: Path, res: FileResult) -> None:
+            bar.update()
+            if res.unreadable is not None:
+                failed.append((path, res.unreadable.replace(_INPUT, repr(str(path)))))
+                return
+            write_outputs(out, res.outputs)
+            record.add(target_of[path])
+            tally["done"] += 1
+            tally["bad"] += res.bad_frames
+            say(f"{path} -> {target_of[path]}", quiet=args.quiet)
+
+        def unreadable(path: Path, reason: str) -> None:
+            bar.update()
+            failed.append((path, reason))
+
+        map_files(ray, _ray_task, [(p, (k, task_args, ref)) for p, _, k in todo], arrived,
+                  unreadable)
+    return tally["done"], len(jobs) - len(todo), failed, tally["bad"]
+
+
+def _ray_task(name: str, data: bytes,
+              job: tuple[str, argparse.Namespace, np.ndarray | None]) -> Any:
+    """One input file as a Ray task: the single-machine code on a temporary copy, one thread."""
+    from tacswitch.cli.cluster import FileResult, run_in_scratch
+
+    kind, args, ref = job
+
+    def work(src: Path, out: Path) -> FileResult:
+        record = OutputRecord(out, "remove-markers", {})
+        try:
+            if kind == "image":
+                failed = _images([src], out, _remover(args, ref), 1, args, record)[2]
+                if failed:
+                    raise _Unreadable(failed[0][1])
+                return FileResult({})
+            return FileResult({}, _video(src, out, ref, 1, args, record)[2])
+        except _Unreadable as exc:
+            return FileResult({}, unreadable=str(exc).replace(repr(str(src)), _INPUT))
+
+    return run_in_scratch(name, data, work)

@@ -52,10 +52,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--onnx-dir", default=None, help="reuse exported <arch>.onnx files here")
     ap.add_argument("--threads", type=int, default=None, help="intra-op threads")
+    ap.add_argument("--device", choices=("auto", "cpu", "cuda"), default="cpu",
+                    help="onnxruntime device (default cpu, the budget's; benches/"
+                         "bench_device.py has a row per device)")
     args = ap.parse_args()
     rng = np.random.default_rng(0)
     rows = []
-    default = MotionModel(default_model_path(), threads=args.threads)
+    from tacswitch._ort import providers
+
+    default = MotionModel(default_model_path(), threads=args.threads, device=args.device)
     for h, w in SIZES:
         img = rng.integers(0, 255, (h, w, 3), dtype=np.uint8)
         ref = rng.integers(0, 255, (h, w, 3), dtype=np.uint8)
@@ -82,7 +87,7 @@ def main() -> None:
             archs.append((arch, p, "paper's reference" if arch == "deeplabv3" else "LR-ASPP"))
     for arch, path, note in archs:
         sess = ort.InferenceSession(str(path), session_options(args.threads),
-                                    providers=["CPUExecutionProvider"])
+                                    providers=providers(args.device))
         for h, w in SIZES:
             feed = {"image": rng.integers(0, 255, (1, h, w, 3), dtype=np.uint8),
                     "centres": (rng.random((99, 2)) * [w - 1, h - 1]).astype(np.float32)}

@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import ast
+import functools
+import inspect
+import re
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pytest
@@ -83,3 +87,43 @@ def grid() -> np.ndarray:
     from tacswitch.motion import proxy
 
     return proxy.marker_grid("gelsight_mini")[0]
+
+
+# --- the train marker --------------------------------------------------------------------------
+# The README's test command installs no torch: tests that need the train extra skip with the
+# importorskip reason there, and `.ci/run` runs them afterwards with `python -m pytest -m train`.
+# A test gets the marker when it, a fixture it uses, or its module's top level calls
+# pytest.importorskip on one of the extra's modules; a test that needs them another way is marked
+# @pytest.mark.train by hand.
+TRAIN_MODULES = ("torch", "torchvision", "safetensors", "onnx", "onnxscript")
+_TRAIN_SKIP = re.compile(r"importorskip\(\s*[\"'](" + "|".join(TRAIN_MODULES) + r")[\"'.]")
+
+
+@functools.cache
+def _module_needs_train(path: str) -> bool:
+    """Whether the test module at ``path`` importorskips a train module at its top level."""
+    tree = ast.parse(Path(path).read_text(encoding="utf-8"))
+    return any(_TRAIN_SKIP.search(ast.unparse(node)) for node in tree.body
+               if isinstance(node, (ast.Expr, ast.Assign)))
+
+
+@functools.cache
+def _source_needs_train(fn: Any) -> bool:
+    """Whether the source of the function ``fn`` importorskips a train module."""
+    try:
+        return bool(_TRAIN_SKIP.search(inspect.getsource(fn)))
+    except (OSError, TypeError):
+        return False
+
+
+def pytest_collection_modifyitems(config: Any, items: list[pytest.Item]) -> None:
+    for item in items:
+        fn = getattr(item, "function", None)
+        if fn is None or item.get_closest_marker("train"):
+            continue
+        info = getattr(item, "_fixtureinfo", None)
+        fixtures = [d.func for defs in (info.name2fixturedefs.values() if info else ())
+                    for d in defs]
+        if (_module_needs_train(str(item.path))
+                or any(_source_needs_train(f) for f in [fn, *fixtures])):
+            item.add_marker(pytest.mark.train)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pytest
 
@@ -140,3 +142,17 @@ def test_bad_input_errors() -> None:
         C.apply_sequence([_gel()], gain_drift=-1.0)
     with pytest.raises(ValueError, match="crf"):
         C.h264_roundtrip([_gel()], crf=52)
+
+
+@pytest.mark.parametrize("kwargs, name", [
+    ({"crf": 52}, "crf"), ({"crf": -1}, "crf"), ({"crf": "23"}, "crf"), ({"crf": 1.5}, "crf"),
+    ({"crf": 23, "preset": "warp"}, "preset"),
+])
+def test_h264_roundtrip_checks_its_arguments_before_pyav(
+        monkeypatch: pytest.MonkeyPatch, kwargs: dict, name: str) -> None:
+    # Without PyAV (the base install) a bad argument is still named, not "needs PyAV".
+    monkeypatch.setitem(sys.modules, "av", None)
+    with pytest.raises(ValueError, match=f"^{name}:"):
+        C.h264_roundtrip([_gel()], **kwargs)
+    with pytest.raises(ImportError, match="PyAV"):  # good arguments: what is missing
+        C.h264_roundtrip([_gel()], crf=23)

@@ -81,6 +81,24 @@ def test_bench_without_taxim_skips_the_real_table_in_one_line(
     assert (out / "bench.png").is_file() and not (out / "bench_real.png").exists()
 
 
+def test_bench_quick_without_pyav_skips_the_real_table_in_one_line(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    # The quick real-frame cases include an H.264 capture, which needs PyAV (the train extra).
+    from tacswitch import tradeoff
+
+    monkeypatch.setitem(sys.modules, "av", None)  # `import av` fails, as without it
+    monkeypatch.setattr(tradeoff, "tacdiff_methods", lambda *a, **k: {})  # time: not the point
+    out = tmp_path / "bench"
+    code, _, err = run(["bench", "--quick", "-o", str(out), "-q"], capsys)
+    assert code == 0, err
+    assert "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "PyAV" in lines[0] and "--real" in lines[0], err
+    assert "--quick" in (out / "bench.md").read_text()
+    assert (out / "bench.png").is_file() and not (out / "bench_real.png").exists()
+
+
 # --- 2. slip --show without a GUI or a display ----------------------------------------------
 
 @pytest.mark.parametrize("build, display, says", [
@@ -346,6 +364,12 @@ def test_unwritable_outputs_exit_2(image: Path, capsys: pytest.CaptureFixture[st
     (["train", "slip", "OUT", "--out", "OUT/s.onnx", "--epochs", "0"], "--epochs"),
     (["train", "slip", "OUT", "--out", "OUT/s.onnx", "--workers", "0"], "--workers"),
     (["train", "tacdiff", "--data", "OUT", "--out", "OUT", "--crop", "20"], "--crop"),
+    (["export", "tacdiff", "OUT/none.pt", "-o", "OUT/m.onnx"], "checkpoint"),
+    (["export", "motion", "IMG", "-o", "OUT/m.onnx", "--preset", "nope"], "--preset"),
+    (["export", "tacdiff", "IMG", "-o", "/proc/m.onnx"], "--out"),
+    (["evaluate", "downstream", "--data", "OUT", "--seeds", "1"], "--seeds"),
+    (["evaluate", "tacdiff", "--fid", "--presets", "gelsight,nope"], "--presets"),
+    (["evaluate", "tacdiff", "--fid", "--steps", "0"], "--steps"),
 ])
 def test_training_commands_check_options_before_torch(
         tmp_path: Path, image: Path, monkeypatch: pytest.MonkeyPatch,
@@ -355,6 +379,20 @@ def test_training_commands_check_options_before_torch(
     code, _, err = run(args, capsys)
     usage_error(code, err, argv[0], option)
     assert "torch" not in err
+
+
+def test_evaluate_fid_without_torch_says_so_before_rendering(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.setitem(sys.modules, "torch", None)
+    from tacswitch import tradeoff
+
+    def refuse(*a: object, **k: object) -> None:
+        raise AssertionError("rendered frames before looking for torch")
+
+    monkeypatch.setattr(tradeoff, "simulated_frames", refuse)
+    code, _, err = run(["evaluate", "tacdiff", "--fid", "--frames", "1"], capsys)
+    assert code == 1 and "--fid needs torch" in err and "Traceback" not in err, err
 
 
 def test_training_without_torch_says_so_once_the_options_pass(

@@ -207,3 +207,15 @@ def test_no_usable_frame_within_the_look_ahead_is_a_one_line_error(
     assert err.count("\n") == 1 and str(video) in err
     assert f"no markers found in the first frame of {str(video)!r} nor in the {n - 1} after it" \
         in err
+
+
+def test_usable_rest_frame_rule() -> None:
+    """The one rule behind the CLI's chooser and the ROS processor."""
+    from tacswitch.tracking import usable_rest_frame
+
+    assert usable_rest_frame([]) is None
+    assert usable_rest_frame([0, 0, 0]) is None
+    assert usable_rest_frame([40, 42, 41]) == 0
+    assert usable_rest_frame([0, 25, 41]) == 1   # 25 >= half of 41
+    assert usable_rest_frame([10, 20, 41]) == 2  # 10 and 20 below half of 41
+    assert usable_rest_frame([10, 20, 41], fraction=0.4) == 1

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import sys
 from pathlib import Path
 
 import cv2
@@ -129,15 +130,38 @@ def test_cli_refuses_a_folder_built_with_other_settings(study_run: Path, capsys)
     assert "data:" in capsys.readouterr().err
 
 
-def test_cli_rejects_bad_arguments(tmp_path: Path, capsys):
+@pytest.mark.parametrize("torch_installed", [True, False])
+def test_cli_rejects_bad_arguments(tmp_path: Path, capsys, monkeypatch, torch_installed: bool):
+    # The options are checked before torch is looked for: without torch a mistake is still
+    # named, with exit code 2 (issue 32, item 8).
+    if torch_installed:
+        pytest.importorskip("torch")
+    else:
+        monkeypatch.setitem(sys.modules, "torch", None)  # as without the train extra
+        monkeypatch.setitem(sys.modules, "torchvision", None)
+    (tmp_path / "file").write_text("x")
     for extra, needle in ((["--tasks", "texture,colour"], "--tasks"),
                           (["--inputs", "telea,magic"], "--inputs"),
                           (["--seeds", "1"], "--seeds"),
                           (["--epochs", "0"], "--epochs"),
+                          (["--threads", "0"], "--threads"),
+                          (["--model", str(tmp_path / "none.onnx")], "--model"),
                           (["--preset", "nope"], "preset")):
         assert main(["evaluate", "downstream", "--data", str(tmp_path / "d"), "--quick",
                      *extra]) == 2  # usage errors
-        assert needle in capsys.readouterr().err
+        err = capsys.readouterr().err
+        assert needle in err and "torch" not in err, err
+    assert main(["evaluate", "downstream", "--data", str(tmp_path / "file")]) == 2
+    assert "--data" in capsys.readouterr().err
+    assert not (tmp_path / "d").exists()  # refused before any work
+
+
+def test_cli_without_torch_says_so_once_the_options_pass(tmp_path: Path, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "torch", None)
+    assert main(["evaluate", "downstream", "--data", str(tmp_path / "d"), "--quick"]) == 1
+    err = capsys.readouterr().err
+    assert "needs torch" in err and "Traceback" not in err
+    assert not (tmp_path / "d").exists()
 
 
 def test_default_scale_is_the_documented_one():

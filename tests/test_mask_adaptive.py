@@ -187,9 +187,12 @@ def test_border_slivers_masked_on_all_four_borders() -> None:
         dark = luma(img) < level  # marker pixels (the gel is at 180, dots at 25)
         m = ts.extract_markers(img, dilate=dilate)
         assert not (dark & ~m.mask).any(), f"dilate={dilate}: {(dark & ~m.mask).sum()} px left"
-        # Tracking users get only markers whose centre is in the frame.
-        assert len(m) == len(inner) + 1  # + the one at y = -1 (centre within a pixel)
-        assert m.centres[:, 0].min() >= 0 and m.centres[:, 1].min() >= -1.5
+        # Tracking users get only markers whose centre is in the frame, [0, W-1] x [0, H-1]
+        # (issue 32: the one centred at y = -1 is no longer listed).
+        assert len(m) == len(inner)
+        h, w = img.shape[:2]
+        assert m.centres.min() >= 0
+        assert m.centres[:, 0].max() <= w - 1 and m.centres[:, 1].max() <= h - 1
     reported = ts.extract_markers(img, exclude_border=False)
     assert len(reported) == len(inner) + len(cut)
     out = ts.remove_markers(img)

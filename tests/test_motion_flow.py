@@ -339,9 +339,10 @@ def test_cli_slip_markerless_warns_about_inter_frame_codecs(mini, tmp_path, caps
         assert ("warning: source: " in err) is warned, err
         assert (video_codec(tmp_path / name) in INTER_FRAME_CODECS) is warned
     # Without --markerless (markers tracked, not predicted) nothing is said of the codec (this
-    # video has no markers, so the run stops with its own error).
-    assert main(["slip", str(tmp_path / "v.mp4"), "--log", str(log), "-q"]) != 0
-    assert "warning" not in capsys.readouterr().err
+    # markerless video may stop for want of markers, or track dark blobs from a later rest
+    # frame: either way, no codec warning).
+    main(["slip", str(tmp_path / "v.mp4"), "--log", str(log), "-q"])
+    assert "inter-frame codecs" not in capsys.readouterr().err
     assert video_codec(tmp_path / "log.csv") is None
 
 

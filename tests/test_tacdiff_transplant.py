@@ -149,11 +149,11 @@ def test_train_cli_init_continues_a_shipped_model(tmp_path: Path):
             "--crop", "64", "-q"]
     assert main([*base, "--init", "fast", "--out", str(run)]) == 0
     assert load_network(run / "model.onnx").cfg.base == 16
-    assert main([*base, "--init", "fast", "--base", "24", "--out", str(tmp_path / "x")]) == 1
+    assert main([*base, "--init", "fast", "--base", "24", "--out", str(tmp_path / "x")]) == 2
     assert main([*base, "--init", "fast", "--prior", "telea", "--out",
-                 str(tmp_path / "y")]) == 1
+                 str(tmp_path / "y")]) == 2
     assert main([*base, "--init", str(tmp_path / "nope.onnx"), "--out",
-                 str(tmp_path / "z")]) == 1
+                 str(tmp_path / "z")]) == 2
 
 
 def test_finetune_cli_options(tmp_path: Path, marker_frame_dir: Path):
@@ -166,8 +166,8 @@ def test_finetune_cli_options(tmp_path: Path, marker_frame_dir: Path):
     assert main([*common, "--out", str(tmp_path / "a"), "--no-transplant", "--init",
                  "fast"]) == 0
     assert (tmp_path / "a" / "model.onnx").is_file()
-    assert main([*common, "--out", str(tmp_path / "b"), "--ring", "-1"]) == 1
-    assert main([*common, "--out", str(tmp_path / "c"), "--shifts", "0"]) == 1
+    assert main([*common, "--out", str(tmp_path / "b"), "--ring", "-1"]) == 2
+    assert main([*common, "--out", str(tmp_path / "c"), "--shifts", "0"]) == 2
     assert main([*common, "--out", str(tmp_path / "d"), "--shifts", "1", "--init", "fast"]) == 0
     import torch
 

@@ -1,4 +1,5 @@
-"""onnxruntime plumbing shared by the shipped models: tuned CPU sessions and a per-process cache.
+"""onnxruntime plumbing shared by the shipped models: tuned sessions on the CPU or a CUDA GPU
+(:func:`providers`) and a per-process cache.
 
 Imports onnxruntime only when a session is made, so importing this module is free.
 """
@@ -13,7 +14,37 @@ from typing import Any, TypeVar
 
 T = TypeVar("T")
 
-_CACHE: dict[tuple[Any, str, int], Any] = {}
+_CACHE: dict[tuple[Any, str, str, int], Any] = {}
+
+#: What ``device=`` takes on the model entry points (and ``--device`` on the CLI).
+DEVICES = ("auto", "cpu", "cuda")
+CUDA, CPU = "CUDAExecutionProvider", "CPUExecutionProvider"
+
+
+def providers(device: str = "auto") -> list[str]:
+    """onnxruntime's execution providers for ``device``, in order of preference.
+
+    ``"auto"``: CUDA then the CPU when onnxruntime offers ``CUDAExecutionProvider`` (the
+    ``onnxruntime-gpu`` package with a CUDA runtime it can load), else the CPU alone;
+    ``"cpu"``: the CPU alone (the same session as before ``device`` existed); ``"cuda"``: CUDA
+    then the CPU (nodes CUDA cannot run fall back to the CPU), a one-line ``ValueError`` naming
+    ``device`` when onnxruntime does not offer CUDA here.
+    """
+    if not isinstance(device, str) or device not in DEVICES:
+        raise ValueError(f"device: must be 'auto', 'cpu' or 'cuda'; got {device!r}")
+    if device == "cpu":
+        return [CPU]
+    import onnxruntime as ort
+
+    available = ort.get_available_providers()
+    if CUDA in available:
+        return [CUDA, CPU]
+    if device == "cuda":
+        raise ValueError(f"device: 'cuda' needs onnxruntime's CUDAExecutionProvider, which this "
+                         f"onnxruntime {ort.__version__} does not offer (it has "
+                         f"{', '.join(available)}); pip install onnxruntime-gpu in place of "
+                         "onnxruntime on a machine with CUDA, or run on the CPU ('auto' or 'cpu')")
+    return [CPU]
 _LOCK = threading.Lock()
 
 
@@ -48,9 +79,10 @@ def model_kind(meta: dict[str, str]) -> str | None:
     return "motion" if "tacswitch.arch" in meta else None
 
 
-def open_session(path: Path, threads: int | None = None,
-                 kind: str | None = None) -> tuple[Any, dict[str, str]]:
-    """A CPU session of the ONNX file ``path`` and its custom metadata.
+def open_session(path: Path, threads: int | None = None, kind: str | None = None,
+                 device: str = "auto") -> tuple[Any, dict[str, str]]:
+    """A session of the ONNX file ``path`` on ``device`` (:func:`providers`) and its custom
+    metadata.
 
     Every failure is a one-line error naming the ``model`` argument: ``FileNotFoundError`` when
     the file is missing, ``ValueError`` when it is not an ONNX model onnxruntime can load (an
@@ -59,11 +91,12 @@ def open_session(path: Path, threads: int | None = None,
     """
     import onnxruntime as ort
 
+    chosen = providers(device)  # a bad device fails before the file is read
     if not path.is_file():
         raise FileNotFoundError(f"model: no ONNX file at {str(path)!r}")
     try:
         session = ort.InferenceSession(str(path), session_options(threads),
-                                       providers=["CPUExecutionProvider"])
+                                       providers=chosen)
     except Exception as exc:  # onnxruntime raises its own classes (InvalidProtobuf, Fail, ...)
         reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise ValueError(f"model: {str(path)!r} is not an ONNX model onnxruntime can load "
@@ -77,12 +110,12 @@ def open_session(path: Path, threads: int | None = None,
     return session, meta
 
 
-def cached(factory: Callable[[Path], T], path: Path) -> T:
-    """``factory(path)``, made once per factory, file and process (sessions are not fork-safe,
-    hence the pid in the key)."""
-    key = (factory, str(path.resolve()), os.getpid())
+def cached(factory: Callable[..., T], path: Path, device: str = "auto") -> T:
+    """``factory(path, device=device)``, made once per factory, file, device and process
+    (sessions are not fork-safe, hence the pid in the key)."""
+    key = (factory, str(path.resolve()), device, os.getpid())
     with _LOCK:
         obj = _CACHE.get(key)
         if obj is None:
-            obj = _CACHE[key] = factory(path)
+            obj = _CACHE[key] = factory(path, device=device)
         return obj  # type: ignore[no-any-return]

@@ -35,7 +35,8 @@ MAX_RADIUS = 100
 DEFAULT_DILATE = 2
 #: TELEA radius (px) of :func:`remove_markers` (and of the TELEA part of its ``"hybrid"``) when
 #: none is given. Chosen on real frames first (``benches/bench_radius.py``, our TELEA on the
-#: default adaptive mask, radii 3-24; BENCHMARKS.md): on the two real GelSight Mini frames with
+#: default adaptive mask, radii 3-24; docs/notes/2026-11-marker-removal.md, "TELEA radius of the
+#: default pipeline"): on the two real GelSight Mini frames with
 #: markers (FOTS, held-out shifted-mask pixels) the error is lowest at 12 (2.05 at r=3, 1.98 at
 #: 12, 2.00 at 16, 2.15 at 24); on the real-frame proxy (8 taxim presses per sensor x 7 marker
 #: looks and captures) r=12 beats r=3 in all 64 press x column cells (masked MAE crisp / soft /
@@ -170,7 +171,8 @@ def inpaint_biharmonic(img: NDArray[Any], mask: NDArray[Any]) -> NDArray[Any]:
     more accurate classical fill (on flat gel TELEA is as good and faster). Each group of
     coupled holes is one sparse symmetric positive definite system, factorised in float64 by
     an envelope Cholesky and solved for every channel; groups run in parallel (rayon), with the
-    GIL released. 7-10x faster than scikit-image on marker masks (BENCHMARKS.md).
+    GIL released. 7-10x faster than scikit-image on marker masks (BENCHMARKS.md, "Biharmonic
+    inpainting").
 
     Args:
         img: ``H x W`` or ``H x W x C`` (C in 1, 3, 4; BGR kept, channels independent) uint8,

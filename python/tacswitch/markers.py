@@ -103,7 +103,8 @@ def extract_markers(
             rings of H.264/MJPEG compression end up inside, while crisp lossless markers get
             one pixel (``grow_rings`` reports the rings). This is the mask
             :func:`tacswitch.remove_markers` uses by default; it costs about 1-2 ms per 100
-            markers (BENCHMARKS.md), nothing when not requested.
+            markers (docs/notes/2026-11-marker-removal.md, "Marker masks on real-frame
+            proxies (adaptive growth)"), nothing when not requested.
         exclude_border: leave out of ``centres`` the markers whose centre lies outside the
             frame: blobs on the image border with less than 0.3 of the median interior marker
             area visible (or, with fewer than 3 interior markers, cut to less than half their

@@ -84,6 +84,7 @@ def remove_markers(
     model: str | os.PathLike[str] | None = None,
     separation: int | None = None,
     orientations: int | None = None,
+    device: str = "auto",
     **extract_opts: Any,
 ) -> NDArray[Any]:
     """Removes the painted markers of a tactile image (marker -> markerless).
@@ -126,6 +127,10 @@ def remove_markers(
             the default model (about 2 % lower error on real frames with painted markers, 3x
             the time), 1 for a narrow model such as ``model="fast"``. See
             :func:`tacswitch.tacdiff.inpaint_tacdiff`.
+        device: TacDiff / hybrid: where the network runs: ``"auto"`` (default: a CUDA GPU
+            when onnxruntime offers one, else the CPU), ``"cpu"`` or ``"cuda"``
+            (``ValueError`` naming ``device`` when onnxruntime has no CUDA here). The
+            classical methods run on the CPU.
         **extract_opts: passed to :func:`tacswitch.extract_markers` when ``mask`` is None.
 
     Returns:
@@ -144,10 +149,13 @@ def remove_markers(
         check_model_arg(model)
         seed = as_seed(seed)
         # The TacDiff entry points check these and own their defaults.
-        passes: dict[str, Any] = {"orientations": orientations}
+        passes: dict[str, Any] = {"orientations": orientations, "device": device}
         if separation is not None:
             passes["separation"] = separation
-    elif orientations is not None:
+    elif not isinstance(device, str) or device not in ("auto", "cpu", "cuda"):
+        # Named even here; the classical fills run on the CPU whatever the device.
+        raise ValueError(f"device: must be 'auto', 'cpu' or 'cuda'; got {device!r}")
+    if method not in _MODEL_METHODS and orientations is not None:
         raise ValueError("orientations: applies to method='tacdiff' or 'hybrid' only; got "
                          f"method={method!r}")
     if mask is None:

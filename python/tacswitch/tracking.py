@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+from collections.abc import Sequence
 from typing import Any, Literal, overload
 
 import numpy as np
@@ -14,6 +15,29 @@ from tacswitch.markers import extract_markers
 
 Motion = NDArray[np.float32]
 Valid = NDArray[np.bool_]
+
+
+#: Frames looked at for a stream's rest (reference) frame: about a second of a 30 frames/s
+#: camera (``tacswitch track`` / ``slip``, :mod:`tacswitch.cli.rest_frame`; the ROS processor).
+REST_LOOK_AHEAD = 30
+#: A frame is usable as the rest frame when it shows at least this fraction of the largest
+#: marker count of the look-ahead. Half: a frame that shows fewer has lost markers to a blank
+#: image, blur or the contact, not to the small frame-to-frame changes of extraction; a higher
+#: fraction would skip more of a recording's start (its contact onset) for a few markers. On
+#: the 300 real GelSight Mini slip training recordings the first frame shows at least 0.81 of
+#: the best count of their first 30 frames (no rest frame moves); with the extraction before
+#: issue #35, 11 showed less than half (e.g. 0 markers, then frame 5 with 25 of 41).
+REST_USABLE_FRACTION = 0.5
+
+
+def usable_rest_frame(counts: Sequence[int], fraction: float = REST_USABLE_FRACTION
+                      ) -> int | None:
+    """Index of the rest frame among frames with these marker ``counts``: the first showing a
+    marker and at least ``fraction`` of the largest count; None when none shows a marker."""
+    best = max(counts, default=0)
+    if best <= 0:
+        return None
+    return next(i for i, c in enumerate(counts) if c > 0 and c >= fraction * best)
 
 
 def estimate_pitch(points: Any) -> float | None:

@@ -28,7 +28,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "(default: 1, x 7 style/capture cases; 0: none)")
     p.add_argument("--quick", action="store_true",
                    help="2 frames, radii 3 and 12 (the default), 1 round, 2 real-frame cases")
-    p.add_argument("-q", "--quiet", action="store_true")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress or messages")
     p.set_defaults(run=run)
 
 

@@ -6,7 +6,7 @@ import argparse
 import dataclasses
 from pathlib import Path
 
-from tacswitch.cli.options import UsageError, preset_option
+from tacswitch.cli.options import UsageError, input_file, preset_option
 
 
 def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
@@ -43,22 +43,15 @@ def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
                    help="comma-separated input types (default: %(default)s)")
     m.add_argument("--model", default=None, help="TacDiff ONNX model (default: shipped)")
     m.add_argument("--threads", type=int, default=None, help="torch threads (default: all)")
-    m.add_argument("-q", "--quiet", action="store_true")
+    m.add_argument("-q", "--quiet", action="store_true", help="no progress or messages")
     m.set_defaults(run=run)
 
 
-def run(args: argparse.Namespace) -> int:
-    try:
-        import torch  # noqa: F401
-        import torchvision  # noqa: F401
-    except ImportError:
-        raise ValueError('the downstream study needs torch: pip install "tacswitch[train]"'
-                         ) from None
-    from tacswitch._io import atomic_open
-    from tacswitch.downstream.data import INPUTS, QUICK, TASKS, StudyScale, build_dataset
-    from tacswitch.downstream.study import markdown, run_study, summarise
+def _check(args: argparse.Namespace) -> tuple[dict[str, object], list[str], list[str]]:
+    """The option values checked before torch is looked for (a mistake is named first):
+    the scale changes, the tasks and the input types."""
+    from tacswitch.downstream.data import INPUTS, TASKS
 
-    scale = QUICK if args.quick else StudyScale()
     changes: dict[str, object] = {}
     for flag, field in (("seeds", "seeds"), ("per_class", "per_class"),
                         ("contact_samples", "contact_samples")):
@@ -74,9 +67,33 @@ def run(args: argparse.Namespace) -> int:
     if args.preset is not None:
         preset_option(args.preset)
         changes["preset"] = args.preset
-    scale = dataclasses.replace(scale, **changes)  # type: ignore[arg-type]
+    if args.threads is not None and args.threads < 1:
+        raise UsageError(f"--threads: must be >= 1; got {args.threads}")
+    if args.model is not None:
+        from tacswitch.tacdiff.infer import model_path  # onnxruntime only, no torch
+
+        input_file(model_path(args.model), "--model")
+    if Path(args.data).is_file():
+        raise UsageError(f"--data: {args.data!r} is a file; give a folder")
     tasks = _choices(args.tasks, TASKS, "--tasks")
     inputs = _choices(args.inputs, INPUTS, "--inputs")
+    return changes, tasks, inputs
+
+
+def run(args: argparse.Namespace) -> int:
+    changes, tasks, inputs = _check(args)
+    try:
+        import torch  # noqa: F401
+        import torchvision  # noqa: F401
+    except ImportError:
+        raise ValueError('the downstream study needs torch: pip install "tacswitch[train]"'
+                         ) from None
+    from tacswitch._io import atomic_open
+    from tacswitch.downstream.data import QUICK, StudyScale, build_dataset
+    from tacswitch.downstream.study import markdown, run_study, summarise
+
+    scale = dataclasses.replace(QUICK if args.quick else StudyScale(),
+                                **changes)  # type: ignore[arg-type]
     say = None if args.quiet else print
     build_dataset(args.data, scale, model=args.model, progress=say)
     # The report goes next to the frames it was made from (DATA/study/ read as study/study/

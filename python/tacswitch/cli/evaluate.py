@@ -20,13 +20,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="folder of held-out shards (rendered there if missing, resumable)")
     m.add_argument("--n", type=int, default=300, help="samples per held-out split")
     m.add_argument("--model", default=None, help="ONNX model (default: the shipped one)")
-    m.add_argument("--preset", default="gelsight_mini")
+    m.add_argument("--preset", default="gelsight_mini",
+                   help="simulator preset of the held-out frames (default: %(default)s)")
     m.add_argument("--slip", type=int, default=6, metavar="K",
                    help="grasp sequences per kind (slip/hold/vibration) for slip detection; "
                         "0: skip")
-    m.add_argument("--seed", type=int, default=1)
+    m.add_argument("--seed", type=int, default=1, help="random seed (default: %(default)s)")
     m.add_argument("--json", default=None, help="also write the results to this JSON file")
-    m.add_argument("-q", "--quiet", action="store_true")
+    m.add_argument("-q", "--quiet", action="store_true", help="no progress or messages")
     m.set_defaults(run=run)
     tacdiff_cmds.add_evaluate_parser(what)
     slip_cmds.add_evaluate_parser(what)

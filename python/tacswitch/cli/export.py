@@ -31,6 +31,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     m.set_defaults(run=run_motion)
 
 
+def _check(args: argparse.Namespace) -> Path:
+    """The checkpoint (and ``--preset``, ``-o``) checked before torch is looked for, so a
+    mistake is named first; returns the checkpoint's path."""
+    from tacswitch.cli.options import input_file, output_file, preset_option
+
+    path = input_file(args.checkpoint, "checkpoint")
+    if getattr(args, "preset", None) is not None:
+        preset_option(args.preset)
+    output_file(args.out, "--out")
+    return path
+
+
 def _torch() -> None:
     try:
         import torch  # noqa: F401
@@ -39,19 +51,18 @@ def _torch() -> None:
 
 
 def run_tacdiff(args: argparse.Namespace) -> int:
+    path = _check(args)
     _torch()
     from tacswitch.tacdiff.export import export_onnx
     from tacswitch.tacdiff.train import load_network
 
-    path = Path(args.checkpoint)
-    if not path.is_file():
-        raise FileNotFoundError(f"checkpoint: no file at {str(path)!r}")
     out = export_onnx(load_network(path), args.out, metadata={"exported_from": str(path)})
     print(out)
     return 0
 
 
 def run_motion(args: argparse.Namespace) -> int:
+    path = _check(args)
     _torch()
     import torch
 
@@ -60,9 +71,6 @@ def run_motion(args: argparse.Namespace) -> int:
     from tacswitch.motion.model import build_net
     from tacswitch.sim.presets import get_preset
 
-    path = Path(args.checkpoint)
-    if not path.is_file():
-        raise FileNotFoundError(f"checkpoint: no file at {str(path)!r}")
     ck = torch.load(path, map_location="cpu", weights_only=False)
     if not isinstance(ck, dict) or "config" not in ck or "arch" not in ck["config"]:
         raise ValueError(f"checkpoint: {str(path)!r} is not a motion training checkpoint")

@@ -49,10 +49,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "measured and moved (default: %(default)s)")
     p.add_argument("--steps", type=int, default=DEFAULT_STEPS,
                    help="training steps (default: %(default)s)")
-    p.add_argument("--batch", type=int, default=8)
+    p.add_argument("--batch", type=int, default=8,
+                   help="training batch size (default: %(default)s)")
     p.add_argument("--crop", type=int, default=96, help="crop side, multiple of 16")
-    p.add_argument("--lr", type=float, default=2e-4)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--lr", type=float, default=2e-4,
+                   help="learning rate (default: %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
     p.add_argument("--val-every", type=int, default=100,
                    help="validate the weights every N steps (default: %(default)s)")
     p.add_argument("--val-frames", type=int, default=8,
@@ -86,7 +88,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="on a dense marker grid (one training shift fits, e.g. a GelSight "
                         "Mini's), train and let the check choose; default: keep the start "
                         "model there without training (its check has passed worse models)")
-    p.add_argument("-q", "--quiet", action="store_true")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress or messages")
     p.set_defaults(run=run)
 
 

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from tacswitch.cli.options import UsageError
 from tacswitch.cli.sources import VIDEO_SUFFIXES, collect_inputs
 
 
@@ -31,13 +32,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("inputs", nargs="+", help="image files, video files or folders of them")
     p.add_argument("-o", "--out", default="markers-out",
                    help="output folder (default: %(default)s)")
-    p.add_argument("--format", choices=("csv", "json"), default="csv")
+    p.add_argument("--format", choices=("csv", "json"), default="csv",
+                   help="output file format (default: %(default)s)")
     p.add_argument("--overlay", action="store_true", help="also write an overlay PNG per input")
     p.add_argument("--frame", type=int, default=0, metavar="N",
                    help="videos: the frame to extract from (0 = first, default)")
     p.add_argument("-q", "--quiet", action="store_true",
                    help="no progress bar or messages (warnings still go to stderr)")
     add_extraction_options(p, border_default="exclude", dilate=False)
+    from tacswitch.cli.bagio import add_bag_options
+
+    add_bag_options(p, "every frame's markers on <topic>/markers (sensor_msgs/PointCloud2: x, "
+                       "y, area, contrast); a bag is read as a video (--frame N for the CSV)")
     p.set_defaults(run=run)
 
 
@@ -69,13 +75,18 @@ def _rows(m: Any) -> list[dict[str, Any]]:
 def run(args: argparse.Namespace) -> int:
     import tacswitch as ts
     from tacswitch import viz
-    from tacswitch._io import atomic_open, write_image
+    from tacswitch._io import write_image
     from tacswitch.cli.options import UsageError, extraction_options, output_dir
     from tacswitch.cli.progress import progress, say, warn
     from tacswitch.cli.sources import read_quiet, report_unreadable
 
     if args.frame < 0:
         raise UsageError(f"--frame: must be >= 0; got {args.frame}")
+    from tacswitch.cli.bagio import only_bag
+
+    bag = only_bag(args.inputs, args)
+    if bag is not None:
+        return _bag(bag, args)
     images, videos = collect_inputs(args.inputs)
     out = output_dir(args.out, "--out")
     opts = extraction_options(args)
@@ -99,21 +110,11 @@ def run(args: argparse.Namespace) -> int:
                     continue
                 source = str(path)
             m = ts.extract_markers(img, **opts)
-            rows = _rows(m)
             target = out / f"{path.stem}.{args.format}"
-            with atomic_open(target) as fh:
-                if args.format == "json":
-                    record: dict[str, Any] = {"image": str(path)}
-                    if is_video:
-                        record["frame"] = args.frame
-                    record |= {"threshold": m.threshold, "markers": rows}
-                    json.dump(record, fh, indent=1)
-                else:
-                    buf = io.StringIO()
-                    writer = csv.DictWriter(buf, fieldnames=list(rows[0]) if rows else ["x", "y"])
-                    writer.writeheader()
-                    writer.writerows(rows)
-                    fh.write(buf.getvalue())
+            record: dict[str, Any] = {"image": str(path)}
+            if is_video:
+                record["frame"] = args.frame
+            _write(target, m, record, args.format)
             if args.overlay:
                 write_image(out / f"{path.stem}_markers.png", viz.draw_markers(img, m.centres))
             done += 1
@@ -122,4 +123,57 @@ def run(args: argparse.Namespace) -> int:
                 warn("markers", f"no markers found in {source}; check --polarity and "
                      "--threshold")
     report_unreadable("markers", failed, done)
+    return 0
+
+
+def _write(target: Path, m: Any, record: dict[str, Any], fmt: str) -> None:
+    """The markers ``m`` as CSV or JSON (``record``: the JSON's leading fields)."""
+    from tacswitch._io import atomic_open
+
+    rows = _rows(m)
+    with atomic_open(target) as fh:
+        if fmt == "json":
+            json.dump(record | {"threshold": m.threshold, "markers": rows}, fh, indent=1)
+        else:
+            buf = io.StringIO()
+            writer = csv.DictWriter(buf, fieldnames=list(rows[0]) if rows else ["x", "y"])
+            writer.writeheader()
+            writer.writerows(rows)
+            fh.write(buf.getvalue())
+
+
+def _bag(src: Any, args: argparse.Namespace) -> int:
+    """A ROS bag: frame ``--frame`` of the topic to ``OUT/<stem>.csv`` (as a video), and with
+    ``--out-bag`` every frame's markers on ``<topic>/markers``."""
+    import tacswitch as ts
+    from tacswitch.cli.bagio import bag_sink
+    from tacswitch.cli.options import extraction_options, output_dir
+    from tacswitch.cli.progress import progress, say
+
+    out = output_dir(args.out, "--out")
+    opts = extraction_options(args)
+    wrote = None
+    with bag_sink(src, args) as sink, \
+            progress(total=len(src) or None, desc="markers", unit="frame",
+                     quiet=args.quiet or sink is None) as bar:
+        for i, frame in enumerate(src):
+            bar.update()
+            if sink is None and i > args.frame:
+                break
+            if frame is None:
+                continue
+            m = ts.extract_markers(frame, **opts)
+            if sink is not None:
+                sink.points(src.frames[i], {"x": m.centres[:, 0], "y": m.centres[:, 1],
+                                            "area": m.areas, "contrast": m.contrast},
+                            suffix="markers")
+            if i == args.frame:
+                wrote = out / f"{src.path.stem}.{args.format}"
+                _write(wrote, m, {"bag": str(src.path), "topic": src.topic, "frame": i},
+                       args.format)
+                say(f"{src.path} {src.topic} (frame {i}): {len(m)} markers -> {wrote}",
+                    quiet=args.quiet)
+    if wrote is None:
+        raise UsageError(f"--frame: {src.topic} in {str(src.path)!r} has no readable frame "
+                         f"{args.frame}")
     return 0

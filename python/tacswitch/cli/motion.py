@@ -60,11 +60,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "motion from rest by tacswitch.MarkerlessTracker (--ref: the no-contact "
                         "frame; without it the video starts in contact and its first frame is "
                         "the anchor); method auto only. Videos are always read so")
+    from tacswitch.cli.options import add_device_option
+
+    add_device_option(p, "the learned model (--method model, ensemble, auto without --ref)")
     p.add_argument("-o", "--out", default="motion-out", help="output folder (default: %(default)s)")
     p.add_argument("--scale", type=bounded(0.0, MAX_SCALE), default=3.0, metavar="S",
                    help="overlay arrow length per px of motion, in (0, "
                         f"{MAX_SCALE:g}] (default: %(default)s)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")
+    from tacswitch.cli.bagio import add_bag_options
+
+    add_bag_options(p, "<topic>/marker_motion (sensor_msgs/PointCloud2: x, y, dx, dy, valid "
+                       "per marker); a bag is one sequence, as a video")
     p.set_defaults(run=run)
 
 
@@ -114,7 +121,13 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from tacswitch._io import atomic_open, read_image, write_image
-    from tacswitch.cli.options import UsageError, input_file, load_model_option, output_dir
+    from tacswitch.cli.options import (
+        UsageError,
+        device_option,
+        input_file,
+        load_model_option,
+        output_dir,
+    )
     from tacswitch.cli.progress import progress, say
     from tacswitch.cli.sources import collect_inputs, read_quiet, report_unreadable
     from tacswitch.motion.infer import load_model, predict_motion
@@ -125,18 +138,30 @@ def run(args: argparse.Namespace) -> int:
     if args.sequence and args.method != "auto":
         raise UsageError(f"--sequence: the tracker chooses its own methods (the mechanics rule "
                          f"at the contact, flow from it); drop --method {args.method}")
-    model = load_model_option(load_model, args.model)
+    device = device_option(args.device)
+    model = load_model_option(lambda m: load_model(m, device), args.model)
     if args.method in LEARNED_PART:
         from tacswitch.motion.ensemble import learned_model
 
         # Refused before any image is read (a model that needs a reference cannot be the
         # ensemble's single-frame half).
-        load_model_option(learned_model, args.model)
+        load_model_option(lambda m: learned_model(m, device), args.model)
     ref = read_image(input_file(args.ref, "--ref"), "--ref", quiet=True) if args.ref else None
     # "auto" runs the ensemble without --ref or against a no-contact --ref, flow otherwise
     # (which ignores the gain): check --gain as the ensemble's.
     gain = _gain_option(args.gain, "ensemble" if args.method == "auto" else args.method)
     centres = _read_centres(str(input_file(args.centres, "--centres"))) if args.centres else None
+    from tacswitch.cli.bagio import bag_sink, only_bag
+
+    bag = only_bag(args.inputs, args)
+    if bag is not None:
+        if args.method != "auto":
+            raise UsageError(f"--method: a bag is one sequence, tracked by MarkerlessTracker "
+                             f"(the flow from rest); drop --method {args.method}")
+        out = output_dir(args.out, "--out")
+        with bag_sink(bag, args) as sink:
+            _track_video(bag.path, ref, centres, gain, args, out, stream=bag, sink=sink)
+        return 0
     files, videos = collect_inputs(args.inputs)
     if videos and args.method != "auto":
         raise UsageError(f"--method: a video is one sequence, tracked by MarkerlessTracker "
@@ -169,7 +194,7 @@ def run(args: argparse.Namespace) -> int:
                 motion = (model(img, ref=ref, centres=pts) if args.method == "model" else
                           predict_motion(img, ref, pts, method=args.method, gain=gain,
                                          model=args.model if args.method in LEARNED_PART
-                                         else None))
+                                         else None, device=device))
             buf = io.StringIO()
             w = csv.writer(buf)
             w.writerow(["x", "y", "dx", "dy"])
@@ -205,11 +230,14 @@ def _arrows(img, pts, motion, scale: float):  # type: ignore[no-untyped-def]
 
 
 def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # type: ignore[no-untyped-def]
-                 out: Path) -> None:
+                 out: Path, stream=None, sink=None) -> None:
     """Every frame of the video ``path`` through one :class:`MarkerlessTracker` (``ref``: the
     no-contact frame, or None: the video starts in contact); ``<stem>.csv`` with a row per
     frame and marker, ``<stem>_motion.png`` the last frame's arrows. Frames that do not decode
-    are skipped (their rows are absent); a video with none raises ``ValueError``."""
+    are skipped (their rows are absent); a video with none raises ``ValueError``. ``stream``:
+    the frames when they come from elsewhere (a :class:`tacswitch.bags.BagSource`, whose
+    ``frames`` then give ``sink``, a :class:`tacswitch.bags.BagSink` or None, each frame's
+    stamps)."""
     import numpy as np
 
     from tacswitch._io import atomic_open, write_image
@@ -223,12 +251,16 @@ def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # ty
     w.writerow(["frame", "x", "y", "dx", "dy"])
     last = None
     n = 0
-    for t, img in enumerate(video_frames(path, "inputs")):
+    from tacswitch.cli.bagio import motion_fields
+
+    for t, img in enumerate(video_frames(path, "inputs") if stream is None else stream):
         if img is None:
             continue
         motion = tracker.update(img)
         pts = tracker.centres
         assert pts is not None  # set by the first update
+        if sink is not None:
+            sink.points(stream.frames[t], motion_fields(pts, motion))
         for (x, y), (dx, dy) in zip(pts, motion, strict=True):
             w.writerow([t, f"{x:.3f}", f"{y:.3f}", f"{dx:.4f}", f"{dy:.4f}"])
         last = (img, pts, motion)

@@ -137,6 +137,27 @@ def load_model_option(loader: Callable[[Any], T], value: str | None,
         raise
 
 
+def add_device_option(p: argparse.ArgumentParser, what: str) -> None:
+    """Adds ``--device auto|cpu|cuda`` (default auto) to ``p``; ``what`` names what runs
+    there (for the help). Check the value with :func:`device_option` before any work."""
+    p.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto",
+                   help=f"where {what} runs: auto (default: a CUDA GPU when onnxruntime offers "
+                        "one, i.e. onnxruntime-gpu is installed and sees a GPU; else the CPU), "
+                        "cpu, or cuda (an error when onnxruntime has no CUDA)")
+
+
+def device_option(value: str, option: str = "--device") -> str:
+    """``value`` if onnxruntime can run there (:func:`tacswitch._ort.providers`);
+    :class:`UsageError` naming ``option`` otherwise (``cuda`` without CUDA)."""
+    from tacswitch._ort import providers
+
+    try:
+        providers(value)
+    except ValueError as exc:
+        raise UsageError(f"{option}:{str(exc).removeprefix('device:')}") from None
+    return value
+
+
 # --- argparse value types: a bad value is argparse's own usage error (exit 2, naming the flag) --
 
 def odd_size(text: str) -> int:

@@ -71,6 +71,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--model", default=None,
                    help="tacdiff/hybrid ONNX model, or 'fast' for the shipped narrow model "
                         "(default: the shipped model)")
+    from tacswitch.cli.options import add_device_option
+
+    add_device_option(p, "tacdiff/hybrid's network")
     p.add_argument("--codec", choices=tuple(CODECS), default="mp4v",
                    help="video output: mp4v -> OUT/<stem>.mp4 (lossy, plays anywhere; "
                         "default), ffv1 -> OUT/<stem>.mkv (lossless, bit-exact frames; use it, "
@@ -88,6 +91,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-q", "--quiet", action="store_true",
                    help="no progress bars or messages (warnings still go to stderr)")
     add_extraction_options(p, border_default="keep", dilate=True)
+    from tacswitch.cli.bagio import add_bag_options
+
+    add_bag_options(p, "<topic>/markerless (sensor_msgs/Image, bgr8); default for a bag input: "
+                       "OUT/<bag name> (OUT/<stem>.bag for ROS 1)")
     p.set_defaults(run=run)
 
 
@@ -98,7 +105,7 @@ def _remover(args: argparse.Namespace, ref: np.ndarray | None) -> Remover:
     opts: dict[str, Any] = extraction_options(args)
     if args.method in MODEL_METHODS:
         opts.update(steps=args.steps, ref=ref, model=args.model, separation=args.separation,
-                    orientations=args.orientations)
+                    orientations=args.orientations, device=args.device)
 
     def remove(img: np.ndarray) -> np.ndarray:
         return ts.remove_markers(img, method=args.method, radius=args.radius, **opts)
@@ -149,7 +156,7 @@ def _targets(images: list[Path], videos: list[Path], out: Path,
 
 def _check_options(args: argparse.Namespace) -> None:
     """Option values that cannot work, and options the method ignores (a warning)."""
-    from tacswitch.cli.options import UsageError, load_model_option
+    from tacswitch.cli.options import UsageError, device_option, load_model_option
     from tacswitch.cli.progress import warn
 
     if args.workers is not None and args.workers < 1:
@@ -164,6 +171,7 @@ def _check_options(args: argparse.Namespace) -> None:
         ("--steps", args.steps, MODEL_METHODS), ("--model", args.model, MODEL_METHODS),
         ("--separation", args.separation, MODEL_METHODS),
         ("--orientations", args.orientations, MODEL_METHODS),
+        ("--device", None if args.device == "auto" else args.device, MODEL_METHODS),
         ("--ref", args.ref, ("hybrid",))) if value is not None and args.method not in used_by]
     if ignored:
         users = {"--ref": "hybrid"}
@@ -173,7 +181,9 @@ def _check_options(args: argparse.Namespace) -> None:
     if args.method in MODEL_METHODS:
         from tacswitch.tacdiff.infer import load_model
 
-        load_model_option(load_model, args.model)  # a wrong file fails here, in one line
+        device = device_option(args.device)
+        # A wrong file fails here, in one line.
+        load_model_option(lambda m: load_model(m, device), args.model)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -183,6 +193,11 @@ def run(args: argparse.Namespace) -> int:
     from tacswitch.cli.sources import read_quiet, report_unreadable
 
     _check_options(args)
+    from tacswitch.cli.bagio import only_bag
+
+    bag = only_bag(args.inputs, args)
+    if bag is not None:
+        return _bag(bag, args)
     images, videos = collect_inputs(args.inputs)
     out = Path(args.out)
     _targets(images, videos, out, args)
@@ -208,6 +223,67 @@ def run(args: argparse.Namespace) -> int:
         + (f", {len(failed)} unreadable skipped" if failed else "")
         + (f", {bad} unreadable video frames skipped" if bad else "") + f", in {out}",
         quiet=args.quiet)
+    return 0
+
+
+def _bag(src: Any, args: argparse.Namespace) -> int:
+    """A ROS bag: a new bag with every input message and ``<topic>/markerless``, at
+    ``--out-bag`` or ``OUT/<bag name>`` (``OUT/<stem>.bag`` for ROS 1). Written whole every
+    run (atomically); frames that do not decode are skipped and counted."""
+    from tacswitch.bags import check_output
+    from tacswitch.cli.bagio import bag_sink
+    from tacswitch.cli.batch import default_workers, ordered_map
+    from tacswitch.cli.options import input_file, output_dir
+    from tacswitch.cli.progress import progress, say
+    from tacswitch.cli.sources import read_quiet
+
+    ref = None
+    if args.ref is not None and args.method == "hybrid":
+        ref = read_quiet(input_file(args.ref, "--ref"))
+        if ref is None:
+            raise UsageError(f"--ref: cannot read an image from {args.ref!r}")
+    target = args.out_bag
+    if target is None:
+        out = output_dir(args.out, "--out")
+        target = out / (f"{src.path.stem}.bag" if src.kind == "ros1" else src.path.stem)
+        try:
+            check_output(src.path, target, args.bag_storage, "--out")
+        except ValueError as exc:
+            raise UsageError(str(exc)) from None
+    workers = 1 if args.method in MODEL_METHODS else (args.workers or default_workers())
+    remove: Remover | None = None
+
+    def items() -> Iterator[tuple[int, np.ndarray | None]]:
+        nonlocal remove
+        for i, frame in enumerate(src):
+            if remove is None and frame is not None:
+                first = ref is None and args.method == "hybrid"
+                remove = _remover(args, frame.copy() if first else ref)
+            yield i, frame
+
+    def clean(item: tuple[int, np.ndarray | None]) -> tuple[int, np.ndarray | None]:
+        i, frame = item
+        if frame is None:
+            return i, None
+        assert remove is not None
+        return i, remove(frame)
+
+    done = bad = 0
+    with bag_sink(src, args, target) as sink, \
+            progress(total=len(src) or None, desc="bag", unit="frame", quiet=args.quiet) as bar, \
+            ordered_map(clean, items(), workers) as cleaned:
+        for i, out_frame in cleaned:
+            bar.update()
+            if out_frame is None:
+                bad += 1
+                continue
+            sink.image(src.frames[i], out_frame)
+            done += 1
+        if done == 0:
+            raise ValueError(f"inputs: no frame of {src.topic} in {str(src.path)!r} decodes")
+    say(f"{src.path} {src.topic} -> {target} ({done} markerless frames on "
+        f"{src.topic.rstrip('/')}/markerless" + (f", {bad} unreadable skipped" if bad else "")
+        + ")", quiet=args.quiet)
     return 0
 
 

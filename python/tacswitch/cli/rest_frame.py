@@ -21,16 +21,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: Readable frames looked at for the rest frame (about a second of a 30 frames/s camera).
-LOOK_AHEAD = 30
-#: A frame is usable as the rest frame when it shows at least this fraction of the largest
-#: marker count of the look-ahead. Half: a frame that shows fewer has lost markers to a blank
-#: image, blur or the contact, not to the small frame-to-frame changes of extraction; a higher
-#: fraction would skip more of a recording's start (its contact onset) for a few markers. On
-#: the 300 real GelSight Mini slip training recordings the first frame shows at least 0.81 of
-#: the best count of their first 30 frames (no rest frame moves); with the extraction before
-#: issue #35, 11 showed less than half (e.g. 0 markers, then frame 5 with 25 of 41).
-USABLE_FRACTION = 0.5
+from tacswitch.tracking import REST_LOOK_AHEAD, REST_USABLE_FRACTION, usable_rest_frame
+
+#: The look-ahead and the usable fraction: :mod:`tacswitch.tracking`'s rest-frame rule (shared
+#: with the ROS processor). Module globals here so a test can shorten the look-ahead.
+LOOK_AHEAD = REST_LOOK_AHEAD
+USABLE_FRACTION = REST_USABLE_FRACTION
 
 
 @dataclass(frozen=True)
@@ -107,14 +103,14 @@ def choose_rest_frame(stream: Iterable[np.ndarray | None], count: Callable[[np.n
         error = exc
     rest = None
     if counts:
-        best = max(counts)
-        if best == 0:
+        index = usable_rest_frame(counts, USABLE_FRACTION)
+        if index is None:
             if error is not None:
                 raise error
             after = (f" nor in the {len(counts) - 1} after it" if len(counts) > 1 else "")
             raise ValueError(f"source: no markers found in the first frame of {source!r}{after} "
                              f"(a blank or markerless recording?){hint}")
-        index = next(i for i, c in enumerate(counts) if c > 0 and c >= USABLE_FRACTION * best)
+        best = max(counts)
         rest = RestFrame(index, counts[index], counts[0], best, counts.index(best), len(counts))
     return rest, _replay(buffer, error, it)
 

@@ -25,14 +25,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--sequences", action="store_true",
                    help="grasp sequences (press, shear, hold/slip/vibration) instead of samples")
     p.add_argument("--frames", type=int, default=30, help="frames per sequence (default: 30)")
-    p.add_argument("--optics", choices=("auto", "taxim", "phong"), default="auto")
+    p.add_argument("--optics", choices=("auto", "taxim", "phong"), default="auto",
+                   help="shading: taxim (the real calibration; needs one in the preset), phong, "
+                        "or auto (taxim when the preset has a calibration; default)")
     p.add_argument("--vary-grid", action="store_true",
                    help="draw the marker grid per sample (6x8 to 10x14) instead of the preset's")
     p.add_argument("--jpeg", type=int, default=None, metavar="Q",
                    help="JPEG-compress frames at quality Q (PNG files, JPEG artefacts)")
     p.add_argument("--workers", type=int, default=None,
                    help="processes (default: all cores); results do not depend on it")
-    p.add_argument("-q", "--quiet", action="store_true")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress or messages")
     p.set_defaults(run=run)
 
 

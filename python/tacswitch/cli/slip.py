@@ -33,7 +33,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "shows that many is the reference instead (said on stderr); the frames before it have "
         "no log rows, and frame numbers stay the source's.",
     )
-    p.add_argument("source", help="video file, folder of images, or camera index (0, 1, ...)")
+    p.add_argument("source", help="video file, folder of images, camera index (0, 1, ...), or "
+                                  "ROS bag (with --topic)")
     p.add_argument("--log", default="slip-log.csv",
                    help="CSV log, a .csv file name (default: %(default)s)")
     p.add_argument("--rule", choices=RULES, default=None,
@@ -81,6 +82,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "flow from the reference; the learned rule reads MarkerlessTracker's "
                         "motion)")
     m.add_argument("--model", default=None, help="ONNX motion model for --method model")
+    from tacswitch.cli.options import add_device_option
+
+    add_device_option(m, "--method model's network (the slip scorer always runs on the CPU)")
     m.add_argument("--all-markers", action="store_true",
                    help="judge slip on every marker (default: only the markers near the "
                         "grasp-start frame's contact, where the gel moves most; far from it a "
@@ -89,6 +93,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="show an overlay window (needs a display and an OpenCV build with a "
                         "GUI: opencv-contrib-python instead of the -headless package)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    from tacswitch.cli.bagio import add_bag_options
+
+    add_bag_options(p, "<topic>/slip (diagnostic_msgs/DiagnosticArray: level 1 while "
+                       "slipping) and <topic>/marker_motion (sensor_msgs/PointCloud2)")
     p.set_defaults(run=run)
 
 
@@ -147,8 +155,13 @@ def _check(args: argparse.Namespace) -> None:
         raise UsageError(f"--smooth-frames: must be in [1, 1000]; got {args.smooth_frames}")
     if args.threshold_px is not None and not args.threshold_px > 0:
         raise UsageError(f"--threshold-px: must be > 0; got {args.threshold_px}")
+    if args.markerless:
+        from tacswitch.cli.options import device_option
+
+        device_option(args.device)
     if not args.markerless:
-        for flag, value in (("--ref", args.ref), ("--centres", args.centres),
+        for flag, value in (("--device", None if args.device == "auto" else args.device),
+                            ("--ref", args.ref), ("--centres", args.centres),
                             ("--model", args.model), ("--all-markers", args.all_markers or None)):
             if value is not None:
                 raise UsageError(f"{flag}: applies to --markerless only")
@@ -180,7 +193,10 @@ def run(args: argparse.Namespace) -> int:
     from tacswitch.cli.progress import progress, warn
 
     _check(args)
-    if args.markerless:
+    from tacswitch.cli.bagio import bag_sink, bag_source, motion_fields
+
+    bag = bag_source(args.source, args)
+    if args.markerless and bag is None:
         _warn_inter_frame_codec(args.source)
     rule: _PaperLoop | _LearnedLoop = (_LearnedLoop(args) if args.rule == "learned"
                                        else _PaperLoop(args))
@@ -190,14 +206,16 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     log_path = csv_output(args.log, "--log")
     status = 0
-    total = frame_count(args.source, args.max_frames)
+    total = (frame_count(args.source, args.max_frames) if bag is None else
+             min(len(bag), args.max_frames or len(bag)) or None)
+    k = -1  # index in the stream (bag frames are looked up by it)
     # The window shows the state; the bar (frames/s) is for runs without it.
-    with open(log_path, "w", newline="") as fh, \
+    with open(log_path, "w", newline="") as fh, bag_sink(bag, args) as sink, \
             progress(total=total, desc="slip", unit="frame", quiet=args.quiet or show) as bar:
         writer = csv.writer(fh)
         writer.writerow(LOG_COLUMNS)
         try:
-            stream = frames(args.source)
+            stream = frames(args.source) if bag is None else iter(bag)
             rest = None
             if not args.markerless:  # predicted motion needs no markers on the rest frame
                 rest, stream = choose_rest_frame(
@@ -208,6 +226,7 @@ def run(args: argparse.Namespace) -> int:
             for frame in stream:
                 if args.max_frames is not None and n >= args.max_frames:
                     break
+                k += 1
                 bar.update()
                 if frame is None or frame.ndim != 3:
                     skipped += 1
@@ -229,6 +248,12 @@ def run(args: argparse.Namespace) -> int:
                 slips += slip
                 writer.writerow(row)
                 fh.flush()
+                if sink is not None:
+                    at = bag.frames[k]
+                    sink.slip(at, bool(slip), str(row[1]),
+                              float(row[9]) if row[9] != "" else float("nan"))
+                    tr = rule.tracker
+                    sink.points(at, motion_fields(tr.reference, tr.positions - tr.reference))
                 n += 1
                 if show:
                     _show(frame, rule.tracker, state)
@@ -423,6 +448,7 @@ class MarkerlessMotion:
         self.positions = self.reference.copy()
         self.grasp_ref: np.ndarray | None = None
         self.all_markers = bool(args.all_markers)
+        self.device = args.device
         self.ref_given = args.ref is not None
         # The markers near the grasp-start frame's contact (None: all of them are judged).
         self.grasp_near: np.ndarray | None = None
@@ -436,7 +462,7 @@ class MarkerlessMotion:
         from tacswitch.motion.infer import predict_motion
 
         motion = predict_motion(frame, self.ref, self.reference, method=self.method,
-                                model=self.model)
+                                model=self.model, device=self.device)
         self.positions = self.reference + motion
         return motion, np.ones(len(motion), bool)
 
@@ -464,7 +490,7 @@ class MarkerlessMotion:
                 self.warned = True
             self.grasp_near = near
         motion = predict_motion(frame, self.grasp_ref, self.reference, method=self.method,
-                                model=self.model)
+                                model=self.model, device=self.device)
         if self.grasp_near is None:
             return motion, np.ones(len(motion), bool)
         return motion, self.grasp_near.copy()

@@ -26,16 +26,19 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--markerless", action="store_true",
                    help="remove the markers first and predict their motion "
                         "(MarkerlessTracker): the markerless sensor these videos would be")
-    p.add_argument("-q", "--quiet", action="store_true")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress or messages")
 
 
 def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
     p = what.add_parser("slip", help="slip detection on your labelled grasp videos",
                         description=__doc__)
     _common(p)
-    p.add_argument("--rule", choices=("learned", "paper"), default="learned")
+    p.add_argument("--rule", choices=("learned", "paper"), default="learned",
+                   help="the learned scorer (default) or the paper's displacement rule")
     p.add_argument("--model", default=None, help="ONNX scorer (default: the shipped one)")
-    p.add_argument("--score-threshold", type=float, default=None, metavar="LOGIT")
+    p.add_argument("--score-threshold", type=float, default=None, metavar="LOGIT",
+                   help="--rule learned flags a frame whose score exceeds this (default: the "
+                        "model's, 0)")
     p.add_argument("--rigid-threshold-px", default=None, metavar="PX|auto",
                    help="--rule paper: add the rigid criterion")
     p.add_argument("--cv", type=int, default=0, metavar="K",
@@ -53,7 +56,7 @@ def add_train_parser(what: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, help="ONNX file to write")
     p.add_argument("--epochs", type=int, default=None, help="passes over the experiments "
                                                             "(default: 60)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
     p.add_argument("--simulated", type=int, default=None, metavar="N",
                    help="add N rendered grasps per kind (slip / hold / vibration) and sensor "
                         "(GelSight, GelSight Mini) to the training set: the textbook slip "

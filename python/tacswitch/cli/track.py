@@ -19,7 +19,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "many as a frame of the first 30, the first frame that shows that many is the "
         "reference instead (said on stderr); the frames before it have no rows.",
     )
-    p.add_argument("source", help="video file, folder of images, or camera index")
+    p.add_argument("source", help="video file, folder of images, camera index, or ROS bag "
+                                  "(with --topic)")
     from tacswitch.cli.options import positive
 
     p.add_argument("-o", "--out", default="track.csv",
@@ -31,6 +32,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--max-frames", type=int, default=None, metavar="N",
                    help="stop after the first N frames (default: the whole source)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    from tacswitch.cli.bagio import add_bag_options
+
+    add_bag_options(p, "<topic>/marker_motion (sensor_msgs/PointCloud2: x, y, dx, dy, valid "
+                       "per marker)")
     p.set_defaults(run=run)
 
 
@@ -43,22 +48,29 @@ def run(args: argparse.Namespace) -> int:
 
     if args.max_frames is not None and args.max_frames < 1:
         raise UsageError(f"--max-frames: must be >= 1; got {args.max_frames}")
+    from tacswitch.cli.bagio import bag_sink, bag_source, motion_fields
+
+    bag = bag_source(args.source, args)
     out = csv_output(args.out, "--out")
     tracker: ts.MarkerTracker | None = None
     n = skipped = 0
-    total = frame_count(args.source, args.max_frames)
-    with open(out, "w", newline="") as fh, \
+    k = -1  # index in the stream (bag frames are looked up by it)
+    total = (frame_count(args.source, args.max_frames) if bag is None else
+             min(len(bag), args.max_frames or len(bag)) or None)
+    with open(out, "w", newline="") as fh, bag_sink(bag, args) as sink, \
             progress(total=total, desc="track", unit="frame", quiet=args.quiet) as bar:
         writer = csv.writer(fh)
         writer.writerow(["frame", "marker", "x_ref", "y_ref", "dx", "dy", "valid"])
         rest, stream = choose_rest_frame(
-            frames(args.source), lambda f: len(ts.extract_markers(f, polarity=args.polarity)),
+            frames(args.source) if bag is None else bag,
+            lambda f: len(ts.extract_markers(f, polarity=args.polarity)),
             source=args.source, max_frames=args.max_frames, hint="; check --polarity")
         if rest is not None and rest.index > 0:
             warn("track", rest.message())
         for frame in stream:
             if args.max_frames is not None and n >= args.max_frames:
                 break
+            k += 1
             bar.update()
             if frame is None:
                 skipped += 1
@@ -79,6 +91,8 @@ def run(args: argparse.Namespace) -> int:
                 writer.writerow([n, i, f"{ref[i, 0]:.3f}", f"{ref[i, 1]:.3f}", dx, dy,
                                  int(valid[i])])
             fh.flush()
+            if sink is not None:
+                sink.points(bag.frames[k], motion_fields(ref, motion, valid))
             n += 1
             if n % 50 == 1:
                 bar.set_postfix_str(f"{int(np.sum(valid))}/{len(ref)} markers tracked",

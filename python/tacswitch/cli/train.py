@@ -45,13 +45,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     m.add_argument("--loss", choices=("mse", "euclid"), default="euclid",
                    help="mse: the paper's; euclid: mean per-marker Euclidean error, the metric "
                         "itself (default)")
-    m.add_argument("--epochs", type=int, default=8)
-    m.add_argument("--batch", type=int, default=16)
-    m.add_argument("--lr", type=float, default=2e-3)
-    m.add_argument("--seed", type=int, default=0)
+    m.add_argument("--epochs", type=int, default=8,
+                   help="passes over the training data (default: %(default)s)")
+    m.add_argument("--batch", type=int, default=16,
+                   help="training batch size (default: %(default)s)")
+    m.add_argument("--lr", type=float, default=2e-3,
+                   help="learning rate (default: %(default)s)")
+    m.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
     m.add_argument("--max-steps", type=int, default=0,
                    help="cap on steps per epoch (0: whole data set)")
-    m.add_argument("-q", "--quiet", action="store_true")
+    m.add_argument("-q", "--quiet", action="store_true", help="no progress or messages")
     m.set_defaults(run=run)
     tacdiff_cmds.add_train_parser(what)
     slip_cmds.add_train_parser(what)

@@ -51,14 +51,15 @@ def slip_model_path(path: str | os.PathLike[str] | None = None) -> Path:
 
 class OnnxScorer:
     """A slip scorer exported by ``tacswitch train slip``: ``B x N_FEATURES`` -> ``B`` logits,
-    run on one onnxruntime thread (the slip loop is single-threaded)."""
+    run on one onnxruntime thread (the slip loop is single-threaded), on the CPU by default:
+    one frame's features are a few hundred bytes, which a GPU round trip would only slow."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, device: str = "cpu") -> None:
         import json
 
         from tacswitch._ort import open_session
 
-        self.session, meta = open_session(path, threads=1, kind="slip")
+        self.session, meta = open_session(path, threads=1, kind="slip", device=device)
         self.path = path
         self.threshold = float(json.loads(meta.get("tacswitch.threshold", "0")))
         self.warmup = int(json.loads(meta.get("tacswitch.warmup", "3")))
@@ -76,7 +77,7 @@ def load_scorer(path: str | os.PathLike[str] | None = None) -> OnnxScorer:
     """The cached :class:`OnnxScorer` of ``path`` (default: the shipped model)."""
     from tacswitch._ort import cached
 
-    return cached(OnnxScorer, slip_model_path(path))
+    return cached(OnnxScorer, slip_model_path(path), "cpu")
 
 
 @dataclass(frozen=True)

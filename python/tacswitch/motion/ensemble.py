@@ -81,10 +81,11 @@ def _pool() -> ThreadPoolExecutor:
         return _POOL
 
 
-def learned_model(model: str | os.PathLike[str] | None) -> MotionModel:
-    """The cached motion model of ``model`` (None: :data:`ENSEMBLE_MODEL`), checked to predict
-    from one frame; ``ValueError`` naming ``model`` for one that needs a reference."""
-    net = load_model(ENSEMBLE_MODEL if model is None else model)
+def learned_model(model: str | os.PathLike[str] | None, device: str = "auto") -> MotionModel:
+    """The cached motion model of ``model`` (None: :data:`ENSEMBLE_MODEL`) on ``device``,
+    checked to predict from one frame; ``ValueError`` naming ``model`` for one that needs a
+    reference."""
+    net = load_model(ENSEMBLE_MODEL if model is None else model, device)
     if net.use_ref:
         raise ValueError(f"model: {net.path.name} predicts motion since a reference frame; the "
                          "ensemble needs a single-frame model (e.g. the shipped 'single')")
@@ -108,7 +109,8 @@ def learned_part(img: NDArray[np.uint8], centres: NDArray[np.float32], gain: flo
 
 def ensemble_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None,
                     centres: NDArray[np.float32], *, gain: float | None = None,
-                    model: str | os.PathLike[str] | None = None) -> NDArray[np.float32]:
+                    model: str | os.PathLike[str] | None = None,
+                    device: str = "auto") -> NDArray[np.float32]:
     """Motion ``N x 2`` float32 ``(dx, dy)`` px of markers at rest ``centres`` (``(x, y)`` px)
     in the markerless BGR frame ``img``: the mean of the mechanics rule (against ``ref``, the
     no-contact frame, when given; else single-frame) and the learned model on ``img`` alone.
@@ -117,9 +119,10 @@ def ensemble_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None,
     :data:`tacswitch.motion.mechanics.MECHANICS_GAIN`), scaling both parts (module doc).
     ``model``: the learned part (default :data:`ENSEMBLE_MODEL`). Identical ``img`` and ``ref``
     give exactly zero. Frames are validated by the caller (:func:`tacswitch.predict_motion`).
+    ``device``: where the learned part runs (:func:`tacswitch._ort.providers`).
     """
     g = MECHANICS_GAIN if gain is None else check_gain(gain)
-    net = learned_model(model)
+    net = learned_model(model, device)
     if len(centres) == 0 or (ref is not None and np.array_equal(img, ref)):
         return np.zeros((len(centres), 2), np.float32)
     learned: Future[NDArray[np.float32]] = _pool().submit(_learned, net, img, centres, g)

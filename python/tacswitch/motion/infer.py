@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch._checks import as_points, check_downsampled_size, check_gain, check_model_arg
-from tacswitch._ort import session_options
+from tacswitch._ort import providers, session_options
 from tacswitch.motion.regressor import (
     DEFAULT_MODEL,
     SHIPPED,
@@ -43,7 +43,8 @@ METHODS = ("auto", "ensemble", "model", "flow", "outward", "mechanics")
 def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: str = "auto",
                    model: str | os.PathLike[str] | None = None, algorithm: str | None = None,
                    preset: str | None = None, suppress_imprint: bool | None = None,
-                   gain: float | str | None = None) -> NDArray[np.float32]:
+                   gain: float | str | None = None, device: str = "auto"
+                   ) -> NDArray[np.float32]:
     """The 2D motion each marker would have had, from a markerless frame.
 
     Args:
@@ -106,12 +107,17 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             number >= 0 that replaces the model's recorded single-frame scale
             (``MotionModel.single_frame_gain``, measured on real GelSight presses; 0.48 for the
             shipped model); single frame only.
+        device: where the learned model runs (``method="model"`` and the ensemble's learned
+            part): ``"auto"`` (default: a CUDA GPU when onnxruntime offers one, else the CPU),
+            ``"cpu"`` or ``"cuda"`` (``ValueError`` naming ``device`` when onnxruntime has no
+            CUDA here; :func:`tacswitch._ort.providers`).
 
     Returns:
         ``N x 2`` float32 ``(dx, dy)`` px in ``img``'s pixels, one row per centre, never NaN
         (a centre outside the frame gets the motion at the nearest border).
     """
     check_model_arg(model)
+    providers(device)  # checked whichever method runs
     if method not in METHODS:
         raise ValueError(f"method: unknown {method!r}; choose from {list(METHODS)}")
     auto = method == "auto"
@@ -139,8 +145,7 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
         if isinstance(gain, str):
             raise ValueError("gain: applies to method='model' as a number >= 0 (its single-frame "
                              f"scale), not a sensor name; got {gain!r}")
-        return load_model(model)(img, ref=ref, centres=centres,
-                                 gain=gain)
+        return load_model(model, device)(img, ref=ref, centres=centres, gain=gain)
     frame = _bgr(img, "img")
     check_downsampled_size(frame.shape, 1, MIN_IMAGE_SIDE_PX, "img")
     ref_arr = None
@@ -172,7 +177,7 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
 
         # "auto" keeps the shipped learned part: its `model` names the default centres only.
         return ensemble_motion(frame, ref_arr, pts, gain=rule_gain,
-                               model=None if auto else model)
+                               model=None if auto else model, device=device)
     if method == "mechanics":
         from tacswitch.motion.mechanics import mechanics_motion
 

@@ -406,7 +406,9 @@ CONTACT_KINDS = ("press", "shear", "twist", "shear_twist")
 #: imprints: the simulator's shading of a ball of each candidate radius pressed to every recorded
 #: contact (depth ``R - sqrt(R^2 - a^2)`` from the recorded contact radius ``a``) against the
 #: real colour change on rings about the contact (``benches/bench_press_calibration.py``,
-#: "Geometry"; BENCHMARKS.md). GelSight: the smallest radius all its contacts allow (a ~1.86 mm,
+#: "Geometry"; docs/notes/2026-11-markerless-motion.md, "Real presses: the gel's outward motion
+#: (grain block matching) and the calibrated press law"). GelSight: the smallest radius all its
+#: contacts allow (a ~1.86 mm,
 #: up to 1.98 mm), 2 mm, fits best (relative profile error 0.39 against 0.47-0.76 for
 #: 2.25-6 mm): a 4 mm ball pressed 1.0-1.7 mm deep, not the 0.3-0.5 mm that a radius drawn up to
 #: 6 mm gave before. GelSight Mini: 3 mm fits best, weakly (0.38 against 0.42-0.44 at 2.5 / 4

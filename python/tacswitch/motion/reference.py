@@ -17,8 +17,9 @@ another depth or load, or sheared) has them too. :func:`contact_energy_ratio` is
 energy of ``ref`` over that of ``img`` inside the changed region; a ratio under
 :data:`NEW_CONTACT_RATIO` means a new contact.
 
-Measured (``benches/bench_motion_reference.py``, BENCHMARKS.md "Markerless motion: which
-reference"): taxim's real no-contact frame against its 48 GelSight presses 0.17-0.53, against
+Measured (``benches/bench_motion_reference.py``; docs/notes/2026-11-markerless-motion.md,
+"Markerless motion: which reference"): taxim's real no-contact frame against its 48 GelSight
+presses 0.17-0.53, against
 the 24 GelSight Mini presses 0.01-0.03; the same presses warped by known fields and captured
 (MJPEG / H.264, exposure drift), against the no-contact frame 0.14-0.68 / 0.01-0.45 and against
 the unwarped press (the same contact) 0.59-1.22 / 0.58-1.19; simulated held-out pairs:

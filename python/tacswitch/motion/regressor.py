@@ -72,6 +72,8 @@ class MotionModel:
         path: ONNX file written by :func:`tacswitch.motion.export.export_onnx`; default: the
             shipped model.
         threads: intra-op threads (default ``os.cpu_count()``).
+        device: ``"auto"`` (default: a CUDA GPU when onnxruntime offers one, else the CPU),
+            ``"cpu"`` or ``"cuda"`` (:func:`tacswitch._ort.providers`).
 
     Attributes:
         arch: architecture name; ``use_ref``: whether the model needs the reference frame;
@@ -82,9 +84,10 @@ class MotionModel:
     """
 
     def __init__(self, path: str | os.PathLike[str] | None = None, *,
-                 threads: int | None = None) -> None:
+                 threads: int | None = None, device: str = "auto") -> None:
         self.path = model_path(path)
-        self.session, meta = open_session(self.path, threads, kind="motion")
+        self.session, meta = open_session(self.path, threads, kind="motion", device=device)
+        self.device = device
         self.metadata = dict(meta)
         self.arch = meta.get("tacswitch.arch", "?")
         self.use_ref = json.loads(meta.get("tacswitch.use_ref", "false"))
@@ -178,6 +181,7 @@ def _downsample(img: NDArray[np.uint8], k: int) -> NDArray[np.uint8]:
     return out
 
 
-def load_model(path: str | os.PathLike[str] | None = None) -> MotionModel:
-    """The cached :class:`MotionModel` of ``path`` (one onnxruntime session per model file)."""
-    return cached(MotionModel, model_path(path))
+def load_model(path: str | os.PathLike[str] | None = None, device: str = "auto") -> MotionModel:
+    """The cached :class:`MotionModel` of ``path`` on ``device`` (one onnxruntime session per
+    model file and device; ``device`` as :class:`MotionModel` takes it)."""
+    return cached(MotionModel, model_path(path), device)

@@ -59,9 +59,10 @@ class MarkerlessTracker:
 
     Attributes:
         centres: the rest centres used (None until the first frame when both ``no_contact``
-        and ``centres`` were None); ``anchor_index``: index (0-based count of :meth:`update`
-        calls since the last reset) of the anchor frame of a video that starts in contact,
-        or None (always None with a no-contact frame).
+            and ``centres`` were None).
+        anchor_index: index (0-based count of :meth:`update` calls since the last reset) of the
+            anchor frame of a video that starts in contact, or None (always None with a
+            no-contact frame).
     """
 
     def __init__(self, no_contact: Any = None, centres: Any = None, *,

@@ -247,17 +247,18 @@ def h264_roundtrip(frames: Sequence[NDArray[np.uint8]] | NDArray[np.uint8], crf:
     """
     import cv2
 
-    av = _av()
+    # The arguments first: a mistake is named even where PyAV is missing.
+    if isinstance(crf, bool) or not isinstance(crf, (int, np.integer)) or not 0 <= crf <= 51:
+        raise ValueError(f"crf: must be an integer 0..51; got {crf!r}")
+    if not isinstance(preset, str) or preset not in X264_PRESETS:
+        raise ValueError(f"preset: expected one of {X264_PRESETS}; got {preset!r}")
     seq = [_as_bgr(f, "frames") for f in frames]
     if not seq:
         raise ValueError("frames: expected at least one frame")
     h, w = seq[0].shape[:2]
     if any(f.shape != seq[0].shape for f in seq):
         raise ValueError("frames: all frames must have the same shape")
-    if not 0 <= int(crf) <= 51:
-        raise ValueError(f"crf: must be 0..51; got {crf!r}")
-    if preset not in X264_PRESETS:
-        raise ValueError(f"preset: expected one of {X264_PRESETS}; got {preset!r}")
+    av = _av()
     ph, pw = h + h % 2, w + w % 2
     enc = av.CodecContext.create("libx264", "w")
     enc.width, enc.height = pw, ph

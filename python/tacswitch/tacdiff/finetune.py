@@ -20,7 +20,8 @@ half-pitch diagonal, its opposite and its axis parts, where they land on gel cle
 originals and off the validation gel): more gel
 and more marker arrangements from the same few frames. On taxim's real GelSight presses (39
 training frames, H.264, a start that never saw that sensor) four shifts and 1200 steps took the
-held-out error from -1.7 % to -2.8 % of the start's (BENCHMARKS.md).
+held-out error from -1.7 % to -2.8 % of the start's (BENCHMARKS.md, "TacDiff fine-tune: four
+training shifts, 1200 steps, a per-frame noise test").
 
 Both the training and the validation transplants are re-compressed like the source recording
 (``recompress``, :mod:`~tacswitch.tacdiff.recompress`: a JPEG/MJPEG source's quality is
@@ -497,7 +498,8 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
             with :data:`DEFAULT_SHIFTS`), train and let the check choose. Default False: keep
             the starting model there without training, because on the GelSight Mini's grid
             (28.5 px pitch) no variant ever made held-out frames better and the check has
-            passed models up to 4 % worse (BENCHMARKS.md, TacDiff fine-tune sections).
+            passed models up to 4 % worse (the "TacDiff fine-tune" sections of
+            docs/notes/2026-11-marker-removal.md).
     """
     from tacswitch.tacdiff.data import marker_offset_pairs, removal_markers
     from tacswitch.tacdiff.export import export_onnx

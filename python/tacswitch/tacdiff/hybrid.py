@@ -130,8 +130,8 @@ def model_mask(img: NDArray[np.uint8], mask: NDArray[np.bool_],
 def inpaint_hybrid(img: Any, mask: Any, ref: Any = None, *, steps: int | None = None,
                    radius: float = DEFAULT_RADIUS, margin: int = 6, threshold: float | None = None,
                    seed: int | None = 0, separation: int = SEPARATION,
-                   model: str | os.PathLike[str] | None = None, orientations: int | None = None
-                   ) -> tuple[NDArray[np.uint8], HybridInfo]:
+                   model: str | os.PathLike[str] | None = None, orientations: int | None = None,
+                   device: str = "auto") -> tuple[NDArray[np.uint8], HybridInfo]:
     """TELEA everywhere, TacDiff on the holes in or near the contact.
 
     Args:
@@ -150,6 +150,8 @@ def inpaint_hybrid(img: Any, mask: Any, ref: Any = None, *, steps: int | None = 
         orientations: orientations the network's frame is averaged over (1, 2, 4 or 8; None:
             4, or 1 for a narrow model such as the fast one), see
             :func:`~tacswitch.tacdiff.infer.inpaint_tacdiff`.
+        device: where the network runs: ``"auto"`` (default: a CUDA GPU when onnxruntime
+            offers one, else the CPU), ``"cpu"`` or ``"cuda"`` (:func:`tacswitch._ort.providers`).
 
     Returns:
         ``(image, info)``: the markerless frame (unmasked pixels bit-identical to ``img``) and a
@@ -158,6 +160,9 @@ def inpaint_hybrid(img: Any, mask: Any, ref: Any = None, *, steps: int | None = 
     # Checked here too: the network (which checks them) may not run when no hole is near contact.
     as_count(separation, "separation", 0, None)
     check_orientations(orientations)
+    from tacswitch._ort import providers
+
+    providers(device)
     arr = as_image_u8(img, "img")
     if arr.ndim != 3 or arr.shape[2] != 3:
         raise ValueError(f"img: expected a BGR H x W x 3 uint8 image; got shape {arr.shape}")
@@ -172,7 +177,7 @@ def inpaint_hybrid(img: Any, mask: Any, ref: Any = None, *, steps: int | None = 
                      threshold=threshold)
     k = DEFAULT_STEPS if steps is None else steps
     out = (inpaint_tacdiff(filled, net, k, seed=seed, separation=separation, model=model,
-                           orientations=orientations) if net.any() else filled)
+                           orientations=orientations, device=device) if net.any() else filled)
     total = int(m.sum())
     used = int(net.sum())
     return out, HybridInfo(total, used, used / total if total else 0.0)

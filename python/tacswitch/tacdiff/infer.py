@@ -47,6 +47,7 @@ from numpy.typing import NDArray
 
 from tacswitch._checks import as_count, as_image_u8, check_model_arg
 from tacswitch._ort import cached, open_session
+from tacswitch._ort import providers as _ort_providers
 from tacswitch.inpaint import _as_mask, merge_patches, tile
 from tacswitch.tacdiff.passes import hole_passes, pass_masks
 from tacswitch.tacdiff.prior import (
@@ -63,7 +64,8 @@ from tacswitch.tacdiff.schedule import Sampler, Solver, alpha_sigma, timesteps, 
 DEFAULT_MODEL = "tacdiff_unet.onnx"
 #: Shipped models by name (``model="fast"``): the default, and a narrower one for speed.
 SHIPPED = {"default": DEFAULT_MODEL, "fast": "tacdiff_unet_fast.onnx"}
-#: Default sampler steps (the speed/accuracy table in BENCHMARKS.md says why).
+#: Default sampler steps (docs/notes/2026-11-marker-removal.md, "TacDiff 0.5: trained for the
+#: one-step sampler" and "TacDiff speed per setting", say why).
 DEFAULT_STEPS = 1
 #: Default tile side and overlap, px, when tiling (multiples of the model's size multiple).
 DEFAULT_PATCH, DEFAULT_OVERLAP = 128, 32
@@ -79,8 +81,9 @@ DEFAULT_CONTEXT = 16
 #: on 96 px crops). On the real-frame proxy (taxim's 640 x 480 GelSight presses with painted
 #: markers, 3 presses x 7 capture cases, adaptive masks) 48 x 48 crops with this context change
 #: the masked MAE of whole-frame runs by +0.9 % (fast model) and +1.0 % (default), on 4 held-out
-#: simulated GelSight frames by +1.0 % / -1.2 %, at 36 % of the pixels (BENCHMARKS.md, TacDiff
-#: speed). 16 px (64 x 64 crops) is within 0.5 % but barely cheaper than the whole frame.
+#: simulated GelSight frames by +1.0 % / -1.2 %, at 36 % of the pixels
+#: (docs/notes/2026-11-marker-removal.md, "TacDiff speed per setting"). 16 px (64 x 64 crops) is
+#: within 0.5 % but barely cheaper than the whole frame.
 CROP_CONTEXT = 8
 #: Default hole separation (px) of :func:`inpaint_tacdiff`: holes within this Chebyshev distance
 #: of one another are filled in separate passes (:mod:`~tacswitch.tacdiff.passes`). The network
@@ -90,7 +93,8 @@ CROP_CONTEXT = 8
 #: GelSight Mini frames (holes 5-9 px apart) and every proxy and simulated frame are one pass,
 #: while the FOTS held-out checks, whose held-out holes lie 3-4 px from the real markers, are
 #: split: there 8 gave the same held-out MAE but ran the real frames alone in 3 passes and moved
-#: their ghost from -0.07 to -0.18 grey levels (BENCHMARKS.md, crowded holes in separate passes).
+#: their ghost from -0.07 to -0.18 grey levels
+#: (docs/notes/2026-11-marker-removal.md, "TacDiff: crowded holes in separate passes").
 SEPARATION = 4
 
 #: Orientation counts :func:`inpaint_tacdiff` accepts: 1 (as is), 2 (+ mirrored left-right),
@@ -141,12 +145,16 @@ class TacDiffModel:
         path: ONNX file written by :func:`tacswitch.tacdiff.export.export_onnx`, or a shipped
             model by name (``"default"``, ``"fast"``); default: the shipped default model.
         threads: intra-op threads (default ``os.cpu_count()``).
+        device: ``"auto"`` (default: a CUDA GPU when onnxruntime offers one, else the CPU),
+            ``"cpu"`` or ``"cuda"`` (``ValueError`` naming ``device`` when onnxruntime has no
+            CUDA here); see :func:`tacswitch._ort.providers`.
     """
 
     def __init__(self, path: str | os.PathLike[str] | None = None, *,
-                 threads: int | None = None) -> None:
+                 threads: int | None = None, device: str = "auto") -> None:
         self.path = model_path(path)
-        self.session, meta = open_session(self.path, threads, kind="tacdiff")
+        self.session, meta = open_session(self.path, threads, kind="tacdiff", device=device)
+        self.device = device
         if meta.get("tacswitch.kind") != "tacdiff":
             raise ValueError(f"model: {str(self.path)!r} is not a TacDiff model")
         if meta.get("tacswitch.colour_order", "BGR") != "BGR":
@@ -211,9 +219,11 @@ def prior_radius(meta: dict[str, str], path: Path) -> float:
     return r
 
 
-def load_model(path: str | os.PathLike[str] | None = None) -> TacDiffModel:
-    """The cached :class:`TacDiffModel` of ``path`` (one session per file and process)."""
-    return cached(TacDiffModel, model_path(path))
+def load_model(path: str | os.PathLike[str] | None = None,
+               device: str = "auto") -> TacDiffModel:
+    """The cached :class:`TacDiffModel` of ``path`` on ``device`` (one session per file,
+    device and process)."""
+    return cached(TacDiffModel, model_path(path), device)
 
 
 #: Fixed cost of one network call (window or tile) in pixel-equivalents for ``patch="auto"``:
@@ -576,14 +586,16 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
                     patch: PatchArg = "auto", overlap: int = DEFAULT_OVERLAP,
                     context: int | None = None, separation: int = SEPARATION,
                     model: str | os.PathLike[str] | None = None,
-                    orientations: int | None = None) -> NDArray[np.uint8]:
+                    orientations: int | None = None,
+                    device: str = "auto") -> NDArray[np.uint8]:
     """Fills the masked pixels of a BGR frame with the TacDiff diffusion model.
 
     Args:
         img: ``H x W x 3`` uint8 **BGR** (the model was trained on BGR).
         mask: ``H x W`` bool/uint8, True = fill (markers, dilated once as the paper does).
         steps: sampler steps K, 1..1000 (1: one network call, the fastest; more: sharper
-            texture, slower; see BENCHMARKS.md).
+            texture, slower; see docs/notes/2026-11-marker-removal.md,
+            "TacDiff speed per setting").
         sampler: ``"dpmpp2m"`` (DPM-Solver++(2M)) or ``"ddim"``.
         seed: seed of the initial noise (None: fresh randomness); the default 0 makes the output
             reproducible.
@@ -616,6 +628,9 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
             :data:`DEFAULT_ORIENTATIONS` (4), or 1 for a narrow model such as the shipped fast
             one (:func:`default_orientations`). Each pixel keeps its noise draw in every
             orientation.
+        device: ``"auto"`` (default: a CUDA GPU when onnxruntime offers one, else the CPU),
+            ``"cpu"`` or ``"cuda"`` (``ValueError`` naming ``device`` when onnxruntime has no
+            CUDA here); see :func:`tacswitch._ort.providers`.
 
     Returns:
         A new ``H x W x 3`` uint8 image; pixels outside ``mask`` are bit-identical to ``img``.
@@ -629,11 +644,12 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
     sep = as_count(separation, "separation", 0, None)
     n_orient = check_orientations(orientations)
     check_model_arg(model)
+    _ort_providers(device)  # a bad device fails even when there is nothing to fill
     if not m.any():
         return arr.copy()
     if m.all():
         raise ValueError("mask: covers the whole image; nothing is known to inpaint from")
-    net = load_model(model)
+    net = load_model(model, device)
     orients = _orientation_list(n_orient, net)
     if patch not in (None, "auto", "holes", "crops"):
         side = as_count(patch, "patch", net.multiple)

@@ -95,7 +95,8 @@ def test_bad_inputs_name_the_argument(mini, grid) -> None:
 def test_refuses_a_learned_half_that_needs_a_reference(mini, grid, monkeypatch) -> None:
     net = MotionModel("default")
     monkeypatch.setattr(net, "use_ref", True)
-    monkeypatch.setattr("tacswitch.motion.infer.load_model", lambda path=None, device="auto": net)
+    monkeypatch.setattr("tacswitch.motion.ensemble.load_model",
+                        lambda path=None, device="auto": net)
     with pytest.raises(ValueError, match=r"^model: .*single-frame model"):
         predict_motion(mini.imgs[2], None, grid, method="ensemble", model="default")
 

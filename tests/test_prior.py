@@ -75,7 +75,7 @@ def test_grown_prior_falls_back_when_the_grown_hole_is_too_large(
             raise ValueError("mask: a hole of N pixels is too large for biharmonic inpainting")
         return real(img, mask)
 
-    monkeypatch.setattr(inp, "inpaint_biharmonic", limited)
+    monkeypatch.setattr(P, "inpaint_biharmonic", limited)  # where prior.fills looks it up
     img = np.full((80, 120, 3), 120, np.uint8)
     _, smooth = P.fills(img, m, "telea+biharmonic-grown")
     assert smooth is not None

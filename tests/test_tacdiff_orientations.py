@@ -189,7 +189,7 @@ def test_hybrid_forwards_the_orientations(monkeypatch):
         seen.append(kw.get("orientations"))
         return real(*a, **kw)
 
-    monkeypatch.setattr(infer, "inpaint_tacdiff", spy)
+    monkeypatch.setattr(hybrid, "inpaint_tacdiff", spy)  # the name hybrid calls
     truth, _, m = _frame(seed=5)
     ref = truth.copy()
     ref[:, :48] -= 40  # the holes on the left are in the contact: the network runs

@@ -188,7 +188,7 @@ def test_hybrid_forwards_the_separation(monkeypatch):
         seen.append(kw.get("separation"))
         return real(*a, **kw)
 
-    monkeypatch.setattr(infer, "inpaint_tacdiff", spy)
+    monkeypatch.setattr(hybrid, "inpaint_tacdiff", spy)  # the name hybrid calls
     # A reference whose left half differs by 40 levels: the holes there are in the contact, so
     # the network runs.
     truth = _smooth_gel(64, 96, 5)

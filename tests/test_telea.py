@@ -12,7 +12,8 @@ from hypothesis.extra.numpy import arrays
 import tacswitch
 from conftest import disc_mask
 from tacswitch import sim
-from tacswitch.inpaint import inpaint_telea, remove_markers
+from tacswitch.inpaint import inpaint_telea
+from tacswitch.removal import remove_markers
 
 
 def textured(h: int, w: int, seed: int = 0) -> np.ndarray:

@@ -23,16 +23,11 @@ from __future__ import annotations
 
 from tacswitch._native import __version__
 from tacswitch.grasp.detector import GraspSlipDetector, GraspSlipState
-from tacswitch.inpaint import (
-    inpaint_biharmonic,
-    inpaint_telea,
-    merge_patches,
-    remove_markers,
-    tile,
-)
+from tacswitch.inpaint import inpaint_biharmonic, inpaint_telea, merge_patches, tile
 from tacswitch.markers import Markers, dilate_mask, extract_markers
 from tacswitch.motion.infer import MotionModel, predict_motion
 from tacswitch.motion.sequence import MarkerlessTracker
+from tacswitch.removal import remove_markers
 from tacswitch.slip import SlipDetector, SlipState
 from tacswitch.tracking import MarkerTracker, estimate_pitch, match_markers
 

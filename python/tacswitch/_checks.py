@@ -284,3 +284,20 @@ def check_downsampled_size(shape: tuple[int, ...], factor: int, minimum: int,
         after = "" if factor == 1 else f" after the model's {factor}x downsampling ({h} x {w} px)"
         raise ValueError(f"{name}: a {shape[0]} x {shape[1]} frame is too small{after}: both "
                          f"sides must be at least {minimum} px")
+
+
+def check_gain(gain: Any) -> float:
+    """``gain`` of the training-free motion rules (:mod:`tacswitch.motion.mechanics`,
+    :mod:`~tacswitch.motion.heuristic`) as a float; ``ValueError`` naming it unless a finite
+    number >= 0."""
+    if isinstance(gain, (bool, np.bool_)) or not isinstance(gain, (int, float, np.integer,
+                                                                    np.floating)):
+        raise ValueError(f"gain: expected a number >= 0 or a sensor name; got "
+                         f"{type(gain).__name__}")
+    try:
+        value = float(gain)
+    except OverflowError:  # an integer beyond float range (10**400): out of range, not a crash
+        value = float("inf")
+    if not (np.isfinite(value) and value >= 0):
+        raise ValueError(f"gain: must be a finite number >= 0; got {short_repr(gain)}")
+    return value

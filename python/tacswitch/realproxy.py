@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tacswitch.removal import remove_markers
 from tacswitch.sim.capture import CaptureProfile
 from tacswitch.sim.markers import MarkerStyle
 
@@ -472,7 +473,6 @@ def default_mask(img: NDArray[np.uint8]) -> NDArray[np.bool_]:
     has it, else its fixed dilation)."""
     import inspect
 
-    from tacswitch.inpaint import remove_markers
     from tacswitch.markers import extract_markers
 
     grow = inspect.signature(remove_markers).parameters["dilate"].default
@@ -493,11 +493,9 @@ def _with(mask: NDArray[np.bool_], extra: NDArray[np.bool_] | None) -> NDArray[n
 
 def own_mask_fill(method: str, **kw: Any) -> Fill:
     """``tacswitch.remove_markers(img, mask, method, **kw)`` on :func:`default_mask`."""
-    import tacswitch as ts
-
     def fill(img: NDArray[np.uint8], extra: NDArray[np.bool_] | None) -> NDArray[np.uint8]:
-        out: NDArray[np.uint8] = ts.remove_markers(img, _with(default_mask(img), extra),
-                                                   method=method, **kw)  # type: ignore[arg-type]
+        out: NDArray[np.uint8] = remove_markers(img, _with(default_mask(img), extra),
+                                                method=method, **kw)  # type: ignore[arg-type]
         return out
     return fill
 

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tacswitch.inpaint import inpaint_biharmonic, inpaint_telea
 from tacswitch.metrics import masked_mae, masked_psnr
 
 #: A method under test: (frame with markers, uint8 mask, the paired frame) -> markerless frame.
@@ -65,11 +66,10 @@ def default_methods(radii: Sequence[int] = (3, 5, 8, 12), opencv: bool = True
     our biharmonic fill (no knob), and OpenCV's TELEA and NS at the same radii."""
     import cv2
 
-    import tacswitch as ts
     from tacswitch.inpaint import DEFAULT_RADIUS
 
     def ours(r: int) -> Inpaint:
-        return lambda img, m, f: ts.inpaint_telea(img, m, r)
+        return lambda img, m, f: inpaint_telea(img, m, r)
 
     def opencv_inpaint(r: int, flag: int) -> Inpaint:
         return lambda img, m, f: np.asarray(cv2.inpaint(img, m, r, flag))
@@ -78,7 +78,7 @@ def default_methods(radii: Sequence[int] = (3, 5, 8, 12), opencv: bool = True
     for r in radii:
         knob = f"r={r} (default)" if r == DEFAULT_RADIUS else f"r={r}"
         methods[("TELEA (tacswitch)", knob)] = ours(r)
-    methods[("biharmonic (tacswitch)", "-")] = lambda img, m, f: ts.inpaint_biharmonic(img, m)
+    methods[("biharmonic (tacswitch)", "-")] = lambda img, m, f: inpaint_biharmonic(img, m)
     if opencv:
         for r in radii:
             methods[("TELEA (OpenCV)", f"r={r}")] = opencv_inpaint(r, cv2.INPAINT_TELEA)

@@ -31,6 +31,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tacswitch.removal import remove_markers
+
 #: Input types, in table order: raw marker frames, each removal method, the true markerless frame.
 INPUTS: tuple[str, ...] = ("none", "ns", "telea", "tacdiff", "hybrid", "truth")
 #: How each input type is described in reports.
@@ -118,7 +120,6 @@ def render_inputs(task: str, index: int, scale: StudyScale, seed: int = 0,
 
     Deterministic: the scene is seeded by ``SeedSequence([seed, task index, index])``.
     """
-    import tacswitch as ts
     from tacswitch.sim.scene import render_sample
 
     labels = task_labels(task)
@@ -129,11 +130,11 @@ def render_inputs(task: str, index: int, scale: StudyScale, seed: int = 0,
     d = scale.dilate
     imgs = {
         "none": frame,
-        "ns": ts.remove_markers(frame, method="ns", dilate=d),
-        "telea": ts.remove_markers(frame, method="telea", dilate=d),
-        "tacdiff": ts.remove_markers(frame, method="tacdiff", dilate=d, steps=scale.steps,
+        "ns": remove_markers(frame, method="ns", dilate=d),
+        "telea": remove_markers(frame, method="telea", dilate=d),
+        "tacdiff": remove_markers(frame, method="tacdiff", dilate=d, steps=scale.steps,
                                      model=model),
-        "hybrid": ts.remove_markers(frame, method="hybrid", dilate=d, ref=s.reference,
+        "hybrid": remove_markers(frame, method="hybrid", dilate=d, ref=s.reference,
                                     steps=scale.steps, model=model),
         "truth": s.image,
     }

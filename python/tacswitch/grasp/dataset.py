@@ -25,6 +25,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch.grasp.features import marker_pitch, sequence_features
+from tacswitch.markers import extract_markers
+from tacswitch.motion.sequence import MarkerlessTracker
+from tacswitch.removal import remove_markers
+from tacswitch.tracking import MarkerTracker
 
 VIDEO_SUFFIXES = (".avi", ".mp4", ".mkv", ".mov")
 
@@ -104,8 +108,6 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
     the markers are removed from every frame first (:func:`tacswitch.remove_markers`) and the
     motion predicted by :class:`tacswitch.MarkerlessTracker` at the first frame's marker
     centres: the markerless sensor this recording would have been."""
-    import tacswitch as ts
-
     motions: list[NDArray[np.float32]] = []
     valids: list[NDArray[np.bool_]] = []
     tracker = None
@@ -115,17 +117,17 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
     for frame in frames:
         if tracker is None and mtracker is None:
             width = int(frame.shape[1])
-            points = ts.extract_markers(frame).centres
+            points = extract_markers(frame).centres
             if markerless:
-                mtracker = ts.MarkerlessTracker(None, points)
+                mtracker = MarkerlessTracker(None, points)
             else:
-                tracker = ts.MarkerTracker(points)
+                tracker = MarkerTracker(points)
         if len(points) == 0:
             motions.append(np.zeros((0, 2), np.float32))
             valids.append(np.zeros(0, bool))
             continue
         if mtracker is not None:
-            m = mtracker.update(ts.remove_markers(frame))
+            m = mtracker.update(remove_markers(frame))
             motions.append(np.asarray(m, np.float32))
             valids.append(np.ones(len(m), bool))
         else:

@@ -28,6 +28,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tacswitch.removal import remove_markers
+from tacswitch.tracking import MarkerTracker
+
 #: Object classes never seen in training (one shape, one texture).
 HELDOUT_CLASSES = ("star", "knit")
 #: Depth fraction (of the class's range) that separates training from the unseen-depth split.
@@ -326,14 +329,13 @@ def pairs_from_marker_frames(frames: str | Path, reference: str | Path, *, radiu
     through), lost markers get NaN motion (left out of the loss), and the markerless inputs are
     the frames with their markers removed by TELEA (``radius`` px). Arrays as :func:`load_split`.
     """
-    import tacswitch as ts
     from tacswitch._io import read_image
     from tacswitch.cli.sources import collect_images
 
     ref = read_image(reference)
-    tracker = ts.MarkerTracker(ref)
+    tracker = MarkerTracker(ref)
     rest = tracker.reference.astype(np.float32)
-    ref_clean = ts.remove_markers(ref, radius=radius)
+    ref_clean = remove_markers(ref, radius=radius)
     images, motions = [], []
     paths = collect_images([str(frames)])
     for k, path in enumerate(paths):
@@ -342,7 +344,7 @@ def pairs_from_marker_frames(frames: str | Path, reference: str | Path, *, radiu
             raise ValueError(f"frames: {path} has shape {img.shape}, the reference {ref.shape}")
         motion, valid = tracker.update(img)
         motion = np.where(valid[:, None], motion, np.nan).astype(np.float32)
-        images.append(ts.remove_markers(img, radius=radius))
+        images.append(remove_markers(img, radius=radius))
         motions.append(motion)
         if progress and (k + 1) % 100 == 0:
             print(f"{k + 1}/{len(paths)} frames tracked and inpainted", flush=True)

@@ -4,7 +4,7 @@ Two single-frame estimators of the gel's motion under a contact, with different 
 
 - the mechanics rule (:mod:`tacswitch.motion.mechanics`): the elastic law of a press applied
   to the imprint's *shape*, blind to anything but a symmetric press;
-- the learned single-frame model (``motion_single.onnx``, :class:`~.infer.MotionModel`):
+- the learned single-frame model (``motion_single.onnx``, :class:`~.regressor.MotionModel`):
   trained on the simulator (first press-law calibration) with the real sensors' optics; reads
   shading asymmetry too (an off-axis press, a partial shear) but carries the simulator's
   appearance gap.
@@ -28,7 +28,7 @@ vs 0.04 with the Mini's gain.
 
 Scale: both parts follow the sensor's press gain. The rule's GelSight gain
 (:data:`tacswitch.sim.presets.MECHANICS_GAINS` ``["gelsight"]``) and the model's recorded
-scale (:attr:`~.infer.MotionModel.single_frame_gain`) were fitted on the same real GelSight
+scale (:attr:`~.regressor.MotionModel.single_frame_gain`) were fitted on the same real GelSight
 presses, so a gain ``g`` scales the model by ``g / MECHANICS_GAINS["gelsight"]`` as well.
 
 Speed: the model runs on onnxruntime's threads while the rule runs on this one (onnxruntime
@@ -41,13 +41,14 @@ from __future__ import annotations
 import os
 import threading
 from concurrent.futures import Future, ThreadPoolExecutor
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
-if TYPE_CHECKING:
-    from tacswitch.motion.infer import MotionModel
+from tacswitch._checks import check_gain
+from tacswitch.motion.mechanics import MECHANICS_GAIN, mechanics_motion
+from tacswitch.motion.regressor import MotionModel, load_model
+from tacswitch.sim.presets import MECHANICS_GAINS
 
 __all__ = ["ENSEMBLE_MODEL", "ensemble_motion", "learned_model", "learned_part"]
 
@@ -84,8 +85,6 @@ def learned_model(model: str | os.PathLike[str] | None, device: str = "auto") ->
     """The cached motion model of ``model`` (None: :data:`ENSEMBLE_MODEL`) on ``device``,
     checked to predict from one frame; ``ValueError`` naming ``model`` for one that needs a
     reference."""
-    from tacswitch.motion.infer import load_model
-
     net = load_model(ENSEMBLE_MODEL if model is None else model, device)
     if net.use_ref:
         raise ValueError(f"model: {net.path.name} predicts motion since a reference frame; the "
@@ -95,8 +94,6 @@ def learned_model(model: str | os.PathLike[str] | None, device: str = "auto") ->
 
 def _learned(net: MotionModel, img: NDArray[np.uint8], centres: NDArray[np.float32],
              gain: float) -> NDArray[np.float32]:
-    from tacswitch.sim.presets import MECHANICS_GAINS
-
     return net(img, centres=centres, gain=net.single_frame_gain * gain
                / MECHANICS_GAINS["gelsight"])
 
@@ -107,8 +104,6 @@ def learned_part(img: NDArray[np.uint8], centres: NDArray[np.float32], gain: flo
     the rule's press ``gain`` (module doc). ``model``: any single-frame capable motion model
     (default :data:`ENSEMBLE_MODEL`); one that needs a reference is refused, naming ``model``;
     ``gain`` must be a number >= 0 (``ValueError`` naming it)."""
-    from tacswitch.motion.mechanics import check_gain
-
     return _learned(learned_model(model), img, centres, check_gain(gain))
 
 
@@ -126,8 +121,6 @@ def ensemble_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None,
     give exactly zero. Frames are validated by the caller (:func:`tacswitch.predict_motion`).
     ``device``: where the learned part runs (:func:`tacswitch._ort.providers`).
     """
-    from tacswitch.motion.mechanics import MECHANICS_GAIN, check_gain, mechanics_motion
-
     g = MECHANICS_GAIN if gain is None else check_gain(gain)
     net = learned_model(model, device)
     if len(centres) == 0 or (ref is not None and np.array_equal(img, ref)):

@@ -28,6 +28,9 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from tacswitch.slip import SlipDetector
+from tacswitch.tracking import MarkerTracker
+
 #: Markers moving at least this much (px) enter the orientation error.
 ORIENT_MIN_PX = 3.0
 
@@ -65,9 +68,7 @@ def motion_metrics(pred: NDArray[Any], true: NDArray[Any], *,
 def track_true_markers(reference_markers: NDArray[np.uint8], image_markers: NDArray[np.uint8],
                        rest: NDArray[np.float32], pitch: float) -> NDArray[np.float32]:
     """Motion of the ``rest`` markers by the tracker on the true marker images (NaN = lost)."""
-    import tacswitch as ts
-
-    tracker = ts.MarkerTracker(reference_markers)
+    tracker = MarkerTracker(reference_markers)
     motion, valid = tracker.update(image_markers)
     ref = tracker.reference
     out = np.full((len(rest), 2), np.nan, np.float32)
@@ -167,7 +168,6 @@ def slip_on_grasps(sources: dict[str, Callable[..., NDArray[np.float32]]], *,
     ``n_slip``, false alarms on ``hold`` / ``vibration`` (and their counts), the delays (frames
     after the slip onset) of the detections and ``ms`` per predicted frame.
     """
-    import tacswitch as ts
     from tacswitch.motion.reference import near_contact
     from tacswitch.sim.grasp import render_grasp
 
@@ -207,7 +207,7 @@ def slip_on_grasps(sources: dict[str, Callable[..., NDArray[np.float32]]], *,
                 motions[name] = [(predict(seq.frames[t].image, ref, rest), valid)
                                  for t in range(g0, len(seq))]
                 times[name] = time.perf_counter() - t0
-            tracker = ts.MarkerTracker(seq.reference)
+            tracker = MarkerTracker(seq.reference)
             tracked = []
             pts = tracker.reference
             for t in range(len(seq)):
@@ -217,7 +217,7 @@ def slip_on_grasps(sources: dict[str, Callable[..., NDArray[np.float32]]], *,
             motions["tracked"] = tracked
             for name, src, n_smooth in rows:
                 for cname, opts in crit.items():
-                    det = ts.SlipDetector(image_width=w, points=pts if src == "tracked" else rest,
+                    det = SlipDetector(image_width=w, points=pts if src == "tracked" else rest,
                                           smooth_frames=n_smooth, **opts)
                     _tally(res[(name, cname)], kind, onset, _first_slip(det, motions[src], g0),
                            times.get(src), len(motions[src]))
@@ -278,7 +278,6 @@ def slip_on_videos(sources: dict[str, Callable[..., NDArray[np.float32]]], grasp
     (:func:`tacswitch.motion.reference.near_contact`, against frame 0 as the no-contact frame:
     the videos must start before the touch), as ``tacswitch slip --markerless`` does.
     Returns per ``(source, criterion)`` what :func:`slip_on_grasps` returns."""
-    import tacswitch as ts
     from tacswitch._checks import as_count
     from tacswitch.motion.reference import near_contact
 
@@ -302,7 +301,7 @@ def slip_on_videos(sources: dict[str, Callable[..., NDArray[np.float32]]], grasp
                        for t in range(g0, n)]
             sec = time.perf_counter() - t0
             for cname, opts in crit.items():
-                det = ts.SlipDetector(image_width=g.frames.shape[2], points=g.rest,
+                det = SlipDetector(image_width=g.frames.shape[2], points=g.rest,
                                       smooth_frames=smooth, **opts)
                 _tally(res[(name, cname)], g.kind, int(g.onset), _first_slip(det, motions, g0),
                        sec, len(motions))

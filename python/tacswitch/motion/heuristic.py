@@ -33,6 +33,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tacswitch._checks import check_gain
+from tacswitch.motion.flow import sample_field
+
 __all__ = ["OUTWARD_GAIN", "background", "change_map", "outward_motion"]
 
 #: Largest outward motion as a fraction of the marker pitch (see the module doc).
@@ -227,8 +230,6 @@ def outward_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None,
     no pixel rises above the noise floor (no contact)."""
     import cv2
 
-    from tacswitch.motion.mechanics import check_gain
-
     gain = check_gain(gain)
     n = len(centres)
     if n == 0 or (ref is not None and np.array_equal(img, ref)):
@@ -262,8 +263,6 @@ def outward_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None,
     centre = np.array([(cx + 0.5) * sx - 0.5, (cy + 0.5) * sy - 0.5], np.float32)
     at = centres if k == 1 else ((centres + 0.5) / np.array([sx, sy], np.float32)
                                  - 0.5).astype(np.float32)
-    from tacswitch.motion.flow import sample_field
-
     local = sample_field(np.repeat(wmap[..., None], 2, axis=2), at)[:, 0] / wmax
     v = centres - centre
     r = np.linalg.norm(v, axis=1, keepdims=True)

@@ -58,11 +58,13 @@ scores, does not depend on the gain.
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 from numpy.typing import NDArray
 
+from tacswitch._checks import check_gain
+from tacswitch.motion.flow import sample_field
+from tacswitch.motion.heuristic import change_map
+from tacswitch.sim.motion import thickness_blur
 from tacswitch.sim.presets import MECHANICS_GAIN_POOLED
 
 __all__ = ["MECHANICS_GAIN", "REACH_FRAC", "check_gain", "imprint",
@@ -77,23 +79,6 @@ MECHANICS_GAIN = MECHANICS_GAIN_POOLED
 _GRID_WIDTH = 80
 
 
-def check_gain(gain: Any) -> float:
-    """``gain`` as a float; ``ValueError`` naming it unless a finite number >= 0."""
-    if isinstance(gain, (bool, np.bool_)) or not isinstance(gain, (int, float, np.integer,
-                                                                    np.floating)):
-        raise ValueError(f"gain: expected a number >= 0 or a sensor name; got "
-                         f"{type(gain).__name__}")
-    from tacswitch._checks import short_repr
-
-    try:
-        value = float(gain)
-    except OverflowError:  # an integer beyond float range (10**400): out of range, not a crash
-        value = float("inf")
-    if not (np.isfinite(value) and value >= 0):
-        raise ValueError(f"gain: must be a finite number >= 0; got {short_repr(gain)}")
-    return value
-
-
 def _step(width: int) -> int:
     return max(1, round(width / _GRID_WIDTH))
 
@@ -101,8 +86,6 @@ def _step(width: int) -> int:
 def imprint(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None) -> NDArray[np.float32]:
     """The contact imprint ``max(D - floor, 0)`` (grey levels, ``H x W`` float32) of ``img``
     against ``ref`` (None: single-frame, against the fitted background)."""
-    from tacswitch.motion.heuristic import change_map
-
     d = change_map(img, ref)
     sub = d[::2, ::2]
     med = float(np.median(sub))
@@ -117,8 +100,6 @@ def mechanics_field(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None, *,
     ``st`` (cell ``(i, j)`` averages pixels ``[j st, (j + 1) st)``; its centre is at
     ``((j + 0.5) st - 0.5, (i + 0.5) st - 0.5)``)."""
     import cv2
-
-    from tacswitch.sim.motion import thickness_blur
 
     h, w = img.shape[:2]
     st = _step(w)
@@ -157,8 +138,6 @@ def mechanics_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8] | None,
     if thickness_px is not None and not (np.isfinite(thickness_px) and thickness_px > 0):
         raise ValueError(f"thickness_px: must be a positive number of pixels; got "
                          f"{thickness_px!r}")
-    from tacswitch.motion.flow import sample_field
-
     fld, st = mechanics_field(img, ref, gain=gain, thickness_px=thickness_px)
     pts = ((np.asarray(centres, np.float32) + 0.5) / st - 0.5).astype(np.float32)
     return sample_field(fld, pts)

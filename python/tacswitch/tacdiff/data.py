@@ -30,7 +30,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from tacswitch.markers import Markers
+from tacswitch._io import atomic_open
+from tacswitch.inpaint import inpaint_telea
+from tacswitch.markers import AUTO, Markers, dilate_mask, extract_markers
+from tacswitch.sim import capture
+from tacswitch.sim.markers import paint_markers, sample_style
+from tacswitch.sim.scene import Scene, render_sample
 from tacswitch.tacdiff.prior import (
     DEFAULT_PRIOR,
     DEFAULT_PRIOR_RADIUS,
@@ -42,7 +47,9 @@ from tacswitch.tacdiff.prior import (
     has_spread,
 )
 from tacswitch.tacdiff.prior import to_net as prior_to_net
-from tacswitch.tacdiff.transplant import DEFAULT_RING
+from tacswitch.tacdiff.transplant import DEFAULT_RING, default_offset, measure_appearance, shift
+from tacswitch.tacdiff.transplant import transplant as move_markers
+from tacswitch.tracking import estimate_pitch
 
 #: Default mix of simulator presets (name, share of samples).
 PRESET_MIX: tuple[tuple[str, float], ...] = (
@@ -71,9 +78,6 @@ def render_pair(preset: str, seed: Any, *, realism: bool = True) -> dict[str, An
     covers are supervised against the clean target. Without ``realism``: the 0.2 data (the
     true markers dilated once, 15 % JPEG on the markers only).
     """
-    from tacswitch.markers import dilate_mask
-    from tacswitch.sim.scene import render_sample
-
     rng = np.random.default_rng(seed)
     if not realism:
         s = render_sample(preset, rng, vary_grid=bool(rng.random() < 0.5),
@@ -84,13 +88,9 @@ def render_pair(preset: str, seed: Any, *, realism: bool = True) -> dict[str, An
                 "contact": s.contact_mask}
     from dataclasses import replace
 
-    from tacswitch.sim import capture
-
     scene, s = _render_contact(preset, rng)
     image_markers, footprint = s.image_markers, s.marker_mask
     if rng.random() < REPAINT_SHARE:
-        from tacswitch.sim.markers import paint_markers, sample_style
-
         # Pasted black or painted grey dots (tacswitch.sim.markers' looks fitted to real
         # frames) at the same moved positions, on the same noisy markerless frame.
         present = scene.present
@@ -114,8 +114,6 @@ def _render_contact(preset: str, rng: np.random.Generator) -> Any:
     varied marker grid and randomised gel appearance, the load drawn as
     :func:`~tacswitch.sim.scene.render_sample` draws it; no reference frame is rendered
     (training pairs do not use it, and it would double the rendering time)."""
-    from tacswitch.sim.scene import Scene
-
     scene = Scene(preset, rng, vary_grid=bool(rng.random() < 0.5),
                   appearance="random" if rng.random() < 0.5 else "preset")
     mag = scene.pitch * rng.uniform(0.0, 0.9) ** 1.5
@@ -130,8 +128,6 @@ def remask(root: str | Path, progress: bool = True) -> int:
     """Recomputes ``mask`` and ``loss_mask`` of realistic shards under ``root`` (those with a
     ``footprint``) with the current :func:`removal_markers`, e.g. after the extraction changed;
     rewrites only shards whose mask changes. Returns the number of shards rewritten."""
-    from tacswitch._io import atomic_open
-
     done = 0
     for path in sorted(Path(root).glob("pairs_*.npz")):
         arrays = dict(np.load(path))
@@ -203,8 +199,6 @@ def write_shard(path: Path, items: Sequence[dict[str, NDArray[Any]]], prior: str
     """Stacks ``items`` (one pair each) into a shard, caches ``prior``'s classical fills at
     TELEA ``radius`` px when ``prior`` is given (:func:`ensure_fills`), and writes it to ``path``
     atomically."""
-    from tacswitch._io import atomic_open
-
     arrays = {k: np.stack([it[k] for it in items]) for k in items[0]}
     if prior is not None:
         ensure_fills(arrays, prior, radius)
@@ -262,8 +256,6 @@ def removal_markers(frame: NDArray[np.uint8], **extract_opts: Any) -> Markers:
     """The markers :func:`tacswitch.remove_markers` would find on ``frame``; their ``mask`` is
     what it fills (grown adaptively per marker as its default does, ``dilate="auto"``,
     border-cut markers included). ``extract_opts`` override the defaults."""
-    from tacswitch.markers import AUTO, extract_markers
-
     extract_opts.setdefault("exclude_border", False)
     extract_opts.setdefault("dilate", AUTO)
     return extract_markers(frame, **extract_opts)
@@ -318,11 +310,6 @@ def marker_offset_pairs(frames: Sequence[NDArray[np.uint8]], *,
         frame itself (its pixels under the moved markers are real gel) and ``mask`` holds the
         moved markers only.
     """
-    from tacswitch.inpaint import inpaint_telea
-    from tacswitch.tacdiff.transplant import default_offset, measure_appearance
-    from tacswitch.tacdiff.transplant import transplant as move_markers
-    from tacswitch.tracking import estimate_pitch
-
     if len(frames) == 0:
         raise ValueError("frames: need at least one frame")
     shifts = _offsets(offset)
@@ -396,8 +383,6 @@ def _offsets(offset: Any) -> list[tuple[int, int]]:
 
 def _shift(mask: NDArray[np.bool_], offset: tuple[int, int]) -> NDArray[np.bool_]:
     """``mask`` moved by ``(dx, dy)`` px; pixels shifted out of the frame are dropped."""
-    from tacswitch.tacdiff.transplant import shift
-
     return shift(mask, offset, False)
 
 
@@ -543,8 +528,6 @@ def cache_fills(root: str | Path, prior: str = DEFAULT_PRIOR, progress: bool = T
     ``root`` that lacks them, so training runs (and resumed runs) on those shards skip computing
     them. Returns the number of shards written. :func:`remask` drops them again when a mask
     changes."""
-    from tacswitch._io import atomic_open
-
     check_prior(prior)
     radius = check_radius(radius)
     done = 0

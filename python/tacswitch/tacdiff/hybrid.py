@@ -30,8 +30,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from tacswitch.inpaint import DEFAULT_RADIUS
-from tacswitch.tacdiff.infer import SEPARATION
+from tacswitch._checks import as_count, as_image_u8
+from tacswitch.inpaint import DEFAULT_RADIUS, _as_mask, inpaint_telea
+from tacswitch.markers import dilate_mask
+from tacswitch.tacdiff.data import removal_markers
+from tacswitch.tacdiff.infer import DEFAULT_STEPS, SEPARATION, check_orientations, inpaint_tacdiff
 
 #: Box side (px) of the local means compared against the reference.
 BOX = 7
@@ -95,10 +98,6 @@ def contact_region(img: NDArray[np.uint8], mask: NDArray[np.bool_],
     ``img`` is the frame with its ``mask`` holes already filled (e.g. by TELEA)."""
     f = img.astype(np.float32)
     if ref is not None:
-        from tacswitch.inpaint import inpaint_telea
-        from tacswitch.markers import dilate_mask
-        from tacswitch.tacdiff.data import removal_markers
-
         # The reference's markers as remove_markers masks them (adaptive growth), so their
         # rings do not read as contact.
         ref_mask = removal_markers(ref).mask
@@ -122,9 +121,6 @@ def model_mask(img: NDArray[np.uint8], mask: NDArray[np.bool_],
                ) -> NDArray[np.bool_]:
     """The holes of ``mask`` (whole 8-connected parts) lying within ``margin`` px of the contact
     region; ``filled`` is ``img`` with the holes filled (computed by TELEA if None)."""
-    from tacswitch.inpaint import inpaint_telea
-    from tacswitch.markers import dilate_mask
-
     base = inpaint_telea(img, mask, radius) if filled is None else filled
     region = contact_region(base, mask, ref, radius=radius, threshold=threshold)
     grown = dilate_mask(region, margin) if margin > 0 else region
@@ -161,10 +157,6 @@ def inpaint_hybrid(img: Any, mask: Any, ref: Any = None, *, steps: int | None = 
         ``(image, info)``: the markerless frame (unmasked pixels bit-identical to ``img``) and a
         :class:`HybridInfo` with the share of hole pixels the network filled.
     """
-    from tacswitch._checks import as_count, as_image_u8
-    from tacswitch.inpaint import _as_mask, inpaint_telea
-    from tacswitch.tacdiff.infer import DEFAULT_STEPS, check_orientations, inpaint_tacdiff
-
     # Checked here too: the network (which checks them) may not run when no hole is near contact.
     as_count(separation, "separation", 0, None)
     check_orientations(orientations)

@@ -45,9 +45,11 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from tacswitch._checks import as_image_u8
+from tacswitch._checks import as_count, as_image_u8, check_model_arg
 from tacswitch._ort import cached, open_session
 from tacswitch._ort import providers as _ort_providers
+from tacswitch.inpaint import _as_mask, merge_patches, tile
+from tacswitch.tacdiff.passes import hole_passes, pass_masks
 from tacswitch.tacdiff.prior import (
     PRIOR_RADIUS,
     check_prior,
@@ -249,8 +251,6 @@ def _choose(mask: NDArray[np.bool_], multiple: int, patch: PatchArg, overlap: in
     plus :data:`CALL_COST_PX` per network call (:data:`CROP_COST_PX` per crop for the batched
     crops); ties go to the whole frame (one call), then the crops, then the windows.
     ``context`` None is each mode's default (:data:`DEFAULT_CONTEXT`, :data:`CROP_CONTEXT`)."""
-    from tacswitch.inpaint import tile
-
     h, w = mask.shape
     ph, pw = _ceil(h, multiple), _ceil(w, multiple)
     options: dict[str, tuple[int, Any]] = {}
@@ -480,8 +480,6 @@ def _network(planes: NDArray[np.float32], m: NDArray[np.bool_], net: TacDiffMode
              ) -> NDArray[np.float32]:
     """The ``3 x H' x W'`` image estimate of one network pass over the padded ``planes``
     filling ``m`` (regions chosen by :func:`_choose`; the prior where nothing ran)."""
-    from tacswitch.inpaint import merge_patches, tile
-
     h, w = m.shape
     kind, data = _choose(m, net.multiple, patch, ov, ctx)
     if kind == "whole":
@@ -538,8 +536,6 @@ def orientations_for(orientations: Any, model: str | os.PathLike[str] | None
     """The orientations :func:`inpaint_tacdiff` averages for ``model``: ``orientations`` (one
     of :data:`ORIENTATIONS`), or for None :func:`default_orientations` of that model.
     ``TypeError`` / ``ValueError`` naming the argument otherwise."""
-    from tacswitch._checks import check_model_arg
-
     check_model_arg(model)
     return _orientation_list(check_orientations(orientations), load_model(model))
 
@@ -639,10 +635,6 @@ def inpaint_tacdiff(img: Any, mask: Any, steps: int = DEFAULT_STEPS, *,
     Returns:
         A new ``H x W x 3`` uint8 image; pixels outside ``mask`` are bit-identical to ``img``.
     """
-    from tacswitch._checks import as_count, check_model_arg
-    from tacswitch.inpaint import _as_mask
-    from tacswitch.tacdiff.passes import hole_passes, pass_masks
-
     arr = as_image_u8(img, "img")
     if arr.ndim != 3 or arr.shape[2] != 3:
         raise ValueError(f"img: expected a BGR H x W x 3 uint8 image (the model was trained on "

@@ -33,6 +33,8 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from tacswitch.inpaint import inpaint_biharmonic, inpaint_telea
+
 PriorKind = Literal["telea", "telea+biharmonic", "telea+biharmonic-grown"]
 PRIORS: tuple[str, ...] = ("telea", "telea+biharmonic", "telea+biharmonic-grown")
 #: Prior of newly trained models (older models record theirs and keep it).
@@ -113,8 +115,6 @@ def _solves(img: NDArray[np.uint8], m: NDArray[np.bool_], kind: str,
     """TELEA of ``img`` on ``m`` and the biharmonic fill ``kind`` uses (None for the TELEA-only
     prior). For ``"telea+biharmonic-grown"`` the biharmonic image is solved on the grown holes:
     only its values on ``m`` are the prior's (the grown ring is the frame in :func:`fills`)."""
-    from tacswitch.inpaint import inpaint_biharmonic, inpaint_telea
-
     telea = inpaint_telea(img, m, radius)
     if not has_spread(kind):
         return telea, None

@@ -38,6 +38,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tacswitch.inpaint import inpaint_telea
+from tacswitch.markers import dilate_mask
+
 #: Px the removal mask is grown by to hold a marker's whole darkening (soft edge, codec ring).
 DEFAULT_RING = 3
 #: Codec block side (px) offsets are rounded to by :func:`default_offset`.
@@ -102,9 +105,6 @@ def measure_appearance(frame: NDArray[np.uint8], mask: NDArray[np.bool_], *,
             and their measured darkening, closer to a real frame's).
     """
     import cv2
-
-    from tacswitch.inpaint import inpaint_telea
-    from tacswitch.markers import dilate_mask
 
     if ring < 0:
         raise ValueError(f"ring: must be >= 0 px; got {ring}")

@@ -1,6 +1,9 @@
 //! Marker extraction: darkness relative to a local background, an image-chosen threshold,
 //! 8-connected components, area/shape filters and sub-pixel centres.
 //!
+//! Size: ~1,470 lines of code (the rest is its tests) for one pipeline whose steps share their
+//! buffers and histogram; not yet split by step as `telea/` is.
+//!
 //! Pipeline (one image, single thread):
 //! 1. luma in fixed point (`29 B + 150 G + 77 R`, i.e. grey x 256; grey input is scaled by 256),
 //!    inverted for bright markers so that markers are always darker than the gel;

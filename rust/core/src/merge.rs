@@ -1,5 +1,8 @@
 //! Tiling an image into overlapping square patches and merging them back.
 //!
+//! Size: ~620 lines of code and ~140 of tests, one concern (the layout and the two merge modes
+//! share the patch geometry).
+//!
 //! The paper runs its diffusion model on 256 x 256 patches over a 640 x 480 image with about
 //! 30 px of overlap, the last row and column of patches snapped to the image edge (6 patches), and
 //! averages the overlapping pixels. [`tile`] reproduces that layout; [`merge_patches`] averages

@@ -37,6 +37,8 @@ from pathlib import Path
 
 import numpy as np
 
+# Helpers of two studies (benches/studies/) this section builds on.
+sys.path.insert(0, str(Path(__file__).parent / "studies"))
 sys.path.insert(0, str(Path(__file__).parent))
 import bench_motion_fots as fots
 import bench_press_calibration as press

@@ -11,7 +11,10 @@ Rows:
 - the paper's displacement rule from the detected grasp start, and with the rigid criterion
   (what ``tacswitch slip --rule paper`` does), on every experiment (nothing is fitted);
 - the learned scorer, 5-fold cross-validation grouped by object: every experiment is scored by
-  a model that never saw its object (``--seeds`` repeats the whole protocol with other seeds);
+  a model that never saw its object. Each fold trains the recipe (``train_validated``: 3 seeds,
+  the one kept that decides best on 36 rendered validation grasps, seeds 4000+, never trained
+  on); ``--seeds`` repeats the whole protocol from other first seeds, ``--select 1`` trains one
+  seed per fold (the recipe before 2026-11-28);
 - ``--markerless``: the same on the markerless sensor each video would have been (markers
   removed, motion predicted by ``MarkerlessTracker``), scorer trained on markers.
 
@@ -29,7 +32,13 @@ import sys
 import time
 from pathlib import Path
 
-from tacswitch.grasp.crossval import clip_flags, cross_validated_flags
+from tacswitch.grasp.crossval import (
+    VALIDATED_SEEDS,
+    clip_flags,
+    cross_validated_flags,
+    train_validated,
+    validation_grasps,
+)
 from tacswitch.grasp.dataset import experiment_clips, read_labels
 from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
 from tacswitch.grasp.simulated import SIMULATED_PER_KIND, SIMULATED_SEED, simulated_clips
@@ -47,6 +56,9 @@ def main() -> int:
     ap.add_argument("--markerless", action="store_true")
     ap.add_argument("--export", type=Path, default=None)
     ap.add_argument("--no-rules", action="store_true", help="skip the paper-rule rows")
+    ap.add_argument("--select", type=int, default=VALIDATED_SEEDS,
+                    help="seeds trained per model, the one the validation grasps favour kept "
+                         "(default: %(default)s; 1: one seed)")
     ap.add_argument("--simulated", type=int, default=SIMULATED_PER_KIND,
                     help="rendered grasps per kind and sensor added to every training set "
                          "of the marker scorer (default: %(default)s; 0: real grasps only)")
@@ -59,8 +71,9 @@ def main() -> int:
     clips = experiment_clips(exps, CACHE, workers=args.workers, progress=True)
     print(f"tracked {sum(len(c) for c in clips)} videos in {time.perf_counter() - t0:.0f} s",
           file=sys.stderr)
+    validation = None if args.markerless or args.select <= 1 else validation_grasps()
     if args.export is not None:
-        from tacswitch.grasp.train import EPOCHS, export_scorer, train_scorer
+        from tacswitch.grasp.train import export_scorer
 
         if args.markerless:
             clips = experiment_clips(exps, CACHE, markerless=True, workers=args.workers)
@@ -68,9 +81,9 @@ def main() -> int:
             sim_clips, sim_labels = simulated_clips(args.simulated, SIMULATED_SEED)
             clips = clips + [[c] for c in sim_clips]
             labels = labels + sim_labels
-        res = train_scorer([[c.features() for c in exp] for exp in clips], labels,
-                           epochs=args.epochs or EPOCHS, seed=0,
-                           log=lambda s: print(s, file=sys.stderr))
+        res = train_validated([[c.features() for c in exp] for exp in clips], labels,
+                              validation, seeds=args.select, epochs=args.epochs,
+                              log=lambda s: print(s, file=sys.stderr))
         motion = "markers removed, MarkerlessTracker" if args.markerless else "markers"
         export_scorer(res, args.export, extra={
             "trained_on": f"{args.data.name}: {len(exps)} experiments, "
@@ -96,30 +109,33 @@ def main() -> int:
         test = experiment_clips(exps, CACHE, markerless=True, workers=args.workers,
                                 progress=True)
     for seed in range(args.seeds):
-        flags = cross_validated_flags(clips, labels, objects, seed=seed, epochs=args.epochs,
+        flags = cross_validated_flags(clips, labels, objects, seed=seed * args.select,
+                                      epochs=args.epochs,
                                       test_sets={"markerless": test} if test else None,
-                                      extra=extra)
+                                      extra=extra, validation=validation, seeds=args.select)
         with_sim = f" + {len(extra[1])} rendered grasps" if extra else ""
+        if validation is not None:
+            with_sim += f", {args.select} seeds kept by validation"
         print(format_scores(f"markers: learned{with_sim}, objects held out (5 folds, seed "
                             f"{seed})", score_experiments(labels, flags["train"])), flush=True)
         if test is not None:
             print(format_scores(f"markerless: the marker scorer, objects held out (seed "
                                 f"{seed})", score_experiments(labels, flags["markerless"])),
                   flush=True)
-            own = cross_validated_flags(test, labels, objects, seed=seed, epochs=args.epochs)
+            own = cross_validated_flags(test, labels, objects, seed=seed, epochs=args.epochs,
+                                        seeds=1)
             print(format_scores(f"markerless: learned on markerless motion, objects held out "
                                 f"(seed {seed})", score_experiments(labels, own["train"])),
                   flush=True)
     if extra is not None:
         from tacswitch.grasp.crossval import torch_scorer
-        from tacswitch.grasp.train import EPOCHS, train_scorer
 
-        # Simulated grasps of seeds never trained on, scored by a scorer trained on every real
-        # experiment and the rendered training grasps (as shipped).
+        # Simulated grasps of seeds never trained on nor validated on, scored by the scorer
+        # trained on every real experiment and the rendered training grasps (as shipped).
         held, held_labels = simulated_clips(HELD_OUT_SIM, HELD_OUT_SIM_SEED)
-        res = train_scorer([[c.features() for c in exp] for exp in clips] + [
-            [c.features() for c in exp] for exp in extra[0]], labels + extra[1],
-            epochs=args.epochs or EPOCHS, seed=0)
+        res = train_validated([[c.features() for c in exp] for exp in clips] + [
+            [c.features() for c in exp] for exp in extra[0]], labels + extra[1], validation,
+            seeds=args.select, epochs=args.epochs)
         scorer = torch_scorer(res.net)
         flags_sim = [[clip_flags(c, model=scorer, threshold=0.0)] for c in held]
         paper_sim = [[clip_flags(c, rule="paper")] for c in held]

@@ -137,6 +137,11 @@ def update_markdown(section: str, body: str) -> None:
         text = text.rstrip("\n") + "\n\n" + block
     else:
         nxt = text.find("\n## ", start + len(section))
+        old = text[start:nxt] if nxt >= 0 else text[start:]
+        # The line naming the runner section (benches/sections.py) stays under the heading.
+        named = [ln for ln in old.splitlines() if ln.startswith("Bench section:")]
+        if named:
+            block = f"{section}\n\n{named[0]}\n\n{body.strip()}\n"
         text = text[:start] + block + (text[nxt:] if nxt >= 0 else "")
     tmp = path.with_suffix(".md.tmp")
     tmp.write_text(text)

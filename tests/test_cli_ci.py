@@ -66,10 +66,11 @@ fi
                          text=True, timeout=60)
     assert (run.returncode == 0) == tests_pass, run.stderr
     calls = [c for c in log.read_text().splitlines() if "--upgrade pip" not in c]
-    # The train and docs extras: their package lists read from pyproject.toml (python -c),
-    # installed without building the extension again.
+    # The train, cluster and docs extras: their package lists read from pyproject.toml
+    # (python -c), installed without building the extension again.
     steps = ["pip install .[test]", "python -m pytest", "python -c", "pip install -r",
              "python -m pytest -m train", "python -c", "pip install -r",
+             "python -m pytest -m cluster", "python -c", "pip install -r",
              "mkdocs build --strict", "cargo test", "cargo fmt", "cargo clippy"]
     done = [next((s for s in steps if c.startswith(s) and (s != "python -m pytest"
                                                             or c == s)), c) for c in calls]

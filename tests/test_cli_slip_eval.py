@@ -96,3 +96,8 @@ def test_errors_name_the_argument(labelled: Path, tmp_path: Path,
     assert main(["train", "slip", str(labelled), "--out", str(tmp_path / "m.onnx"),
                  "--simulated", "-1", "-q"]) != 0
     assert "--simulated: must be in [0, 1000]" in capsys.readouterr().err
+    assert main(["train", "slip", str(labelled), "--out", str(tmp_path / "m.onnx"),
+                 "--seeds", "0", "-q"]) != 0
+    assert "--seeds: must be in [1, 100]" in capsys.readouterr().err
+    assert main(["evaluate", "slip", str(labelled), "--seeds", "2", "-q"]) != 0
+    assert "--seeds: applies to --cv (training) only" in capsys.readouterr().err

@@ -180,6 +180,50 @@ def test_train_and_export_roundtrip(tmp_path) -> None:  # type: ignore[no-untype
         train_scorer(feats[:1], labels[:1])
 
 
+def _fake_training(monkeypatch, good: set[int]) -> list[int]:
+    """train_scorer replaced by one that records its seeds and returns the seed as the net;
+    the validation decisions are right for the seeds in ``good``, and flag every grasp for the
+    others (what unstable seeds do on rendered holds)."""
+    from tacswitch.grasp import crossval
+    from tacswitch.grasp.train import SlipTrainResult
+
+    trained: list[int] = []
+
+    def fake_train(features, labels, *, epochs, seed, log=None):  # type: ignore[no-untyped-def]
+        trained.append(seed)
+        return SlipTrainResult(seed, len(labels), sum(labels), epochs, seed)
+
+    def fake_flags(clip, *, model, threshold):  # type: ignore[no-untyped-def]
+        slip, seed = clip
+        return np.array([slip or seed not in good])
+
+    monkeypatch.setattr("tacswitch.grasp.train.train_scorer", fake_train)
+    monkeypatch.setattr(crossval, "torch_scorer", lambda net: net)
+    monkeypatch.setattr(crossval, "clip_flags",
+                        lambda c, model, threshold: fake_flags((c, model), model=model,
+                                                               threshold=threshold))
+    return trained
+
+
+def test_train_validated_keeps_the_seed_the_validation_grasps_favour(monkeypatch) -> None:
+    from tacswitch.grasp.crossval import train_validated
+
+    validation = ([True, False, False], [True, False, False])  # "clips" = their label here
+    trained = _fake_training(monkeypatch, good={6})
+    res = train_validated([[]], [True], validation, seed=5, seeds=3)
+    assert trained == [5, 6, 7] and res.seed == 6
+    assert res.validation == [0.5, 1.0, 0.5]
+    # A tie keeps the lowest seed; without validation grasps (or one seed) one seed is trained.
+    trained = _fake_training(monkeypatch, good={0, 1, 2})
+    assert train_validated([[]], [True], validation, seeds=3).seed == 0 and trained == [0, 1, 2]
+    trained = _fake_training(monkeypatch, good=set())
+    res = train_validated([[]], [True], None, seed=4, seeds=3)
+    assert trained == [4] and res.seed == 4 and res.validation == []
+    trained = _fake_training(monkeypatch, good=set())
+    assert train_validated([[]], [True], validation, seed=2, seeds=1).seed == 2
+    assert trained == [2]
+
+
 @given(st.lists(st.floats(-1e6, 1e6, allow_nan=False), max_size=60),
        st.integers(1, 12), st.one_of(st.none(), st.floats(-1e6, 1e6, allow_nan=False)))
 def test_rolling_median_matches_numpy_over_the_window(values: list[float], size: int,

@@ -34,7 +34,7 @@ MAX_RADIUS = 100
 #: 0.2-0.3 % of it.
 DEFAULT_DILATE = 2
 #: TELEA radius (px) of :func:`remove_markers` (and of the TELEA part of its ``"hybrid"``) when
-#: none is given. Chosen on real frames first (``benches/bench_radius.py``, our TELEA on the
+#: none is given. Chosen on real frames first (``benches/studies/bench_radius.py``, our TELEA on the
 #: default adaptive mask, radii 3-24; docs/notes/2026-11-marker-removal.md, "TELEA radius of the
 #: default pipeline"): on the two real GelSight Mini frames with
 #: markers (FOTS, held-out shifted-mask pixels) the error is lowest at 12 (2.05 at r=3, 1.98 at

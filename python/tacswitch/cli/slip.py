@@ -426,7 +426,7 @@ class MarkerlessMotion:
     (:func:`tacswitch.motion.reference.near_contact` against the reference): the gel moves
     most near the contact, while the texture of a compressed video drifts all over the gel
     (real-texture H.264 grasp videos of a GelSight Mini, CRF 23: 8 of 18 grasps right over all
-    markers, 16 near the contact; ``benches/bench_slip_real_texture.py``)."""
+    markers, 16 near the contact; ``benches/studies/bench_slip_real_texture.py``)."""
 
     def __init__(self, first: np.ndarray, args: argparse.Namespace) -> None:
         from tacswitch._io import read_image

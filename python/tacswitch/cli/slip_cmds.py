@@ -44,6 +44,11 @@ def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
     p.add_argument("--cv", type=int, default=0, metavar="K",
                    help="instead of the model: train and score K folds grouped by object "
                         "(needs tacswitch[train])")
+    p.add_argument("--seeds", type=int, default=None, metavar="N",
+                   help="--cv: per fold, train N scorers (seeds 0, 1, ...) and keep the one whose "
+                        "decisions on 36 rendered validation grasps (slip, hold, vibration; "
+                        "GelSight and Mini) are best (default: 3; 1: one seed; markers only: "
+                        "with --markerless one seed is trained)")
     p.add_argument("--json", default=None, help="also write the scores and each experiment's "
                                                 "decision to this JSON file")
     p.set_defaults(run=run_evaluate)
@@ -54,9 +59,16 @@ def add_train_parser(what: argparse._SubParsersAction) -> None:
                         description=__doc__)
     _common(p)
     p.add_argument("--out", required=True, help="ONNX file to write")
+    from tacswitch.grasp.train import EPOCHS
+
     p.add_argument("--epochs", type=int, default=None, help="passes over the experiments "
-                                                            "(default: 60)")
+                                                            f"(default: {EPOCHS})")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+    p.add_argument("--seeds", type=int, default=None, metavar="N",
+                   help="train N scorers (seeds --seed, --seed + 1, ...) and keep the one whose "
+                        "decisions on 36 rendered validation grasps (slip, hold, vibration; "
+                        "GelSight and Mini) are best (default: 3; 1: one seed; markers only: "
+                        "with --markerless one seed is trained)")
     p.add_argument("--simulated", type=int, default=None, metavar="N",
                    help="add N rendered grasps per kind (slip / hold / vibration) and sensor "
                         "(GelSight, GelSight Mini) to the training set: the textbook slip "
@@ -96,10 +108,17 @@ def run_evaluate(args: argparse.Namespace) -> int:
         raise UsageError("--rigid-threshold-px: applies to --rule paper only")
     if args.cv and args.cv < 2:
         raise UsageError(f"--cv: at least 2 folds; got {args.cv}")
+    seeds = _seeds_option(args)
+    if args.seeds is not None and not args.cv:
+        raise UsageError("--seeds: applies to --cv (training) only")
     exps, clips = _load(args)
     labels = [e.slip for e in exps]
     if args.cv:
+        from tacswitch.grasp.crossval import validation_grasps
+
+        validation = validation_grasps() if seeds > 1 and not args.markerless else None
         flags = cross_validated_flags(clips, labels, [e.object for e in exps], folds=args.cv,
+                                      validation=validation, seeds=seeds,
                                       quiet=args.quiet)["train"]
         name = f"learned, {args.cv} folds grouped by object"
     elif args.rule == "paper":
@@ -129,6 +148,15 @@ def run_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _seeds_option(args: argparse.Namespace) -> int:
+    """``--seeds`` (default :data:`tacswitch.grasp.crossval.VALIDATED_SEEDS`), checked."""
+    from tacswitch.grasp.crossval import VALIDATED_SEEDS
+
+    if args.seeds is not None and not 1 <= args.seeds <= 100:
+        raise UsageError(f"--seeds: must be in [1, 100]; got {args.seeds}")
+    return VALIDATED_SEEDS if args.seeds is None else int(args.seeds)
+
+
 def run_train(args: argparse.Namespace) -> int:
     from tacswitch.cli.options import UsageError, output_file
 
@@ -138,12 +166,14 @@ def run_train(args: argparse.Namespace) -> int:
         raise UsageError(f"--epochs: must be >= 1; got {args.epochs}")
     if args.simulated is not None and not 0 <= args.simulated <= 1000:
         raise UsageError(f"--simulated: must be in [0, 1000]; got {args.simulated}")
+    seeds = _seeds_option(args)
     out = output_file(args.out, "--out")
     try:
         import torch  # noqa: F401
     except ImportError:
         raise ValueError("train slip: needs torch: pip install 'tacswitch[train]'") from None
-    from tacswitch.grasp.train import EPOCHS, export_scorer, train_scorer
+    from tacswitch.grasp.crossval import train_validated, validation_grasps
+    from tacswitch.grasp.train import EPOCHS, export_scorer
 
     epochs = args.epochs if args.epochs is not None else EPOCHS
     from tacswitch.grasp.simulated import SIMULATED_PER_KIND, SIMULATED_SEED, simulated_clips
@@ -157,11 +187,14 @@ def run_train(args: argparse.Namespace) -> int:
         feats += [[c.features()] for c in sim_clips]
         labels = labels + sim_labels
     log = None if args.quiet else (lambda s: print(s, file=sys.stderr))
-    res = train_scorer(feats, labels, epochs=epochs, seed=args.seed, log=log)
+    validation = validation_grasps() if seeds > 1 and not args.markerless else None
+    res = train_validated(feats, labels, validation, seed=args.seed, seeds=seeds,
+                          epochs=epochs, log=log)
     export_scorer(res, out, extra={"trained_on": f"{Path(args.data).name}: {len(exps)} "
                                                  f"experiments, {sum(e.slip for e in exps)} "
                                                  f"slip; {len(labels) - len(exps)} rendered"})
     if not args.quiet:
+        kept = (f", seed {res.seed} kept of {len(res.validation)}" if res.validation else "")
         print(f"wrote {out} ({len(exps)} experiments, {sum(e.slip for e in exps)} slip, "
-              f"{len(labels) - len(exps)} rendered grasps, {epochs} epochs)")
+              f"{len(labels) - len(exps)} rendered grasps, {epochs} epochs{kept})")
     return 0

@@ -15,7 +15,7 @@ averaged. Everything, the input transform included, is exported into one ONNX fi
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -47,6 +47,9 @@ class SlipTrainResult:
     n_slip: int
     epochs: int
     seed: int
+    #: Balanced accuracy of each seed tried on validation grasps
+    #: (:func:`tacswitch.grasp.crossval.train_validated`); empty when one seed was trained.
+    validation: list[float] = field(default_factory=list)
 
 
 def _transform(x: Any) -> Any:
@@ -179,5 +182,7 @@ def export_scorer(result: SlipTrainResult, path: str | os.PathLike[str],
             "experiments": result.n_experiments, "slip_experiments": result.n_slip,
             "epochs": result.epochs, "seed": result.seed,
         }
+        if result.validation:
+            info["validation_balanced_accuracy_per_seed"] = list(result.validation)
         info.update(extra or {})
         write_onnx(tmp, path, meta, info)

@@ -31,7 +31,7 @@ vs 0.61 / 0.63 of it on GelSight, 0.16 / 0.15 vs 0.08 / 0.09 on the Mini). The r
 area-downsampled to 320 x 240 (even half): GelSight 0.246 (``patch=48``) / 0.265
 (``patch=24``), Mini 0.033 / 0.033 — the shipped gains
 (:data:`tacswitch.sim.presets.MECHANICS_GAINS`, fitted at the marker grid >= 2 contact radii
-away by ``benches/bench_press_calibration.py``) are 0.25 and 0.04.
+away by ``benches/studies/bench_press_calibration.py``) are 0.25 and 0.04.
 """
 
 from __future__ import annotations

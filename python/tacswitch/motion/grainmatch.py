@@ -6,7 +6,7 @@ presses about 0.3 grey levels under 0.5 of temporal noise) that moves with the g
 normalised cross-correlation over a ``+-search`` px window (``cv2.matchTemplate``, one integer
 peak refined by a parabola per axis): a purely local estimate, unlike coarse-to-fine variational
 flow (DIS), whose large motion at the imprint can leak outward. Used to measure the real gel's
-motion around real presses (``benches/bench_press_calibration.py``), which calibrates the
+motion around real presses (``benches/studies/bench_press_calibration.py``), which calibrates the
 simulator's press law (:mod:`tacswitch.sim.presets`, ``GELSIGHT_PRESS_DILATION``...).
 
 Conventions: frames ``H x W x 3`` uint8 BGR (or ``H x W`` grey), points ``(x, y)`` px with pixel

@@ -28,11 +28,11 @@ direction).
 Units and conventions: frames ``H x W x 3`` uint8 BGR, points and motion ``(x, y)`` px with pixel
 centres at integers. The reach ``T`` defaults to :data:`REACH_FRAC` of the frame width: the real
 GelSight's measured press reach, 5 mm on its ~18.9 mm wide field (170 px at 640 x 480, 85 px at
-320 x 240; ``benches/bench_press_calibration.py``; the GelSight Mini barely moves at all).
+320 x 240; ``benches/studies/bench_press_calibration.py``; the GelSight Mini barely moves at all).
 
 The gain: how far a press moves the gel is a property of the gel, not visible in one image, so
 it is per sensor, fitted on REAL frames (the rule's least-squares scale against the real gel's
-grain-matched motion around taxim's presses, ``benches/bench_press_calibration.py``):
+grain-matched motion around taxim's presses, ``benches/studies/bench_press_calibration.py``):
 :data:`tacswitch.sim.presets.MECHANICS_GAINS`, GelSight 0.25, GelSight Mini 0.04 (its gel does
 not measurably move); ``predict_motion(..., gain="gelsight")`` selects one, and
 :func:`tacswitch.motion.calibration.calibrate_press_gain` measures it on any sensor from a
@@ -47,7 +47,7 @@ GelSight's gain: that calibration pressed a ball of radius drawn up to 6 mm to e
 contact, 0.3-0.5 mm deep, where the real imprints show taxim's 4 mm ball pressed 1.0-1.7 mm
 deep (:data:`tacswitch.motion.proxy.REAL_BALL_RADIUS_MM`), so the fitted law moved the gel ~3x
 too far per pressed volume. With the law refitted for that ball
-(``python benches/bench_motion_single.py --calibrate``) the simulator's pure presses want
+(``python benches/studies/bench_motion_single.py --calibrate``) the simulator's pure presses want
 0.57 / 0.64 on the GelSight, 0.35 pooled: within ~2x of the real gain. On ball presses alone
 they want what taxim's real frames with the modelled field want (0.37 both, every marker
 counted; the real 0.25 is fitted on markers >= 2 contact radii away); the simulator's other

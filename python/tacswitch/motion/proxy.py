@@ -405,7 +405,7 @@ CONTACT_KINDS = ("press", "shear", "twist", "shear_twist")
 #: Radius (mm) of the ball that made taxim's real presses, per sensor, measured from their
 #: imprints: the simulator's shading of a ball of each candidate radius pressed to every recorded
 #: contact (depth ``R - sqrt(R^2 - a^2)`` from the recorded contact radius ``a``) against the
-#: real colour change on rings about the contact (``benches/bench_press_calibration.py``,
+#: real colour change on rings about the contact (``benches/studies/bench_press_calibration.py``,
 #: "Geometry"; docs/notes/2026-11-markerless-motion.md, "Real presses: the gel's outward motion
 #: (grain block matching) and the calibrated press law"). GelSight: the smallest radius all its
 #: contacts allow (a ~1.86 mm,

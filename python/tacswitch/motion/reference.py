@@ -17,7 +17,7 @@ another depth or load, or sheared) has them too. :func:`contact_energy_ratio` is
 energy of ``ref`` over that of ``img`` inside the changed region; a ratio under
 :data:`NEW_CONTACT_RATIO` means a new contact.
 
-Measured (``benches/bench_motion_reference.py``; docs/notes/2026-11-markerless-motion.md,
+Measured (``benches/studies/bench_motion_reference.py``; docs/notes/2026-11-markerless-motion.md,
 "Markerless motion: which reference"): taxim's real no-contact frame against its 48 GelSight
 presses 0.17-0.53, against
 the 24 GelSight Mini presses 0.01-0.03; the same presses warped by known fields and captured
@@ -51,8 +51,8 @@ NEW_CONTACT_RATIO = 0.6
 #: the frame width (16 px at 320 wide, about half a GelSight Mini pitch; a coarse grid's cell
 #: can hold a small contact farther than that from every marker, hence
 #: :data:`MIN_NEAR_MARKERS`). Chosen among 0.05-0.25 on development grasps (real-texture
-#: videos of ``benches/bench_slip_real_texture.py`` at seed 1, presses 2, 8, 14, ... of taxim's
-#: recordings, H.264 CRF 23 / 28 and MJPEG; simulated grasps of seed 200): the fewest false
+#: videos of ``benches/studies/bench_slip_real_texture.py`` at seed 1, presses 2, 8, 14, ... of
+#: taxim's recordings, H.264 CRF 23 / 28 and MJPEG; simulated grasps of seed 200): the fewest false
 #: alarms on H.264, every slip still found by the displacement rule.
 CONTACT_REACH = 0.05
 #: :func:`near_contact` keeps at least this many markers, the nearest to the contact (the

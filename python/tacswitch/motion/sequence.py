@@ -14,7 +14,7 @@ design lost the press: over all 29 objects, ghost control, e_rmse 1.44 px, cosin
 magnitude ratio 0.50, against the direct flow's 1.25 / 0.62 / 0.90 (zero 1.14; the rule
 predicts little press motion on these gels, which move several px). On the simulator's grasps
 and on real frames with the modelled press field (the rule's own physics) the earlier design
-was better (``benches/bench_motion_sequence.py``); the real markers decided.
+was better (``benches/studies/bench_motion_sequence.py``); the real markers decided.
 
 A video that starts in contact has no no-contact frame (``no_contact=None``): the first frame
 is the anchor and the mechanics rule runs on it alone (single frame; ``predict_motion(img)``
@@ -25,7 +25,7 @@ anchor, read at the markers' anchored positions:
 
 The contact cannot be seen to end, so the anchor stays until :meth:`~MarkerlessTracker.reset`.
 Checked on real marker motion: the two FOTS GelSight Mini frames (a press, then the same contact
-sheared), markers removed, ``benches/bench_motion_fots.py``.
+sheared), markers removed, ``benches/studies/bench_motion_fots.py``.
 
 Units and conventions: frames ``H x W x 3`` uint8 BGR of one size, centres and motion ``(x, y)``
 px with pixel centres at integers.

@@ -57,7 +57,7 @@ class SensorPreset:
 # shift (``motion.grainmatch.press_profile``), the law (a ball of the radius the real imprints
 # show, ``motion.proxy.REAL_BALL_RADIUS_MM``, pressed to each recorded contact) fitted to the
 # even-index presses over 1.5-6 contact radii and checked on the odd ones
-# (``benches/bench_press_calibration.py``; docs/notes/2026-11-markerless-motion.md, "Real
+# (``benches/studies/bench_press_calibration.py``; docs/notes/2026-11-markerless-motion.md, "Real
 # presses: the gel's outward motion (grain block matching) and the calibrated press law"). The
 # gain range is centred on the
 # pooled least-squares gain, half-width the distance to the 10th percentile of the per-press
@@ -80,7 +80,7 @@ MINI_PRESS_DECAY_MM: float | None = None
 # the rule at unit gain (single frame) against the real gel's grain-matched motion at the
 # sensor's marker grid around taxim's even-index presses (each press's capture similarity
 # removed, markers >= 2 contact radii away), clamped >= 0, checked on the odd-index presses
-# (``benches/bench_press_calibration.py``; docs/notes/2026-11-markerless-motion.md, "Real
+# (``benches/studies/bench_press_calibration.py``; docs/notes/2026-11-markerless-motion.md, "Real
 # presses: the gel's outward motion ...": mechanics 0.252 GelSight, 0.038 Mini;
 # outward 0.183 GelSight, 0 Mini). How far a press moves the gel is a property of the gel, not
 # visible in one image: on the real GelSight the mechanics rule's old simulator-fitted gain

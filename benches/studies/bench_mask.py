@@ -24,7 +24,7 @@ often growth ran to its cap, and the masked MAE of TELEA r=12 on the adaptive ma
 the one-dilation mask (contact shading is not planar around a marker, which the growth rule has
 to tell from a marker's rim).
 
-    python benches/bench_mask.py [--quick] [--contact-presses N] [--update]
+    python benches/studies/bench_mask.py [--quick] [--contact-presses N] [--update]
 """
 
 from __future__ import annotations
@@ -36,13 +36,16 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benches/: harness
+sys.path.insert(0, str(Path(__file__).parent))
 from harness import interleaved, machine, publish, single_thread, table
 
 import tacswitch as ts
 from tacswitch.sim import capture
 from tacswitch.sim.markers import paint_markers, sample_style
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
+SHARED = Path(__file__).resolve().parents[3] / "shared"
 REAL = SHARED / "data" / "real" / "fots_gelsight_mini_markers"
 SECTION = "## Marker masks on real-frame proxies (adaptive growth)"
 
@@ -338,12 +341,12 @@ def main() -> int:
                   "Cost of the adaptive mask (median [IQR] per frame, one thread, interleaved"
                   " rounds on a busy shared machine):", "", cost_tab]
     publish(SECTION, notes, header, body_rows,
-            "python benches/bench_mask.py" + (" --quick" if args.quick else ""), args.update)
+            "python benches/studies/bench_mask.py" + (" --quick" if args.quick else ""), args.update)
     print("\n".join(notes_tail))
     if args.update:
         from harness import update_markdown
 
-        text = (Path(__file__).resolve().parents[1] / "BENCHMARKS.md").read_text()
+        text = (Path(__file__).resolve().parents[2] / "BENCHMARKS.md").read_text()
         start = text.find(SECTION + "\n")
         nxt = text.find("\n## ", start + len(SECTION))
         body = text[start + len(SECTION):nxt if nxt >= 0 else len(text)].strip()

@@ -17,8 +17,8 @@ Metrics (:func:`tacswitch.motion.evaluate.motion_metrics`, px in each frame's pi
 (mean per-marker Euclidean error), e_mag, NaN %, and over the markers whose true motion is at
 least ``min px`` the mean direction cosine and the share within 30 degrees.
 
-    python benches/bench_motion_single.py [--every N] [--sim-dir DIR] [--n-sim N] [--update]
-    python benches/bench_motion_single.py --calibrate     # the mechanics rule's gains (sim only)
+    python benches/studies/bench_motion_single.py [--every N] [--sim-dir DIR] [--n-sim N] [--update]
+    python benches/studies/bench_motion_single.py --calibrate     # the mechanics rule's gains (sim only)
 """
 
 from __future__ import annotations
@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benches/: harness
 sys.path.insert(0, str(Path(__file__).parent))
 from harness import (
     MOTION_COLUMNS,
@@ -335,7 +336,7 @@ def main() -> int:
                  "(`proxy.contact_fields`, taxim's ball `proxy.REAL_BALL_RADIUS_MM`, the "
                  "preset's press law). Measured on "
                  "real frames; not a ground truth. The grain block matching of "
-                 "`benches/bench_press_calibration.py` (local, no coarse-to-fine propagation) "
+                 "`benches/studies/bench_press_calibration.py` (local, no coarse-to-fine propagation) "
                  "confirms the GelSight rings but finds the Mini's gel still (within +-0.15 px): "
                  "the Mini's flow rings here are the imprint's shading leaking outward."]
         from harness import table
@@ -347,7 +348,7 @@ def main() -> int:
                   table(["sensor", "method (single frame)", "e_rmse mean (px)", "cos",
                          "within 30 deg %", "presses / moved"], flow_measured(max(1, args.every))),
                   "", "Ring table:"]
-        cmd = "OMP_NUM_THREADS=1 python benches/bench_motion_single.py " + " ".join(sys.argv[1:])
+        cmd = "OMP_NUM_THREADS=1 python benches/studies/bench_motion_single.py " + " ".join(sys.argv[1:])
         publish(PRESS_SECTION, notes + notes2, ["sensor", "ring", "real flow, radial px",
                                                 "simulator press field, radial px", "presses"],
                 rows, cmd.strip(), args.update)
@@ -395,7 +396,7 @@ def main() -> int:
              "rescaled by least squares on the "
              "data it is scored on (scale clamped at >= 0; cosine and within-30 are the rule's "
              "own), i.e. what a perfect magnitude prior would give."]
-    cmd = "OMP_NUM_THREADS=1 python benches/bench_motion_single.py " + " ".join(sys.argv[1:])
+    cmd = "OMP_NUM_THREADS=1 python benches/studies/bench_motion_single.py " + " ".join(sys.argv[1:])
     publish(SECTION, notes, ["data, setting", *MOTION_COLUMNS], rows, cmd.strip(), args.update)
     return 0
 

@@ -21,7 +21,7 @@
    the presses (10th-90th percentile of per-press gains, each press's rings with its own fitted
    similarity removed). Checked on the odd-index presses.
 
-    OMP_NUM_THREADS=1 python benches/bench_press_calibration.py [--update]
+    OMP_NUM_THREADS=1 python benches/studies/bench_press_calibration.py [--update]
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benches/: harness
 sys.path.insert(0, str(Path(__file__).parent))
 from harness import machine, publish, table
 
@@ -444,7 +445,7 @@ def main() -> int:
               table(["sensor", "method (single frame)", "fit (even)", "e_rmse mean (px)", "cos",
                      "within 30 deg %", "presses / markers / moved"], rule_rows),
               "", "Ring table:"]
-    cmd = "OMP_NUM_THREADS=1 python benches/bench_press_calibration.py " + " ".join(sys.argv[1:])
+    cmd = "OMP_NUM_THREADS=1 python benches/studies/bench_press_calibration.py " + " ".join(sys.argv[1:])
     publish(SECTION, notes, ["sensor", "ring", "raw (all presses)", "profile, even",
                              "profile, odd (held out)", "calibrated law (even fit)",
                              "simulator old, odd presses", "simulator now (preset), odd presses"],

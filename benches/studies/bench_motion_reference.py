@@ -20,7 +20,7 @@ Parts:
 3. **speed** of ``predict_motion(img, ref)`` (auto) against ``method="flow"`` on real frames at
    320 x 240 and 640 x 480, interleaved, medians.
 
-    python benches/bench_motion_reference.py [--every N] [--sim-dir DIR] [--n-sim N] [--update]
+    python benches/studies/bench_motion_reference.py [--every N] [--sim-dir DIR] [--n-sim N] [--update]
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benches/: harness
 sys.path.insert(0, str(Path(__file__).parent))
 from harness import (
     MOTION_COLUMNS,
@@ -231,7 +232,7 @@ def main() -> int:
         "1.68 mm); real presses, grain-matched = real motion, no model; simulated = measured "
         "only in simulation.",
     ]
-    cmd = "OMP_NUM_THREADS=1 python benches/bench_motion_reference.py " + " ".join(sys.argv[1:])
+    cmd = "OMP_NUM_THREADS=1 python benches/studies/bench_motion_reference.py " + " ".join(sys.argv[1:])
     publish(SECTION, notes, ["data, reference", *MOTION_COLUMNS], rows, cmd.strip(),
             args.update)
     return 0

@@ -16,7 +16,7 @@ capture. Also reported: the least-squares gain of the mechanics rule on each fra
 gel moves per unit of the rule's output), to compare with the gains measured on taxim's real
 presses by grain matching (``bench_press_calibration.py``).
 
-    python benches/bench_motion_fots.py [--data DIR] [--update]
+    python benches/studies/bench_motion_fots.py [--data DIR] [--update]
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benches/: harness
 sys.path.insert(0, str(Path(__file__).parent))
 from harness import MOTION_COLUMNS, machine, motion_row, publish
 
@@ -184,7 +185,7 @@ def main() -> int:
         "`calibrate_press_gain` measures a unit's own.",
     ]
     publish(SECTION, notes, ["data", *MOTION_COLUMNS], rows,
-            "python benches/bench_motion_fots.py " + " ".join(sys.argv[1:]), args.update)
+            "python benches/studies/bench_motion_fots.py " + " ".join(sys.argv[1:]), args.update)
     return 0
 
 

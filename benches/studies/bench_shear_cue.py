@@ -22,7 +22,7 @@ The simulator renders the gel surface from the vertical indentation only (no she
 so its single-frame model cannot learn a shear cue; this bench says whether a real frame has one
 worth adding. One pair of frames, one sensor: a check, not a calibration.
 
-    python benches/bench_shear_cue.py [--data DIR] [--thickness MM] [--update]
+    python benches/studies/bench_shear_cue.py [--data DIR] [--thickness MM] [--update]
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benches/: harness
 sys.path.insert(0, str(Path(__file__).parent))
 from bench_motion_fots import DATA, load_pair
 from harness import machine, publish
@@ -178,7 +179,7 @@ def main() -> int:
         "the imprint's translation. See the script's docstring for the method.",
     ]
     publish(SECTION, notes, ["quantity", "value", "note"], rows,
-            "python benches/bench_shear_cue.py",
+            "python benches/studies/bench_shear_cue.py",
             args.update)
     return 0
 

@@ -13,7 +13,7 @@ default of ``tacswitch slip --markerless``) or over all of them. Real texture, m
 a check of the simulated-grasp numbers (``bench_slip_markerless.py``) under real gel texture and
 codecs.
 
-    python benches/bench_slip_real_texture.py [--every 4] [--codecs none mjpeg:85 h264:23 h264:28]
+    python benches/studies/bench_slip_real_texture.py [--every 4] [--codecs none mjpeg:85 h264:23 h264:28]
                                                [--smooth-frames 2] [--update]
 """
 
@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benches/: harness
 sys.path.insert(0, str(Path(__file__).parent))
 from harness import machine, publish
 
@@ -99,7 +100,7 @@ def main() -> int:
              "draws)."]
     header = ["sensor", "capture", "motion source", "criterion", "grasps right", "slips found",
               "false alarms hold", "false alarms vibration", "delay (frames)", "ms/frame"]
-    cmd = ("python benches/bench_slip_real_texture.py --every "
+    cmd = ("python benches/studies/bench_slip_real_texture.py --every "
            f"{args.every} --codecs {' '.join(args.codecs)} --smooth-frames {args.smooth_frames}"
            f" --seed {args.seed} --update")
     publish(SECTION, notes, header, rows, cmd, args.update)

@@ -19,7 +19,7 @@ the no-contact frame, ``predict_motion(frame, no_contact)`` (auto: the ensemble,
 rule against the no-contact frame), the mechanics rule alone against it, and the tracker (which
 also sees the earlier frames).
 
-    python benches/bench_motion_sequence.py [--every N] [--grasps N] [--update]
+    python benches/studies/bench_motion_sequence.py [--every N] [--grasps N] [--update]
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benches/: harness
 sys.path.insert(0, str(Path(__file__).parent))
 from harness import machine, publish
 
@@ -174,7 +175,7 @@ def main() -> int:
         "looks), every frame, cosine over markers moving >= 0.5 px. Nothing here was tuned on "
         "these data (the tracker has no parameter of its own).",
     ]
-    cmd = "OMP_NUM_THREADS=1 python benches/bench_motion_sequence.py " + " ".join(sys.argv[1:])
+    cmd = "OMP_NUM_THREADS=1 python benches/studies/bench_motion_sequence.py " + " ".join(sys.argv[1:])
     publish(SECTION, notes, ["data", "frames scored", "method", "e_rmse mean (px)", "cos",
                              "within 30 deg %", "sequences / moved", "ms / frame (busy)"],
             rows, cmd.strip(), args.update)

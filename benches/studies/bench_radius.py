@@ -18,8 +18,8 @@ kept) at each radius, scored on
 
 Images are uint8 BGR; errors in grey levels over all channels.
 
-Run: python benches/bench_radius.py [--presses N] [--sim N] [--quick] [--json OUT] [--update]
-     python benches/bench_radius.py --load OUT [--speed] [--update]   # re-render a saved run,
+Run: python benches/studies/bench_radius.py [--presses N] [--sim N] [--quick] [--json OUT] [--update]
+     python benches/studies/bench_radius.py --load OUT [--speed] [--update]   # re-render a saved run,
                                                  # optionally re-timing only the speed part
 """
 
@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benches/: harness
 sys.path.insert(0, str(Path(__file__).parent))
 from harness import interleaved, machine, single_thread, table, update_markdown
 
@@ -302,7 +303,7 @@ def main() -> None:
                 "sim": {p: simulated(p, n_sim, radii) for p in SENSORS},
                 "speed": {s: speed(s, sp_radii, rounds) for s in SENSORS},
                 "machine": machine()}
-        cmd = ("python benches/bench_radius.py" + (" --quick" if args.quick else
+        cmd = ("python benches/studies/bench_radius.py" + (" --quick" if args.quick else
                f" --presses {n} --sim {n_sim} --rounds {rounds}"))
         data["command"] = cmd
     if args.json:

@@ -1,6 +1,6 @@
 """Accuracy of the motion model against the baselines, simulated and on the real-texture proxy.
 
-    python benches/bench_motion_accuracy.py [--model PATH] [--sim-dir DIR] [--n-sim N]
+    python benches/studies/bench_motion_accuracy.py [--model PATH] [--sim-dir DIR] [--n-sim N]
         [--press-step K] [--update]
 
 Settings (px in each frame's own pixels; metrics of :func:`tacswitch.motion.evaluate.
@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benches/: harness
 sys.path.insert(0, str(Path(__file__).parent))
 from harness import held_out_motion_pairs, machine, publish
 
@@ -140,7 +141,7 @@ def main() -> None:
              "as cosine 0. Simulated numbers are measured only in simulation."]
     publish(SECTION, notes, ["setting", "method", "e_rmse mean / median", "e_mag mean",
                              "NaN %", "cosine", "within 30 deg %", "samples", "ms / frame"],
-            rows, "python benches/bench_motion_accuracy.py " + " ".join(sys.argv[1:]),
+            rows, "python benches/studies/bench_motion_accuracy.py " + " ".join(sys.argv[1:]),
             args.update)
 
 

@@ -45,11 +45,15 @@ class Edge:
 
 
 def _modules(root: Path) -> dict[str, Path | None]:
-    """Dotted module name -> file (None: a compiled extension, which imports nothing of ours)."""
+    """Dotted module name -> file (None: a compiled extension, which imports nothing of ours).
+    An extension is known by its binary or, in a source tree whose extension was installed
+    elsewhere (a clean checkout after ``pip install .``), by its ``.pyi`` stub."""
     out: dict[str, Path | None] = {}
     for path in sorted(root.rglob("*")):
-        if path.suffix not in (".py", ".so", ".pyd") or "__pycache__" in path.parts:
+        if path.suffix not in (".py", ".so", ".pyd", ".pyi") or "__pycache__" in path.parts:
             continue
+        if path.suffix == ".pyi" and path.with_suffix(".py").exists():
+            continue  # the stub of a Python module: the module itself counts
         parts = list(path.relative_to(root.parent).parts)
         parts[-1] = parts[-1].split(".")[0]
         if parts[-1] == "__init__":

@@ -13,6 +13,7 @@ import pytest
 
 from tacswitch import sim
 from tacswitch.cli import main
+from tacswitch.grasp.dataset import read_video
 
 pytestmark = pytest.mark.cluster
 
@@ -22,14 +23,7 @@ def content(path: Path) -> bytes:
     holds a random segment ID, so two single-machine runs differ there too."""
     if path.suffix != ".mkv":
         return path.read_bytes()
-    cap = cv2.VideoCapture(str(path))
-    frames = []
-    while True:
-        ok, frame = cap.read()
-        if not ok:
-            break
-        frames.append(frame.tobytes())
-    cap.release()
+    frames = [f.tobytes() for f in read_video(path)]
     assert frames, path
     return b"".join(frames)
 

@@ -130,7 +130,6 @@ def map_files(ray: Any, task: Callable[..., FileResult], jobs: list[tuple[Path, 
     remote = ray.remote(num_cpus=1, max_retries=2)(task)
     limit = max(1, IN_FLIGHT_PER_CPU * int(ray.cluster_resources().get("CPU", 1)))
     pending: dict[Any, Path] = {}
-    queue = list(jobs)
 
     def drain(until: int) -> None:
         while len(pending) > until:
@@ -138,7 +137,7 @@ def map_files(ray: Any, task: Callable[..., FileResult], jobs: list[tuple[Path, 
             for ref in ready:
                 on_result(pending.pop(ref), ray.get(ref))
 
-    for path, extra in queue:
+    for path, extra in jobs:
         try:
             data = path.read_bytes()
         except OSError as exc:

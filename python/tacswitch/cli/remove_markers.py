@@ -138,6 +138,14 @@ def _video_target(path: Path, out: Path, args: argparse.Namespace) -> Path:
     return out / path.stem if args.frames else out / f"{path.stem}{CODECS[args.codec][1]}"
 
 
+def _jobs(images: list[Path], videos: list[Path], out: Path, args: argparse.Namespace
+          ) -> list[tuple[Path, Path, str]]:
+    """Every input with its output and kind: ``(path, target, "image" | "video")``; an image
+    becomes ``OUT/<stem>.png``, a video :func:`_video_target`."""
+    jobs = [(p, out / f"{p.stem}.png", "image") for p in images]
+    return jobs + [(p, _video_target(p, out, args), "video") for p in videos]
+
+
 def _targets(images: list[Path], videos: list[Path], out: Path,
              args: argparse.Namespace) -> None:
     """``ValueError`` if two inputs would write the same output (same stem, same kind), or an
@@ -145,9 +153,7 @@ def _targets(images: list[Path], videos: list[Path], out: Path,
     from tacswitch.cli.options import UsageError
 
     seen: dict[Path, Path] = {}
-    named = [(p, out / f"{p.stem}.png") for p in images]
-    named += [(p, _video_target(p, out, args)) for p in videos]
-    for path, target in named:
+    for path, target, _ in _jobs(images, videos, out, args):
         if target.resolve() == path.resolve():
             raise UsageError(f"--out: writing {str(target)!r} would replace its input; choose "
                              "another output folder")
@@ -314,7 +320,7 @@ def _images(images: list[Path], out: Path, remove: Remover, workers: int,
     from tacswitch.cli.progress import progress, say
     from tacswitch.cli.sources import read_quiet
 
-    jobs = [(p, out / f"{p.stem}.png") for p in images]
+    jobs = [(p, t) for p, t, _ in _jobs(images, [], out, args)]
     todo = [(p, t) for p, t in jobs if args.overwrite or not record.made_here(t)]
     failed: list[tuple[Path, str]] = []
 
@@ -453,8 +459,7 @@ def _on_ray(images: list[Path], videos: list[Path], out: Path, ref: np.ndarray |
     from tacswitch.cli.cluster import FileResult, connected, map_files, write_outputs
     from tacswitch.cli.progress import progress, say
 
-    jobs = [(p, out / f"{p.stem}.png", "image") for p in images]
-    jobs += [(p, _video_target(p, out, args), "video") for p in videos]
+    jobs = _jobs(images, videos, out, args)
     todo = [(p, t, k) for p, t, k in jobs if args.overwrite or not record.made_here(t)]
     target_of = {p: t for p, t, _ in todo}
     task_args = argparse.Namespace(**{**vars(args), "quiet": True})

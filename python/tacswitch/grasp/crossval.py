@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 
 from tacswitch.grasp.dataset import TrackedClip
 from tacswitch.grasp.detector import run_clip
-from tacswitch.grasp.evaluate import object_folds
+from tacswitch.grasp.evaluate import object_folds, score_experiments
 
 
 def clip_flags(clip: TrackedClip, **options: Any) -> NDArray[np.bool_]:
@@ -65,7 +65,6 @@ def train_validated(features: list[list[NDArray[np.float32]]], labels: list[bool
     decide alike on real grasps of unseen objects (5-fold leave-objects-out balanced accuracy
     0.80-0.84 on the real GelSight Mini grasps) but not on grasps of another sensor: on rendered
     grasps some flag every hold. The validation grasps are never trained on."""
-    from tacswitch.grasp.evaluate import score_experiments
     from tacswitch.grasp.train import EPOCHS, train_scorer
 
     best: Any = None

@@ -13,7 +13,7 @@ average is printed. Budgets (DESIGN): >= 100 Hz at 320x240 and >= 30 Hz at 640x4
 
 Brightness: the largest motion any marker gets when the frame differs from its reference only by
 a global gain / offset (gain 0.85-1.15, offset -5..8 grey levels; 3 real frames per sensor),
-against the issue's 0.2 px bound. Accuracy: the real-texture proxy (:mod:`tacswitch.motion.proxy`,
+against the issue's 0.2 px bound. Accuracy: the real-texture proxy (:mod:`proxies.motion_proxy`,
 taxim's real presses warped by known press / shear / twist / mixed fields, exposure drift and
 compression; seed 0): e_rmse, e_mag, cosine and share within 30 degrees over markers that moved
 >= 0.168 mm, with the no-contact frame and the unwarped press as reference. Variants: the DIS
@@ -27,9 +27,10 @@ import os
 
 import numpy as np
 from harness import interleaved, machine, publish, table, update_markdown
+from proxies import motion_proxy as proxy
 
 from tacswitch import predict_motion
-from tacswitch.motion import flow, proxy
+from tacswitch.motion import flow
 from tacswitch.motion.evaluate import motion_metrics
 
 SECTION = "## Markerless motion: flow presets (speed, brightness, real-texture accuracy)"
@@ -134,7 +135,7 @@ def no_contact(presses: dict[str, proxy.RealPresses], every: int, sim_dir: str |
                n_sim: int) -> list[list[str]]:
     """Metrics with the no-contact frame as reference (and, for contrast, the unwarped press) on
     three data: the real-texture proxy (warp), real presses with the simulator's field at the
-    recorded contact (:func:`tacswitch.motion.proxy.make_contact_proxy`; truth MODELLED) and
+    recorded contact (:func:`proxies.motion_proxy.make_contact_proxy`; truth MODELLED) and
     simulated held-out no-contact pairs (``gel_test_indenter`` + ``gel_test_depth``, seed 0,
     mixed presets); methods: zero, the outward and mechanics rules, flow (default) and flow with
     ``suppress_imprint``."""

@@ -12,7 +12,7 @@ motion from rest. Three data, the first two with a real measurement as the truth
    removed by the default ``remove_markers``; a press, then the same contact sheared); cosine
    over markers moving >= 2.5 px (whole-pixel truth).
 3. **real frames, modelled field** (taxim's real presses with the calibrated simulator's field
-   of their recorded contact, ``tacswitch.motion.proxy.make_contact_proxy``; every 2nd press):
+   of their recorded contact, ``proxies.motion_proxy.make_contact_proxy``; every 2nd press):
    the truth is the simulator's press law, the mechanics rule's own physics.
 
 Methods: zero; the outward rule; the mechanics rule at its default gain; the ensemble (the mean

@@ -1,7 +1,7 @@
 """Marker motion on the real-texture proxy: taxim's real markerless presses warped by known fields.
 
 Every method is scored against the known field at the sensor's marker grid
-(:mod:`tacswitch.motion.proxy`): GelSight 640 x 480 (8 x 6 markers, 48 presses) and GelSight Mini
+(:mod:`proxies.motion_proxy`): GelSight 640 x 480 (8 x 6 markers, 48 presses) and GelSight Mini
 320 x 240 (11 x 9 markers, 24 presses), press / shear / twist / mixed fields up to 1.68 mm (one
 Mini pitch), exposure drift and MJPEG / H.264 compression. Settings: ``no_contact`` (reference =
 the real no-contact frame, a separate capture), ``press`` (reference = the unwarped press: shares
@@ -28,8 +28,8 @@ from typing import Any
 
 import numpy as np
 from harness import interleaved, machine, named_models, publish, pure_press_gains, table
+from proxies import motion_proxy as proxy
 
-from tacswitch.motion import proxy
 from tacswitch.motion.evaluate import motion_metrics
 from tacswitch.motion.infer import MotionModel, predict_motion
 

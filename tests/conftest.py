@@ -6,6 +6,7 @@ import ast
 import functools
 import inspect
 import re
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -14,8 +15,16 @@ import pytest
 
 from tacswitch import sim
 
+#: The bench suite's folder. It goes on the import path once, here, for every test: the
+#: evaluation code the tests share with the benches lives there, not in the installed package
+#: (``from proxies import motion_proxy``: the real-texture proxies, ``benches/proxies/``; the
+#: runner's ``sections``).
+BENCHES = Path(__file__).resolve().parents[1] / "benches"
+if str(BENCHES) not in sys.path:
+    sys.path.insert(0, str(BENCHES))
+
 if TYPE_CHECKING:
-    from tacswitch.motion import proxy
+    from proxies import motion_proxy as proxy
 
 
 def disc_image(
@@ -76,7 +85,7 @@ def marker_frame_dir(tmp_path: Path, marker_frames: list[np.ndarray]) -> Path:
 @pytest.fixture(scope="session")
 def mini() -> proxy.RealPresses:
     """taxim's real markerless GelSight Mini presses at 320 x 240 (the taxim package)."""
-    from tacswitch.motion import proxy
+    from proxies import motion_proxy as proxy
 
     return proxy.load_real_presses("gelsight_mini")
 
@@ -84,7 +93,7 @@ def mini() -> proxy.RealPresses:
 @pytest.fixture(scope="session")
 def grid() -> np.ndarray:
     """The GelSight Mini marker grid (rest centres, x, y px) at 320 x 240."""
-    from tacswitch.motion import proxy
+    from proxies import motion_proxy as proxy
 
     return proxy.marker_grid("gelsight_mini")[0]
 

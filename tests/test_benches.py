@@ -10,12 +10,10 @@ import sys
 from pathlib import Path
 
 import pytest
+from sections import SECTIONS, SUPPORT  # benches/ is on the path: tests/conftest.py
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCHES = ROOT / "benches"
-sys.path.insert(0, str(BENCHES))
-
-from sections import SECTIONS, SUPPORT  # noqa: E402
 
 
 def headings() -> list[str]:

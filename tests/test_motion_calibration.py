@@ -57,8 +57,7 @@ def test_self_calibration_scales_with_a_known_outward_field(gelsight: tuple) -> 
     """The presses warped by ``k`` times the rule's own unit-gain field (their grain moves with
     it): the fitted gain rises by ``k``."""
     import cv2
-
-    from tacswitch.motion.proxy import warp_dense
+    from proxies.motion_proxy import warp_dense
 
     f0, imgs = gelsight
     imgs = imgs[:4]

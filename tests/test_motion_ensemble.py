@@ -55,7 +55,7 @@ def test_identical_frames_and_no_centres_give_zero(mini, grid) -> None:
 def test_points_outward_around_real_gelsight_presses() -> None:
     """taxim's real GelSight presses: the ensemble points outward from each recorded contact
     (the direction the gel moves under a press) on most markers beyond the contact."""
-    from tacswitch.motion import proxy
+    from proxies import motion_proxy as proxy
 
     data = proxy.load_real_presses("gelsight")
     rest, _ = proxy.marker_grid("gelsight")

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from proxies import motion_proxy as proxy
 
 from tacswitch import predict_motion
-from tacswitch.motion import flow, heuristic, proxy
+from tacswitch.motion import flow, heuristic
 
 
 @pytest.mark.parametrize("method", ["flow", "outward"])

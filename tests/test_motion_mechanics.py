@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from proxies import motion_proxy as proxy
 
-from tacswitch.motion import proxy
 from tacswitch.motion.infer import predict_motion
 from tacswitch.motion.mechanics import REACH_FRAC, mechanics_motion
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from proxies import motion_proxy as proxy
 
-from tacswitch.motion import proxy
 from tacswitch.motion.evaluate import motion_metrics
 
 

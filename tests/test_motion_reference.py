@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from proxies import motion_proxy as proxy
 
 from tacswitch import predict_motion
-from tacswitch.motion import ensemble, flow, proxy, reference
+from tacswitch.motion import ensemble, flow, reference
 from tacswitch.motion.infer import resolve_method
 
 

@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from proxies import motion_proxy as proxy
 
-from tacswitch.motion import mechanics, proxy
+from tacswitch.motion import mechanics
 from tacswitch.motion.sequence import MarkerlessTracker
 
 

@@ -71,7 +71,7 @@ def test_points_outward_around_real_gelsight_presses(model: MotionModel) -> None
     on real frames (measured: mean cosine 0.97 over the 48 presses, worst press 0.81; the
     consistent model trained before the simulator's calibration: 0.21)."""
     pytest.importorskip("taxim")
-    from tacswitch.motion import proxy
+    from proxies import motion_proxy as proxy
 
     data = proxy.load_real_presses("gelsight")
     rest, _ = proxy.marker_grid("gelsight")

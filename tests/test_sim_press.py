@@ -17,7 +17,7 @@ def _rings(preset: str, a_px: float, qs: tuple[float, ...], dilation: float,
     """Mean outward motion (px) on the rings ``q a`` (their points inside the frame) of a ball
     pressed at ``centre`` (default the frame centre) to contact radius ``a_px``, the ball of
     taxim's real presses (``proxy.REAL_BALL_RADIUS_MM``, the one the calibration used)."""
-    from tacswitch.motion.proxy import REAL_BALL_RADIUS_MM
+    from proxies.motion_proxy import REAL_BALL_RADIUS_MM
 
     p = presets.get_preset(preset)
     c = ((p.width - 1) / 2, (p.height - 1) / 2) if centre is None else centre
@@ -51,7 +51,7 @@ def test_simulated_gelsight_press_moves_the_gel_as_the_real_one() -> None:
     (with the 4 mm ball the depth, and so the motion, grows steeply with a: pressed at the frame
     centre, 1.8 px at 2 a for a = 62 px, 2.7 px for 66 px)."""
     pytest.importorskip("taxim")
-    from tacswitch.motion.proxy import load_real_presses
+    from proxies.motion_proxy import load_real_presses
 
     real = load_real_presses("gelsight")
     mid = float(np.mean(presets.GELSIGHT_PRESS_DILATION))
@@ -104,7 +104,7 @@ def test_grain_matcher_recovers_a_shift_on_a_real_frame() -> None:
     noise of the real temporal level: the weak grain alone locates the patches."""
     import cv2
 
-    proxy = pytest.importorskip("tacswitch.motion.proxy")
+    proxy = pytest.importorskip("proxies.motion_proxy")
     f0 = proxy.load_real_presses("gelsight").f0
     m = np.array([[1, 0, 1.3], [0, 1, -0.7]], np.float32)
     moved = cv2.warpAffine(f0, m, (f0.shape[1], f0.shape[0]), flags=cv2.INTER_CUBIC,

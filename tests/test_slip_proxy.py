@@ -1,4 +1,4 @@
-"""Real-texture grasp videos (``tacswitch.motion.slip_proxy``) and slip scoring on videos."""
+"""Real-texture grasp videos (``proxies.slip_proxy``) and slip scoring on videos."""
 
 from __future__ import annotations
 
@@ -7,9 +7,10 @@ import pytest
 
 pytest.importorskip("taxim")
 
-from tacswitch.motion import proxy
+from proxies import motion_proxy as proxy
+from proxies.slip_proxy import TEMPORAL_NOISE, real_grasp
+
 from tacswitch.motion.infer import predict_motion
-from tacswitch.motion.slip_proxy import TEMPORAL_NOISE, real_grasp
 from tacswitch.sim.sequences import SLIP_ONSET_FRAMES
 
 

@@ -12,7 +12,7 @@ and share within 30 degrees over markers moving >= 3 px):
   unseen depths; random sensor looks, moving gel grain, capture): with the pair's reference (an
   earlier contact frame or the no-contact frame), with the no-contact reference only (the subset
   whose reference is the no-contact frame), and single frame (truth: motion from rest);
-- **real-texture proxy** (:mod:`tacswitch.motion.proxy`: taxim's real GelSight 640 x 480 and Mini
+- **real-texture proxy** (:mod:`proxies.motion_proxy`: taxim's real GelSight 640 x 480 and Mini
   320 x 240 presses warped by known press / shear / twist / mixed fields, exposure drift, MJPEG or
   H.264): with the real no-contact frame as reference, and single frame.
 
@@ -91,7 +91,7 @@ def sim_settings(root: Path, n: int) -> dict[str, list]:
 
 
 def proxy_settings(press_step: int) -> dict[str, list]:
-    from tacswitch.motion import proxy
+    from proxies import motion_proxy as proxy
 
     out: dict[str, list] = {}
     for sensor in ("gelsight", "gelsight_mini"):

@@ -46,8 +46,8 @@ from harness import (
     publish,
     table,
 )
+from proxies import motion_proxy as proxy
 
-from tacswitch.motion import proxy
 from tacswitch.motion.evaluate import motion_metrics
 from tacswitch.motion.flow import flow_motion
 from tacswitch.motion.heuristic import outward_motion

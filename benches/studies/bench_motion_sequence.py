@@ -36,8 +36,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benches/: harness
 sys.path.insert(0, str(Path(__file__).parent))
 from harness import machine, publish
+from proxies import motion_proxy as proxy
 
-from tacswitch.motion import proxy
 from tacswitch.motion.evaluate import motion_metrics
 from tacswitch.motion.flow import flow_motion
 from tacswitch.motion.heuristic import outward_motion

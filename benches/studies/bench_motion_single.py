@@ -1,12 +1,12 @@
 """Marker motion from ONE markerless frame (the paper's setting) and from a no-contact reference:
 zero motion, the outward rule, the shipped model and the contact-mechanics rule, on three data.
 
-1. **real frames, modelled field** (:func:`tacswitch.motion.proxy.make_contact_proxy`): taxim's
+1. **real frames, modelled field** (:func:`proxies.motion_proxy.make_contact_proxy`): taxim's
    real presses (GelSight 640 x 480, 48; GelSight Mini 320 x 240, 24) keep their real imprint;
    the truth is the simulator's field of a ball press at the recorded contact (``press``), plus
    a stuck shear / twist of it (the frame warped by that field) for the other cases. The truth
    is MODELLED: real texture and imprint, simulated motion.
-2. **real frames, warped by fields unrelated to the imprint** (:func:`tacswitch.motion.proxy.
+2. **real frames, warped by fields unrelated to the imprint** (:func:`proxies.motion_proxy.
    make_proxy`, the real-texture proxy of ``bench_motion_real.py``): from a single frame most of
    its motion is unpredictable in principle.
 3. **simulated, held-out** (the ``gel_test_indenter`` + ``gel_test_depth`` splits of
@@ -44,8 +44,8 @@ from harness import (
     publish,
     pure_press_gains,
 )
+from proxies import motion_proxy as proxy
 
-from tacswitch.motion import proxy
 from tacswitch.motion.ensemble import ensemble_motion
 from tacswitch.motion.evaluate import motion_metrics
 from tacswitch.motion.heuristic import outward_motion
@@ -215,7 +215,7 @@ def press_flow(every: int) -> list[list[str]]:
     real no-contact frame to the press (the real grain moves with the gel), at rings of radius
     ``k a`` about the recorded contact (24 points each, inside the frame), minus the flow's mean
     over a ring near the frame border (a capture-to-capture shift); beside it the simulator's
-    press field (:func:`tacswitch.motion.proxy.contact_fields`, ball press at the same
+    press field (:func:`proxies.motion_proxy.contact_fields`, ball press at the same
     contact). Medians over presses of each ring's median; also the border ring's radial flow
     about the image centre (a zoom between the captures would show there; the contacts lie near
     the image centre, so a zoom and a long-range outward flow cannot be told apart)."""

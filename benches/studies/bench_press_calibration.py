@@ -13,9 +13,9 @@
    (Taxim's tables, :func:`tacswitch.sim.optics.shade_taxim`) of a ball of radius ``R`` pressed
    to each recorded contact radius ``a`` (depth ``R - sqrt(R^2 - a^2)``) against the real
    colour change, both as the median change on rings about the contact; the radius with the
-   smallest relative profile error is :data:`tacswitch.motion.proxy.REAL_BALL_RADIUS_MM`.
+   smallest relative profile error is :data:`proxies.motion_proxy.REAL_BALL_RADIUS_MM`.
 4. **Calibration**: the simulator's press law (:func:`tacswitch.sim.motion.contact_displacement`
-   via :func:`tacswitch.motion.proxy.contact_fields`, that ball pressed to the recorded contacts) at
+   via :func:`proxies.motion_proxy.contact_fields`, that ball pressed to the recorded contacts) at
    unit gain for a grid of reaches ``decay_mm``; least-squares gain per reach against the
    even-index presses' profile over 1.5-6 a; the best reach and its gain; the gain range of
    the presses (10th-90th percentile of per-press gains, each press's rings with its own fitted
@@ -36,9 +36,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benches/: harness
 sys.path.insert(0, str(Path(__file__).parent))
 from harness import machine, publish, table
+from proxies import motion_proxy as proxy
 
 from tacswitch.motion import grainmatch as gm
-from tacswitch.motion import proxy
 from tacswitch.motion.calibration import calibrate_press_gain
 from tacswitch.sim.presets import get_preset
 

@@ -1,6 +1,6 @@
 """Markerless slip on REAL texture: grasp videos made of taxim's real presses, per codec.
 
-``tacswitch.motion.slip_proxy.real_grasps``: per real press (taxim's GelSight 640 x 480 and
+``proxies.slip_proxy.real_grasps``: per real press (taxim's GelSight 640 x 480 and
 GelSight Mini 320 x 240, every ``--every``-th), three grasp videos (hold, slip, vibration) with
 the phases and draws of the simulator's grasps, the real imprint sliding with the object on slip,
 captured as a recorder would (read noise, hunting exposure, then no codec, MJPEG per frame or one
@@ -29,11 +29,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benches/: harness
 sys.path.insert(0, str(Path(__file__).parent))
 from harness import machine, publish
+from proxies import motion_proxy as proxy
+from proxies.slip_proxy import real_grasps
 
-from tacswitch.motion import proxy
 from tacswitch.motion.evaluate import SLIP_CRITERIA, slip_on_videos
 from tacswitch.motion.infer import predict_motion
-from tacswitch.motion.slip_proxy import real_grasps
 from tacswitch.slip import MARKERLESS_SMOOTH_FRAMES
 
 SECTION = "## Slip on a markerless sensor: real-texture grasp videos (codecs)"
@@ -85,7 +85,7 @@ def main() -> int:
     load = os.getloadavg()[0]
     notes = [f"Machine: {machine()}; OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', '-')}; "
              f"load average {load:.1f} at the end (2 cores).", "",
-             f"REAL texture, modelled motion (`tacswitch.motion.slip_proxy`): every "
+             f"REAL texture, modelled motion (`benches/proxies/slip_proxy.py`): every "
              f"{args.every}-th of taxim's real presses per sensor, one hold, slip and vibration "
              f"grasp video each (30 frames; seed {args.seed}), captured with read noise, a "
              "hunting exposure and the codec of the row (`mjpeg:Q` per frame, `h264:CRF` one "

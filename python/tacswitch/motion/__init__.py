@@ -12,10 +12,10 @@
   :mod:`~tacswitch.motion.heuristic` (the outward-from-contact rule) and
   :mod:`~tacswitch.motion.mechanics` (an elastic press law on the imprint): the training-free
   methods of :func:`predict_motion`;
-- :mod:`tacswitch.motion.proxy`: real-texture proxies (real frames warped by known fields);
-  :mod:`~tacswitch.motion.slip_proxy`: grasp videos of real texture for markerless slip;
 - :mod:`tacswitch.motion.evaluate`: the paper's metrics, the baselines and slip on markerless
-  streams.
+  streams. The real-texture proxies they are scored on (real frames warped by known fields,
+  grasp videos of real texture) are evaluation code of the benches, not of this package:
+  ``benches/proxies/``.
 
 Importing this package imports neither torch nor onnxruntime.
 """

@@ -270,7 +270,7 @@ def slip_on_videos(sources: dict[str, Callable[..., NDArray[np.float32]]], grasp
                    smooth_frames: int = 1, near_contact_only: bool = False
                    ) -> dict[tuple[str, str], dict[str, Any]]:
     """Slip detection on grasp videos without marker truth (e.g.
-    :func:`tacswitch.motion.slip_proxy.real_grasps`: objects with ``frames``, ``rest``,
+    ``real_grasps`` of ``benches/proxies/slip_proxy.py``: objects with ``frames``, ``rest``,
     ``kind``, ``grasp_start`` and ``onset``): every source ``predict(img, ref, rest)`` gets each
     frame from the grasp start on with ``ref`` = the grasp-start frame; each criterion
     (:data:`SLIP_CRITERIA`) decides on the mean motion of the last ``smooth_frames`` frames.

@@ -45,8 +45,8 @@ press law was calibrated for the wrong ball (pooled over both presets; GelSight 
 the reference / single-frame, Mini 0.008 / 0.009). Why the simulator then wanted ~7x the real
 GelSight's gain: that calibration pressed a ball of radius drawn up to 6 mm to each recorded
 contact, 0.3-0.5 mm deep, where the real imprints show taxim's 4 mm ball pressed 1.0-1.7 mm
-deep (:data:`tacswitch.motion.proxy.REAL_BALL_RADIUS_MM`), so the fitted law moved the gel ~3x
-too far per pressed volume. With the law refitted for that ball
+deep (``REAL_BALL_RADIUS_MM`` of ``benches/proxies/motion_proxy.py``), so the fitted law moved
+the gel ~3x too far per pressed volume. With the law refitted for that ball
 (``python benches/studies/bench_motion_single.py --calibrate``) the simulator's pure presses want
 0.57 / 0.64 on the GelSight, 0.35 pooled: within ~2x of the real gain. On ball presses alone
 they want what taxim's real frames with the modelled field want (0.37 both, every marker

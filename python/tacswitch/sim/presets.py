@@ -55,8 +55,8 @@ class SensorPreset:
 # on taxim's real presses: block matching of the gel's grain between the real no-contact frame
 # and each press, a joint fit of a radial profile about the contact plus a per-press zoom /
 # shift (``motion.grainmatch.press_profile``), the law (a ball of the radius the real imprints
-# show, ``motion.proxy.REAL_BALL_RADIUS_MM``, pressed to each recorded contact) fitted to the
-# even-index presses over 1.5-6 contact radii and checked on the odd ones
+# show, ``REAL_BALL_RADIUS_MM`` of ``benches/proxies/motion_proxy.py``, pressed to each recorded
+# contact) fitted to the even-index presses over 1.5-6 contact radii and checked on the odd ones
 # (``benches/studies/bench_press_calibration.py``; docs/notes/2026-11-markerless-motion.md, "Real
 # presses: the gel's outward motion (grain block matching) and the calibrated press law"). The
 # gain range is centred on the

@@ -11,7 +11,7 @@ draws of :func:`tacswitch.sim.grasp.render_grasp` (pitch from the sensor's marke
   also grows, which this does not show);
 - shear ramp (second quarter): ``P`` moved by ``r v`` with ``r`` rising to 1, ``v`` the
   simulator's stuck-contact shear field of that press's recorded contact
-  (:func:`tacswitch.motion.proxy.contact_fields`, scaled to a stuck shear of 0.1-0.25 pitch):
+  (:func:`motion_proxy.contact_fields`, scaled to a stuck shear of 0.1-0.25 pitch):
   the gel, its grain and the imprint move together;
 - from the grasp start (half way): ``"hold"``: ``P`` moved by ``v``; ``"vibration"``: by
   ``(1 + s(t)) v``, an 8-15 Hz oscillation of 0.03-0.06 pitch (a hard negative); ``"slip"``:
@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from tacswitch.motion.proxy import RealPresses
+from .motion_proxy import RealPresses
 
 __all__ = ["CODECS", "DEFAULT_QUALITY", "KINDS", "TEMPORAL_NOISE", "RealGrasp", "real_grasp",
            "real_grasps"]
@@ -84,7 +84,7 @@ def _moved(layer: NDArray[np.float32], v: NDArray[np.float32]) -> NDArray[np.flo
     """``layer`` (``H x W x C`` float32) with its content moved by the dense field ``v``."""
     import cv2
 
-    from tacswitch.motion.proxy import dense_backward_map
+    from .motion_proxy import dense_backward_map
 
     if not np.any(v):
         return layer
@@ -103,11 +103,12 @@ def real_grasp(presses: RealPresses, index: int, kind: str, *, n_frames: int = 3
     quality (mjpeg) or x264 CRF (h264); default :data:`DEFAULT_QUALITY`. ``read_noise``: fresh
     noise per frame, grey levels (sigma); default the sensor's :data:`TEMPORAL_NOISE`.
     """
-    from tacswitch.motion.proxy import MAX_GRADIENT, contact_fields, marker_grid
     from tacswitch.sim import capture
     from tacswitch.sim.grain import dense_field
     from tacswitch.sim.presets import get_preset
     from tacswitch.sim.sequences import SLIP_ONSET_FRAMES
+
+    from .motion_proxy import MAX_GRADIENT, contact_fields, marker_grid
 
     if kind not in KINDS:
         raise ValueError(f"kind: expected one of {KINDS}; got {kind!r}")

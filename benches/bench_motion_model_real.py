@@ -78,6 +78,7 @@ def main() -> int:
         if not path:
             ap.error(f"--model: expected NAME=PATH; got {spec!r}")
         models[name] = MotionModel(path, threads=2)
+    extra = [spec.partition("=")[0] for spec in args.model]
 
     g = press.grain_truth("gelsight", press.calibrate("gelsight")["sims"])
     even = [j for j, o in enumerate(g["odd"]) if not o]
@@ -117,11 +118,16 @@ def main() -> int:
 
     score_odd("real GelSight presses, grain-matched gel motion (odd presses)", fns())
     f0 = press.proxy.load_real_presses("gelsight").f0
-    score_odd("the same, from the no-contact frame", {
+    pair_fns: dict[str, Fn] = {
         "zero": lambda im, c: np.zeros((len(c), 2), np.float32),
         "mechanics rule": lambda im, c: mechanics_motion(im, f0, c),
         "ensemble (predict_motion default)": lambda im, c: ensemble_motion(im, f0, c),
-        "flow": lambda im, c: flow_motion(im, f0, c)})
+        "flow": lambda im, c: flow_motion(im, f0, c)}
+    for name, m in models.items():
+        if name in extra and m.design in ("consistent", "plain") and (
+                m.design == "consistent" or m.use_ref):
+            pair_fns[f"model {name}, pair"] = (lambda mm: lambda im, c: mm(im, f0, c))(m)
+    score_odd("the same, from the no-contact frame", pair_fns)
     mini = press.proxy.load_real_presses("gelsight_mini")
     mrest, _ = press.proxy.marker_grid("gelsight_mini")
     for gain in (MECHANICS_GAIN, MECHANICS_GAINS["gelsight_mini"]):
@@ -129,6 +135,14 @@ def main() -> int:
             "mechanics rule": lambda im, c, g=gain: mechanics_motion(im, None, c, gain=g),
             "ensemble (predict_motion default)":
                 lambda im, c, g=gain: ensemble_motion(im, None, c, gain=g)}
+        if gain == MECHANICS_GAIN:
+            for name in extra:
+                m = models[name]
+                mini_fns[f"model {name}, single frame"] = (lambda mm: lambda im, c: mm(
+                    im, centres=c))(m)
+                if m.design == "consistent":
+                    mini_fns[f"model {name}, pair from the no-contact frame"] = (
+                        lambda mm: lambda im, c: mm(im, mini.f0, c))(m)
         for meth, fn in mini_fns.items():
             # The truth is ~0 (grain-matched: 0.15 px), so the error is the motion predicted.
             mag = np.concatenate([np.linalg.norm(fn(im, mrest), axis=1) for im in mini.imgs])

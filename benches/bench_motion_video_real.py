@@ -20,8 +20,12 @@ fitted. The paper's own recipe:
 3. control (**ghost control**): a removal leaves faint traces that move with the gel, which flow
    can follow. The control removes the markers with the mask grown by :data:`CONTROL_DILATE_PX`
    px (``extract_markers(...).mask`` dilated, ``tacswitch.inpaint_telea`` at radius
-   :data:`CONTROL_RADIUS`), so no trace of a dot is left; a method that holds on the control
-   reads the gel, not the dots' ghosts;
+   :data:`CONTROL_RADIUS`), so no trace of a dot's darkness is left;
+   **static-mask control**: the fills of the ghost control still sit where the dots are, so
+   their places move with the gel and a method can follow them. This one fills every frame of a
+   clip on one mask, the union of all its frames' marker masks grown the same way
+   (:func:`static_removal`): the holes stay put and only the gel between them shows the motion
+   (large motions leave less gel to see: shaken clips sweep the dots over much of the frame);
 4. every ``--score-every``-th fed frame is scored (the video is fed at every ``--stride``-th
    frame: the sequence method sees 25 / stride frames per second).
 
@@ -112,6 +116,26 @@ def _tracker(**kw: object) -> Method:
     return run
 
 
+#: ``--model``: a motion model (``tacswitch train motion --videos``) scored beside the defaults.
+MODEL: Path | None = None
+
+
+def _model_methods() -> dict[str, tuple[Method, bool]]:
+    if MODEL is None:
+        return {}
+    tag = hashlib.sha1(MODEL.read_bytes()).hexdigest()[:8]
+    return {f"pairwise from the first frame, model {tag}": (
+                _pairwise(method="model", model=str(MODEL)), False),
+            f"single frame, model {tag}": (
+                lambda frames, f0, c: [_single_model(f, c) for f in frames], False)}
+
+
+def _single_model(frame: np.ndarray, c: np.ndarray) -> np.ndarray:
+    from tacswitch.motion.infer import predict_motion
+
+    return predict_motion(frame, None, c, method="model", model=str(MODEL))
+
+
 def methods() -> dict[str, tuple[Method, bool]]:
     """``name -> (fn, sequential)``; a sequential method sees every fed frame, the others only
     the scored ones."""
@@ -122,6 +146,7 @@ def methods() -> dict[str, tuple[Method, bool]]:
         "pairwise from the first frame, auto": (_pairwise(), False),
         "pairwise from the first frame, flow": (_pairwise(method="flow"), False),
         "single frame (ensemble)": (_single, False),
+        **_model_methods(),
     }
 
 
@@ -149,6 +174,23 @@ def control_removal(frame: np.ndarray) -> np.ndarray:
     k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * CONTROL_DILATE_PX + 1,) * 2)
     mask = cv2.dilate(mask, k) > 0
     return ts.inpaint_telea(frame, mask, radius=CONTROL_RADIUS)
+
+
+def static_removal(frames: list[np.ndarray]) -> list[np.ndarray]:
+    """The static-mask control: every frame filled on one mask, the union of all the clip's
+    marker masks grown by :data:`CONTROL_DILATE_PX`, so the holes do not move: a method that
+    reads where the fills are (they follow the dots) learns nothing from them here; only the gel
+    between the holes shows the motion."""
+    import cv2
+
+    import tacswitch as ts
+
+    union = np.zeros(frames[0].shape[:2], bool)
+    for f in frames:
+        union |= ts.extract_markers(f).mask
+    k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * CONTROL_DILATE_PX + 1,) * 2)
+    mask = cv2.dilate(union.astype(np.uint8), k) > 0
+    return [ts.inpaint_telea(f, mask, radius=CONTROL_RADIUS) for f in frames]
 
 
 def truth(frames: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, int]:
@@ -192,7 +234,8 @@ def run_clip(clip: tuple[str, str, int], names: list[str], stride: int, score_ev
     scored_pos = list(range(0, len(fed_idx), score_every))
     gt = tr_all[[fed_idx[i] for i in scored_pos]]
     inputs = {"removed": [ts.remove_markers(raw[i]) for i in fed_idx],
-              "control": [control_removal(raw[i]) for i in fed_idx]}
+              "control": [control_removal(raw[i]) for i in fed_idx],
+              "static": static_removal([raw[i] for i in fed_idx])}
     from tacswitch.motion.reference import is_new_contact
 
     out: dict[str, dict[str, object]] = {}
@@ -250,7 +293,12 @@ def main() -> int:
     ap.add_argument("--tag", default="", help="cache namespace (e.g. one per code version)")
     ap.add_argument("--per-clip", action="store_true", help="print per-clip e_rmse too")
     ap.add_argument("--update", action="store_true", help="write the section of BENCHMARKS.md")
+    ap.add_argument("--model", type=Path, default=None,
+                    help="also score this motion model (pairwise from the first frame and "
+                         "single frame), e.g. from `tacswitch train motion --videos`")
     args = ap.parse_args()
+    global MODEL
+    MODEL = args.model
     if not DATA.is_dir():
         print(f"no data at {DATA}", file=sys.stderr)
         return 1
@@ -278,7 +326,8 @@ def main() -> int:
     rows: list[list[str]] = []
     new_rows: list[list[str]] = []
     for kind, kind_label in (("removed", "markers removed (default mask)"),
-                             ("control", f"ghost control (mask +{CONTROL_DILATE_PX} px)")):
+                             ("control", f"ghost control (mask +{CONTROL_DILATE_PX} px)"),
+                             ("static", "static-mask control (one mask per clip)")):
         for subset in ("held-out", "all"):
             zero_e = {}
             for name in names:
@@ -298,7 +347,7 @@ def main() -> int:
                              f"{s['rms']:.2f}", f"{s['mag']:.2f}",
                              "-" if name == "zero" else f"{worse}/{len(recs)}",
                              "-" if name == "zero" else f"{ms:.1f}"])
-                if subset == "all" and name != "single frame (ensemble)":
+                if subset == "all" and not name.startswith("single frame"):
                     sel = [np.asarray(r["new"], bool) for r in recs]
                     pn = np.concatenate([np.asarray(r["pred"])[m].reshape(-1, 2)
                                          for r, m in zip(recs, sel, strict=True)])

@@ -2,7 +2,9 @@
 
 Data: synthetic pairs rendered into ``--data`` (``--simulate N``; resumable shards), or a user's
 own marker sensor (``--frames DIR --reference IMG``): ground-truth motions from the marker
-tracker, markerless inputs from TELEA (``tacswitch.remove_markers``).
+tracker, markerless inputs from TELEA (``tacswitch.remove_markers``). ``--videos`` trains the
+consistent model on a marker sensor's videos (:mod:`tacswitch.motion.real_pairs`: markers
+tracked for the targets, removed with a grown mask for the inputs; CPU or GPU).
 """
 
 from __future__ import annotations
@@ -38,6 +40,29 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="folder of frames from your marker sensor (instead of --data)")
     m.add_argument("--reference", default=None,
                    help="no-contact frame of your marker sensor (with --frames)")
+    m.add_argument("--videos", nargs="+", default=None, metavar="VIDEO",
+                   help="videos of your marker sensor, or folders of them (instead of --data): "
+                        "each video's first frame is its no-contact rest unless --reference is "
+                        "given; trains the consistent model (pair and single frame) for --steps "
+                        "steps, writes OUT/model.onnx and OUT/single.onnx")
+    m.add_argument("--every", type=int, default=3,
+                   help="--videos: keep every N-th frame (default: %(default)s)")
+    m.add_argument("--grow-px", type=int, default=4,
+                   help="--videos: grow the marker mask by this many px before the fill, so no "
+                        "trace of a dot is left to follow (default: %(default)s)")
+    m.add_argument("--mask", choices=("static", "per-frame"), default="static",
+                   help="--videos: static (default): every kept frame of a video filled on one "
+                        "mask, the union of its marker masks, so the fills' places say nothing "
+                        "of the motion; per-frame: each frame on its own markers' mask (the "
+                        "model learns to follow the fills, which a markerless gel does not "
+                        "have: it then predicts false motion on truly markerless frames)")
+    m.add_argument("--steps", type=int, default=3000,
+                   help="--videos: training steps (default: %(default)s)")
+    m.add_argument("--workers", type=int, default=1,
+                   help="--videos: processes that track and clean the videos (default: "
+                        "%(default)s)")
+    m.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto",
+                   help="--videos: where to train (auto: a CUDA GPU when torch sees one)")
     m.add_argument("--arch", choices=("unet", "lraspp", "deeplabv3"), default="unet",
                    help="unet: the light default; deeplabv3: the paper's reference")
     m.add_argument("--use-ref", action="store_true",
@@ -70,13 +95,18 @@ def _check(args: argparse.Namespace) -> None:
     if args.split == "pair_train" and not args.use_ref:
         raise UsageError("--split pair_train: the targets are motions since an earlier frame, "
                          "which the network only sees with --use-ref")
+    if args.videos is not None and (args.frames is not None or args.data is not None):
+        raise UsageError("--videos: give either --videos, --frames or --data")
     if args.frames is not None and args.reference is None:
         raise UsageError("--reference: needed with --frames (the no-contact frame)")
-    if args.frames is None and args.data is None:
-        raise UsageError("--data: give a data folder (or --frames for your own sensor)")
+    if args.frames is None and args.data is None and args.videos is None:
+        raise UsageError("--data: give a data folder (or --frames / --videos for your own "
+                         "sensor)")
     for flag, value, low in (("--epochs", args.epochs, 1), ("--batch", args.batch, 1),
                              ("--simulate", args.simulate, 0), ("--seed", args.seed, 0),
-                             ("--max-steps", args.max_steps, 0)):
+                             ("--max-steps", args.max_steps, 0), ("--every", args.every, 1),
+                             ("--grow-px", args.grow_px, 0), ("--steps", args.steps, 1),
+                             ("--workers", args.workers, 1)):
         if value < low:
             raise UsageError(f"{flag}: must be >= {low}; got {value}")
     if not args.lr > 0 or args.lr == float("inf"):
@@ -91,6 +121,8 @@ def run(args: argparse.Namespace) -> int:
         import torch  # noqa: F401
     except ImportError:
         raise ValueError('training needs torch: pip install "tacswitch[train]"') from None
+    if args.videos is not None:
+        return _run_videos(args)
     from tacswitch.motion import data as mdata
     from tacswitch.motion.export import export_onnx
     from tacswitch.motion.train import TrainConfig, train
@@ -122,4 +154,29 @@ def run(args: argparse.Namespace) -> int:
     path = export_onnx(net, Path(args.out) / "model.onnx", metadata=meta, height=h, width=w)
     if not args.quiet:
         print(f"exported {path}")
+    return 0
+
+
+def _run_videos(args: argparse.Namespace) -> int:
+    """``--videos``: pairs from the marker videos, then :func:`train_real`."""
+    from tacswitch._io import read_image
+    from tacswitch.motion.real_pairs import pairs_from_videos
+    from tacswitch.motion.train_real import RealTrainConfig, train_real
+
+    ref = read_image(args.reference, "--reference") if args.reference else None
+    pairs = pairs_from_videos(args.videos, ref, every=args.every, grow_px=args.grow_px,
+                              static=args.mask == "static", seed=args.seed, workers=args.workers,
+                              progress=not args.quiet)
+    cfg = RealTrainConfig(steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed,
+                          device=args.device, loss=args.loss)
+    try:
+        last = train_real(pairs, args.out, cfg, progress=not args.quiet)
+    except ValueError as exc:
+        if "device" in str(exc):
+            raise ValueError(f"--device: {exc}") from None
+        raise
+    if not args.quiet:
+        scores = ", ".join(f"{k} {v:.3f}" for k, v in last.items())
+        print(f"validation (held-out videos): {scores or 'none (one video)'}")
+        print(f"exported {Path(args.out) / 'model.onnx'} and {Path(args.out) / 'single.onnx'}")
     return 0

@@ -221,3 +221,26 @@ def test_bad_extraction_options_are_usage_errors(tmp_path: Path, bad: list[str],
         main(["remove-markers", "x.png", "-o", str(tmp_path), *bad])
     assert info.value.code == 2
     assert bad[0].split("=")[0] in capsys.readouterr().err or "--exclude-border" in bad
+
+
+def test_motion_runs_a_model_over_a_video_from_its_first_frame(
+        tmp_path: Path, grasp: sim.GraspSequence, capsys: pytest.CaptureFixture[str]) -> None:
+    frames = [ts.remove_markers(f) for f in [grasp.reference, *grasp.frames]]
+    video = write_video(tmp_path / "clean.mkv", frames, "FFV1")
+    assert main(["motion", str(video), "--method", "model", "-o", str(tmp_path / "o"),
+                 "-q"]) == 0
+    with open(tmp_path / "o" / "clean.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    t = np.array([int(r["frame"]) for r in rows])
+    d = np.array([[float(r["dx"]), float(r["dy"])] for r in rows])
+    assert sorted(set(t)) == list(range(len(frames)))
+    assert np.abs(d[t == 0]).max() == 0.0  # the consistent model: the anchor against itself
+    # The same as the model on each frame against the first, as the Python API gives it.
+    pts = np.array([[float(r["x"]), float(r["y"])] for r in rows if r["frame"] == "0"])
+    last = ts.predict_motion(frames[-1], frames[0], pts, method="model")
+    np.testing.assert_allclose(d[t == len(frames) - 1], last, atol=1e-3)
+    capsys.readouterr()
+    cv2.imwrite(str(tmp_path / "ref.png"), frames[0])
+    assert main(["motion", str(video), "--method", "flow", "--ref", str(tmp_path / "ref.png"),
+                 "-o", str(tmp_path / "p")]) == 2
+    assert "--method model" in capsys.readouterr().err

@@ -22,8 +22,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                        description="Predicts the (dx, dy) each marker would have had from "
                                    "markerless frames; writes a CSV and an arrow overlay per "
                                    "image. A video is one sequence (as --sequence): every "
-                                   "frame's motion from rest by tacswitch.MarkerlessTracker, "
-                                   "one CSV per video (frame, x, y, dx, dy) and the overlay "
+                                   "frame's motion from rest by tacswitch.MarkerlessTracker "
+                                   "(with --method model: by the model, from --ref or the "
+                                   "video's first frame), one CSV per video (frame, x, y, dx, "
+                                   "dy) and the overlay "
                                    "of its last frame. Unreadable images are skipped, counted "
                                    "and named in a warning on stderr.")
     p.add_argument("inputs", nargs="+",
@@ -163,15 +165,17 @@ def run(args: argparse.Namespace) -> int:
             _track_video(bag.path, ref, centres, gain, args, out, stream=bag, sink=sink)
         return 0
     files, videos = collect_inputs(args.inputs)
-    if videos and args.method != "auto":
+    if videos and args.method not in ("auto", "model"):
         raise UsageError(f"--method: a video is one sequence, tracked by MarkerlessTracker "
-                         f"(the flow from rest); drop --method {args.method}")
+                         f"(the flow from rest) or, with --method model, by the model from "
+                         f"--ref (else the first frame); drop --method {args.method}")
     out = output_dir(args.out, "--out")
     if centres is None:
         say("centres: the default grid (the GelSight Mini's 9 x 11 markers scaled to the "
             "frame); pass --centres for your sensor's own", quiet=args.quiet)
     for path in videos:
-        _track_video(path, ref, centres, gain, args, out)
+        _track_video(path, ref, centres, gain, args, out,
+                     model=model if args.method == "model" else None)
     tracker = None
     if args.sequence:
         from tacswitch.motion.sequence import MarkerlessTracker
@@ -229,10 +233,30 @@ def _arrows(img, pts, motion, scale: float):  # type: ignore[no-untyped-def]
     return vis
 
 
+class _ModelFromAnchor:
+    """``--method model`` on a video: each frame's motion from the anchor (``ref``, else the
+    video's first frame) by the learned ``model`` (a :class:`~tacswitch.motion.infer.MotionModel`;
+    a single-frame model sees each frame alone, from rest), the tracker interface of
+    :class:`~tacswitch.motion.sequence.MarkerlessTracker`."""
+
+    def __init__(self, model, ref, centres) -> None:  # type: ignore[no-untyped-def]
+        self.model, self.anchor, self.centres = model, ref, centres
+
+    def update(self, img):  # type: ignore[no-untyped-def]
+        if self.centres is None:
+            self.centres = self.model.centres_for(*img.shape[:2])
+        if self.model.design == "single":
+            return self.model(img, centres=self.centres)
+        if self.anchor is None:
+            self.anchor = img.copy()
+        return self.model(img, ref=self.anchor, centres=self.centres)
+
+
 def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # type: ignore[no-untyped-def]
-                 out: Path, stream=None, sink=None) -> None:
+                 out: Path, stream=None, sink=None, model=None) -> None:
     """Every frame of the video ``path`` through one :class:`MarkerlessTracker` (``ref``: the
-    no-contact frame, or None: the video starts in contact); ``<stem>.csv`` with a row per
+    no-contact frame, or None: the video starts in contact), or with ``model`` (``--method
+    model``) through :class:`_ModelFromAnchor`; ``<stem>.csv`` with a row per
     frame and marker, ``<stem>_motion.png`` the last frame's arrows. Frames that do not decode
     are skipped (their rows are absent); a video with none raises ``ValueError``. ``stream``:
     the frames when they come from elsewhere (a :class:`tacswitch.bags.BagSource`, whose
@@ -245,7 +269,8 @@ def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # ty
     from tacswitch.cli.sources import video_frames
     from tacswitch.motion.sequence import MarkerlessTracker
 
-    tracker = MarkerlessTracker(ref, centres, gain=gain, model=args.model)
+    tracker = (MarkerlessTracker(ref, centres, gain=gain, model=args.model) if model is None
+               else _ModelFromAnchor(model, ref, centres))
     buf = io.StringIO()
     w = csv.writer(buf)
     w.writerow(["frame", "x", "y", "dx", "dy"])

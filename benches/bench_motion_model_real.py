@@ -136,6 +136,7 @@ def main() -> int:
             "ensemble (predict_motion default)":
                 lambda im, c, g=gain: ensemble_motion(im, None, c, gain=g)}
         if gain == MECHANICS_GAIN:
+            mini_fns["flow from the no-contact frame"] = lambda im, c: flow_motion(im, mini.f0, c)
             for name in extra:
                 m = models[name]
                 mini_fns[f"model {name}, single frame"] = (lambda mm: lambda im, c: mm(

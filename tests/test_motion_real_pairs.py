@@ -128,3 +128,5 @@ def test_videos_of_other_sizes_or_no_video_are_refused(tmp_path: Path, videos: P
         rp.track_video(videos / "exp_0" / "camera_0.avi", every=0)
     with pytest.raises(ValueError, match="grow_px"):
         rp.pairs_from_videos([videos], grow_px=-1)
+    with pytest.raises(ValueError, match=r"every: the kept frames of the first 1 of 2 videos"):
+        rp.pairs_from_videos([videos], max_gib=1e-4)

@@ -48,6 +48,8 @@ GROW_PX = 4
 FILL_RADIUS = 5
 #: Default: every third frame is kept (25 fps videos: about 8 training frames a second).
 EVERY = 3
+#: Default cap on the kept frames' memory (GiB): about 70,000 frames at 320x240.
+MAX_GIB = 16.0
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v")
 
 
@@ -214,30 +216,40 @@ class RealPairs:
 def pairs_from_videos(videos: list[str | os.PathLike[str]],
                       reference: NDArray[np.uint8] | None = None, *, every: int = EVERY,
                       grow_px: int = GROW_PX, static: bool = True, seed: int = 0,
-                      workers: int = 1, progress: bool = False) -> RealPairs:
+                      workers: int = 1, max_gib: float = MAX_GIB,
+                      progress: bool = False) -> RealPairs:
     """:class:`RealPairs` of marker videos (files or folders; all frames of one size), tracked
     and cleaned in ``workers`` processes. ``reference``: a no-contact frame with markers for
-    every video (default: each video's first frame). ``static``: see :func:`track_video`."""
+    every video (default: each video's first frame). ``static``: see :func:`track_video`.
+    The kept frames are held in memory (and on the training device): more than ``max_gib``
+    GiB of them is a ``ValueError`` naming ``every``, before memory runs out."""
     paths = collect_videos(videos)
     if grow_px < 0:
         raise ValueError(f"grow_px: must be >= 0; got {grow_px}")
     jobs = [(str(p), reference, every, grow_px, static) for p in paths]
+    tracks: list[VideoTrack] = []
+
+    def keep(tr: VideoTrack) -> None:
+        tracks.append(tr)
+        gib = sum(t.frames.nbytes for t in tracks) / 2**30
+        if gib > max_gib:
+            raise ValueError(f"every: the kept frames of the first {len(tracks)} of "
+                             f"{len(jobs)} videos already take {gib:.1f} GiB (limit "
+                             f"{max_gib:g}); keep fewer frames (every > {every}) or train "
+                             "on fewer videos")
+        if progress:
+            print(f"\r{len(tracks)}/{len(jobs)} videos tracked and cleaned", end="",
+                  flush=True)
+
     if workers > 1:
         from multiprocessing import get_context
 
         with get_context("spawn").Pool(workers) as pool:
-            tracks = []
-            for i, tr in enumerate(pool.imap(_track_job, jobs, chunksize=1)):
-                tracks.append(tr)
-                if progress:
-                    print(f"\r{i + 1}/{len(jobs)} videos tracked and cleaned", end="",
-                          flush=True)
+            for tr in pool.imap(_track_job, jobs, chunksize=1):
+                keep(tr)
     else:
-        tracks = []
-        for i, job in enumerate(jobs):
-            tracks.append(_track_job(job))
-            if progress:
-                print(f"\r{i + 1}/{len(jobs)} videos tracked and cleaned", end="", flush=True)
+        for job in jobs:
+            keep(_track_job(job))
     if progress:
         print(flush=True)
     shapes = {t.frames.shape[1:] for t in tracks}

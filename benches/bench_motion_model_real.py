@@ -73,12 +73,13 @@ def main() -> int:
     args = ap.parse_args()
     models = {"single": MotionModel("single", threads=2),
               "consistent (default model)": MotionModel(threads=2)}
+    extra: list[str] = []  # the --model names
     for spec in args.model:
         name, _, path = spec.partition("=")
         if not path:
             ap.error(f"--model: expected NAME=PATH; got {spec!r}")
         models[name] = MotionModel(path, threads=2)
-    extra = [spec.partition("=")[0] for spec in args.model]
+        extra.append(name)
 
     g = press.grain_truth("gelsight", press.calibrate("gelsight")["sims"])
     even = [j for j, o in enumerate(g["odd"]) if not o]

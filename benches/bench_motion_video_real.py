@@ -166,14 +166,9 @@ def read_video(path: Path) -> list[np.ndarray]:
 
 def control_removal(frame: np.ndarray) -> np.ndarray:
     """The ghost control: markers removed with the mask grown by :data:`CONTROL_DILATE_PX`."""
-    import cv2
+    from tacswitch.motion.real_pairs import markerless
 
-    import tacswitch as ts
-
-    mask = ts.extract_markers(frame).mask.astype(np.uint8)
-    k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * CONTROL_DILATE_PX + 1,) * 2)
-    mask = cv2.dilate(mask, k) > 0
-    return ts.inpaint_telea(frame, mask, radius=CONTROL_RADIUS)
+    return markerless(frame, CONTROL_DILATE_PX, CONTROL_RADIUS)
 
 
 def static_removal(frames: list[np.ndarray]) -> list[np.ndarray]:
@@ -181,16 +176,10 @@ def static_removal(frames: list[np.ndarray]) -> list[np.ndarray]:
     marker masks grown by :data:`CONTROL_DILATE_PX`, so the holes do not move: a method that
     reads where the fills are (they follow the dots) learns nothing from them here; only the gel
     between the holes shows the motion."""
-    import cv2
+    from tacswitch.motion.real_pairs import markerless, union_mask
 
-    import tacswitch as ts
-
-    union = np.zeros(frames[0].shape[:2], bool)
-    for f in frames:
-        union |= ts.extract_markers(f).mask
-    k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * CONTROL_DILATE_PX + 1,) * 2)
-    mask = cv2.dilate(union.astype(np.uint8), k) > 0
-    return [ts.inpaint_telea(f, mask, radius=CONTROL_RADIUS) for f in frames]
+    union = union_mask(frames)
+    return [markerless(f, CONTROL_DILATE_PX, CONTROL_RADIUS, mask=union) for f in frames]
 
 
 def truth(frames: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, int]:

@@ -73,6 +73,14 @@ def markerless(frame: NDArray[np.uint8], grow_px: int = GROW_PX,
     return np.asarray(inpaint_telea(frame, grown(base, grow_px), radius=radius), np.uint8)
 
 
+def union_mask(frames: list[NDArray[np.uint8]]) -> NDArray[np.bool_]:
+    """The union of the frames' extracted marker masks: where any of them shows a dot."""
+    union = np.zeros(frames[0].shape[:2], bool)
+    for frame in frames:
+        union |= extract_markers(frame).mask
+    return union
+
+
 def _frames_of(path: Path) -> list[NDArray[np.uint8]]:
     import cv2
 
@@ -139,9 +147,7 @@ def track_video(path: str | os.PathLike[str], reference: NDArray[np.uint8] | Non
             kept.append(frame)
             motions.append(m.astype(np.float32))
     if static:
-        union = np.zeros(raw[0].shape[:2], bool)
-        for frame in raw[:used]:
-            union |= extract_markers(frame).mask
+        union = union_mask(raw[:used])
         clean = [markerless(f, grow_px, mask=union) for f in kept]
     else:
         clean = [markerless(f, grow_px) for f in kept]
@@ -200,17 +206,23 @@ class RealPairs:
     def batch(self, idx: Any) -> dict[str, NDArray[Any]]:
         """The pairs ``idx`` as arrays: ``image``, ``reference``, ``rest``, ``displacement``
         (motion from reference to image), ``disp_image``, ``disp_reference`` (from rest)."""
-        p = self.pairs[np.asarray(idx)]
-        di, dr = self.motion[p[:, 0]], self.motion[p[:, 1]]
-        return {"image": self.frames[p[:, 0]], "reference": self.frames[p[:, 1]],
-                "rest": self.rest[self.video[p[:, 0]]], "displacement": di - dr,
-                "disp_image": di, "disp_reference": dr}
+        return gather_pairs(self.frames, self.motion, self.rest, self.video,
+                            self.pairs[np.asarray(idx)])
 
     def subset(self, videos: Any) -> RealPairs:
         """The pairs whose frames come from the given video indices (e.g. a validation split)."""
         keep = np.isin(self.video[self.pairs[:, 0]], np.asarray(videos))
         return RealPairs(self.frames, self.motion, self.rest, self.video, self.pairs[keep],
                          self.names)
+
+
+def gather_pairs(frames: Any, motion: Any, rest: Any, video: Any, pairs: Any) -> dict[str, Any]:
+    """The batch of ``pairs`` (``B x 2`` image, reference frame indices) from the arrays of a
+    :class:`RealPairs` (numpy arrays or torch tensors alike: indexing and a difference only)."""
+    di, dr = motion[pairs[:, 0]], motion[pairs[:, 1]]
+    return {"image": frames[pairs[:, 0]], "reference": frames[pairs[:, 1]],
+            "rest": rest[video[pairs[:, 0]]], "displacement": di - dr, "disp_image": di,
+            "disp_reference": dr}
 
 
 def pairs_from_videos(videos: list[str | os.PathLike[str]],

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from tacswitch.motion.real_pairs import RealPairs
+from tacswitch.motion.real_pairs import RealPairs, gather_pairs
 
 
 @dataclass
@@ -98,10 +98,7 @@ def train_real(pairs: RealPairs, out: str | Path, cfg: RealTrainConfig, *,
     train_pairs = torch.from_numpy(train_p.pairs).to(dev)
 
     def gather(p: Any) -> dict[str, Any]:
-        di, dr = motion[p[:, 0]], motion[p[:, 1]]
-        return {"image": frames[p[:, 0]], "reference": frames[p[:, 1]],
-                "rest": rest[video[p[:, 0]]], "displacement": di - dr, "disp_image": di,
-                "disp_reference": dr}
+        return gather_pairs(frames, motion, rest, video, p)
 
     val = gather(torch.from_numpy(val_p.pairs).to(dev)) if len(val_p) else None
     ckpt = out / "checkpoint.pt"

@@ -62,7 +62,8 @@ const MIN_INTERIOR_FOR_AREA_RULE: usize = 3;
 const BORDER_KEEP_RATIO: f32 = 0.5;
 /// Largest background box (pixels): keeps the binned window sums within u32.
 pub const MAX_BLOCK: usize = 255;
-/// Pixels tested at once when scanning for marker runs.
+/// Pixels tested at once when scanning for marker runs (16: one SSE2 move-mask, and the
+/// hits of a chunk are the low bits of a `u32`).
 const SCAN_CHUNK: usize = 16;
 /// Width of the ring around a marker's box used for its local background (pixels).
 const RING_GAP: usize = 2;
@@ -179,8 +180,8 @@ pub struct Extraction {
 #[derive(Debug, Default, Clone)]
 pub struct ExtractWorkspace {
     luma: Vec<u16>,
-    /// One row of darkness: rows are computed as needed, never the whole image.
-    dark: Vec<i16>,
+    /// Per background bin, the luma below which a pixel is a marker pixel ([`label_image`]).
+    limits: Vec<u16>,
     boxes: BoxBuffers,
     labels: Vec<u32>,
     labeller: RunLabeller,
@@ -227,13 +228,7 @@ pub fn extract_markers_with(
 
     compute_luma(image, params.polarity, &mut ws.luma);
     let bg = background(&ws.luma, h, w, block, &mut ws.boxes);
-    let hist = darkness_histogram(
-        &ws.luma,
-        &ws.boxes.mean,
-        bg,
-        &mut ws.boxes.row,
-        &mut ws.dark,
-    );
+    let hist = darkness_histogram(&ws.luma, &ws.boxes.mean, bg);
     let mut stats = HistStats::from_hist(&hist);
     let first_sigma = stats.sigma;
     let otsu = otsu_threshold(&hist, &stats);
@@ -246,13 +241,7 @@ pub fn extract_markers_with(
             // the pixels that Otsu puts in the dark class, then the statistics and threshold.
             let exclude = otsu.max(stats.median + MIN_CONTRAST_LEVELS);
             background_excluding(&ws.luma, bg, block, exclude, &mut ws.boxes);
-            let hist = darkness_histogram(
-                &ws.luma,
-                &ws.boxes.mean,
-                bg,
-                &mut ws.boxes.row,
-                &mut ws.dark,
-            );
+            let hist = darkness_histogram(&ws.luma, &ws.boxes.mean, bg);
             // The level and noise of the gel: from the pixels left out of the dark class (the
             // markers' own darkness is not noise). Otsu still sees the whole histogram.
             let mut gel = hist;
@@ -274,8 +263,8 @@ pub fn extract_markers_with(
         &ws.boxes.mean,
         bg,
         t_units,
+        &mut ws.limits,
         &mut ws.boxes.row,
-        &mut ws.dark,
         &mut ws.labeller,
     );
     let comps = component_stats(&ws.labeller.runs, n_components);
@@ -611,18 +600,6 @@ fn bin_sums<const F: usize>(
     }
 }
 
-/// Background of row `y` at pixel resolution, read from the bins.
-#[inline(always)]
-fn expand_row(mean: &[u16], bg: Background, y: usize, row: &mut Vec<u16>) {
-    // `expand` writes every pixel of the row.
-    resize_for_overwrite(row, bg.w);
-    let src = &mean[(y / bg.factor) * bg.bins_w..][..bg.bins_w];
-    match bg.factor {
-        4 => expand::<4>(src, row),
-        _ => expand::<2>(src, row),
-    }
-}
-
 #[inline(always)]
 fn expand<const F: usize>(src: &[u16], row: &mut [u16]) {
     let full = row.len() / F;
@@ -638,55 +615,36 @@ fn expand<const F: usize>(src: &[u16], row: &mut [u16]) {
     }
 }
 
-/// Darkness of one row, i16 in 1/64 grey level: `(background - luma) >> 2`.
+/// Darkness of one pixel, i16 in 1/64 grey level: `(background - luma) >> 2`. Both are at
+/// most 65280, so the result lies in `[-16320, 16320]`.
 #[inline(always)]
-fn darkness_row(bg_row: &[u16], luma_row: &[u16], out: &mut Vec<i16>) {
-    resize_for_overwrite(out, luma_row.len());
-    for ((d, &m), &l) in out.iter_mut().zip(bg_row).zip(luma_row) {
-        *d = ((i32::from(m) - i32::from(l)) >> DARK_SHIFT) as i16;
-    }
+fn darkness(m: u16, l: u16) -> i16 {
+    ((i32::from(m) - i32::from(l)) >> DARK_SHIFT) as i16
 }
 
-/// [`darkness_row`] that also returns the row's largest darkness (`i16::MIN` for an empty row),
-/// so that rows with nothing above the threshold skip the run scan.
+/// Luma limit equivalent to `darkness(m, l) > t`: that holds exactly when `l < limit(m, t)`.
+/// `(m - l) >> 2 > t` means `m - l >= 4 (t + 1)`, i.e. `l < m - 4 t - 3`; the limit is clamped
+/// to `u16` (luma never exceeds 65280, so 65535 admits every pixel and 0 none).
 #[inline(always)]
-fn darkness_row_max(bg_row: &[u16], luma_row: &[u16], out: &mut Vec<i16>) -> i16 {
-    resize_for_overwrite(out, luma_row.len());
-    let mut max = i16::MIN;
-    for ((d, &m), &l) in out.iter_mut().zip(bg_row).zip(luma_row) {
-        let v = ((i32::from(m) - i32::from(l)) >> DARK_SHIFT) as i16;
-        *d = v;
-        max = max.max(v);
-    }
-    max
+fn luma_limit(m: u16, t: i16) -> u16 {
+    (i32::from(m) - 4 * i32::from(t) - 3).clamp(0, i32::from(u16::MAX)) as u16
 }
 
 multiversion! {
-    /// Histogram of darkness on every other pixel of every 1st-4th row (in chunks of 8, into four
-    /// sub-histograms so consecutive increments of the one busy bin do not wait on each other):
-    /// tens of thousands of samples are plenty for a median, a MAD and Otsu.
-    fn darkness_histogram(
-        luma: &[u16],
-        mean: &[u16],
-        bg: Background,
-        bg_row: &mut Vec<u16>,
-        dark_row: &mut Vec<i16>,
-    ) -> [u32; HIST_BINS] {
+    /// Histogram of darkness on every other pixel of every 1st-4th row: tens of thousands of
+    /// samples are plenty for a median, a MAD and Otsu. Darkness is computed only where it is
+    /// sampled, straight from the binned background (no row at pixel resolution).
+    fn darkness_histogram(luma: &[u16], mean: &[u16], bg: Background) -> [u32; HIST_BINS] {
         let mut hist = [[0u32; HIST_BINS]; 4];
         // Every 4th row on frames of 256+ rows (38k samples at 640x480), denser on small ones.
         let row_step = (bg.h / 64).clamp(1, 4);
         for y in (0..bg.h).step_by(row_step) {
-            expand_row(mean, bg, y, bg_row);
-            darkness_row(bg_row, &luma[y * bg.w..][..bg.w], dark_row);
-            let chunks = dark_row.chunks_exact(8);
-            let tail = chunks.remainder();
-            for c in chunks {
-                for (k, sub) in hist.iter_mut().enumerate() {
-                    sub[hist_bin(c[2 * k])] += 1;
-                }
-            }
-            for &d in tail.iter().step_by(2) {
-                hist[0][hist_bin(d)] += 1;
+            let means = &mean[(y / bg.factor) * bg.bins_w..][..bg.bins_w];
+            let row = &luma[y * bg.w..][..bg.w];
+            if bg.factor == 4 {
+                sample_row::<4>(means, row, &mut hist);
+            } else {
+                sample_row::<2>(means, row, &mut hist);
             }
         }
         let mut total = [0u32; HIST_BINS];
@@ -699,28 +657,56 @@ multiversion! {
     }
 }
 
+/// Adds the darkness of the even pixels of one row (background bins of `F` pixels) to the
+/// histograms, spread over four sub-histograms so that consecutive increments of the one busy
+/// bin do not wait on each other.
+#[inline(always)]
+fn sample_row<const F: usize>(means: &[u16], row: &[u16], hist: &mut [[u32; HIST_BINS]; 4]) {
+    // Two bins at a time: F even pixels, i.e. at least two sub-histograms in turn.
+    let pairs = row.chunks_exact(2 * F);
+    let done = row.len() - pairs.remainder().len();
+    for (px, m) in pairs.zip(means.chunks_exact(2)) {
+        for j in 0..F {
+            let x = 2 * j;
+            hist[j % 4][hist_bin(darkness(m[x / F], px[x]))] += 1;
+        }
+    }
+    // `done` is a multiple of 2 F, so the tail starts on an even pixel; a partial last bin
+    // is `means[x / F]` as in [`expand`].
+    for x in (done..row.len()).step_by(2) {
+        hist[0][hist_bin(darkness(means[x / F], row[x]))] += 1;
+    }
+}
+
 multiversion! {
-    /// Labels the pixels with darkness above `t`, computing darkness a row at a time.
+    /// Labels the pixels with darkness above `t`. Darkness is never stored: each bin row's
+    /// background becomes a luma limit ([`luma_limit`]) at pixel resolution, and the labeller
+    /// compares luma with it.
     fn label_image(
         luma: &[u16],
         mean: &[u16],
         bg: Background,
         t: i16,
-        bg_row: &mut Vec<u16>,
-        dark_row: &mut Vec<i16>,
+        limits: &mut Vec<u16>,
+        limit_row: &mut Vec<u16>,
         labeller: &mut RunLabeller,
     ) -> usize {
         labeller.clear();
+        resize_for_overwrite(limits, bg.bins_w);
+        resize_for_overwrite(limit_row, bg.w);
         for y in 0..bg.h {
             if y % bg.factor == 0 {
-                expand_row(mean, bg, y, bg_row);
+                let means = &mean[(y / bg.factor) * bg.bins_w..][..bg.bins_w];
+                for (l, &m) in limits.iter_mut().zip(means) {
+                    *l = luma_limit(m, t);
+                }
+                if bg.factor == 4 {
+                    expand::<4>(limits, limit_row);
+                } else {
+                    expand::<2>(limits, limit_row);
+                }
             }
-            // About half the rows of a marker frame hold no marker pixel: no run scan for them.
-            if darkness_row_max(bg_row, &luma[y * bg.w..][..bg.w], dark_row) > t {
-                labeller.push_row(dark_row, y, t);
-            } else {
-                labeller.empty_row();
-            }
+            labeller.push_row(&luma[y * bg.w..][..bg.w], limit_row, y);
         }
         labeller.finish()
     }
@@ -741,7 +727,7 @@ struct BoxBuffers {
     col: Vec<u32>,
     padded: Vec<u32>,
     mean: Vec<u16>,
-    /// Background of the current row at pixel resolution.
+    /// [`label_image`]'s luma limits of the current row at pixel resolution.
     row: Vec<u16>,
     /// [`background_excluding`]: per-bin luma sums and counts of the pixels kept, and their box
     /// sums (one pass down the columns, then along the rows).
@@ -990,46 +976,53 @@ impl RunLabeller {
         self.prev = 0..0;
     }
 
-    /// A row without runs: what [`Self::push_row`] does with a row where no `row[x] > t`.
+    /// Adds the runs of `luma[x] < limit[x]` (marker pixels, [`luma_limit`]) of row `y` and
+    /// unions them with touching runs above.
     #[inline(always)]
-    fn empty_row(&mut self) {
-        let end = self.runs.len();
-        self.prev = end..end;
-    }
-
-    /// Adds the runs of `row[x] > t` of row `y` and unions them with touching runs above.
-    #[inline(always)]
-    fn push_row(&mut self, row: &[i16], y: usize, t: i16) {
-        let w = row.len();
+    fn push_row(&mut self, luma: &[u16], limit: &[u16], y: usize) {
+        let w = luma.len();
+        let limit = &limit[..w];
         let start = self.runs.len();
+        // Start of a run still open at the current chunk's first pixel.
+        let mut open: Option<usize> = None;
         let mut x = 0;
         while x < w {
-            // Skip background a chunk at a time: an OR of the comparisons vectorises to one
-            // compare and one test per chunk (a max would need a horizontal reduction).
-            if x + SCAN_CHUNK <= w
-                && !row[x..x + SCAN_CHUNK]
-                    .iter()
-                    .fold(false, |any, &v| any | (v > t))
-            {
-                x += SCAN_CHUNK;
+            let n = SCAN_CHUNK.min(w - x);
+            let bits = hit_bits(&luma[x..x + n], &limit[x..x + n]);
+            let all = (1u32 << n) - 1;
+            // Background, or the inside of a run: nothing starts or ends in this chunk.
+            if (bits == 0 && open.is_none()) || (bits == all && open.is_some()) {
+                x += n;
                 continue;
             }
-            if row[x] > t {
-                let x0 = x;
-                while x < w && row[x] > t {
-                    x += 1;
+            // A run starts at a set bit and ends at the next clear one (`pos` <= 16 < 32).
+            let mut pos = 0u32;
+            loop {
+                let from = u32::MAX << pos;
+                match open {
+                    Some(x0) => {
+                        let ends = !bits & all & from;
+                        if ends == 0 {
+                            break;
+                        }
+                        pos = ends.trailing_zeros();
+                        self.push_run(y, x0, x + pos as usize);
+                        open = None;
+                    }
+                    None => {
+                        let starts = bits & from;
+                        if starts == 0 {
+                            break;
+                        }
+                        pos = starts.trailing_zeros();
+                        open = Some(x + pos as usize);
+                    }
                 }
-                let id = self.runs.len() as u32;
-                self.runs.push(Run {
-                    y: y as u32,
-                    x0: x0 as u32,
-                    x1: x as u32,
-                    label: id,
-                });
-                self.parent.push(id);
-            } else {
-                x += 1;
             }
+            x += n;
+        }
+        if let Some(x0) = open {
+            self.push_run(y, x0, w);
         }
         let cur = start..self.runs.len();
         // Two-pointer sweep: runs in a row are sorted and disjoint.
@@ -1049,6 +1042,18 @@ impl RunLabeller {
         self.prev = cur;
     }
 
+    #[inline(always)]
+    fn push_run(&mut self, y: usize, x0: usize, x1: usize) {
+        let id = self.runs.len() as u32;
+        self.runs.push(Run {
+            y: y as u32,
+            x0: x0 as u32,
+            x1: x1 as u32,
+            label: id,
+        });
+        self.parent.push(id);
+    }
+
     /// Compacts labels in order of first appearance; returns the number of components.
     fn finish(&mut self) -> usize {
         let mut compact = vec![u32::MAX; self.runs.len()];
@@ -1062,6 +1067,48 @@ impl RunLabeller {
             run.label = compact[root];
         }
         n as usize
+    }
+}
+
+/// Bit `i` set where `luma[i] < limit[i]`, for at most [`SCAN_CHUNK`] pixels.
+#[inline(always)]
+fn hit_bits(luma: &[u16], limit: &[u16]) -> u32 {
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+    if let (Ok(l), Ok(m)) = (
+        <&[u16; SCAN_CHUNK]>::try_from(luma),
+        <&[u16; SCAN_CHUNK]>::try_from(limit),
+    ) {
+        return hit_bits_sse2(l, m);
+    }
+    let mut bits = 0u32;
+    for (i, (&l, &m)) in luma.iter().zip(limit).enumerate() {
+        bits |= u32::from(l < m) << i;
+    }
+    bits
+}
+
+/// [`hit_bits`] of a full chunk in SSE2 (part of the x86-64 baseline): two unsigned 16-bit
+/// compares (signed after flipping the sign bits), packed to bytes, one move-mask. LLVM does
+/// not form the move-mask from the portable loop.
+#[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+#[inline(always)]
+fn hit_bits_sse2(luma: &[u16; SCAN_CHUNK], limit: &[u16; SCAN_CHUNK]) -> u32 {
+    use std::arch::x86_64::{
+        _mm_cmplt_epi16, _mm_loadu_si128, _mm_movemask_epi8, _mm_packs_epi16, _mm_set1_epi16,
+        _mm_xor_si128,
+    };
+    // SAFETY: SSE2 is enabled for this build (the cfg above); each load reads 8 u16 (16 bytes)
+    // at `v[8 k..]`, inside a 16-element array for k in {0, 1}, and unaligned loads have no
+    // alignment requirement.
+    unsafe {
+        let flip = _mm_set1_epi16(i16::MIN);
+        let lt = |k: usize| {
+            let l = _mm_loadu_si128(luma.as_ptr().add(8 * k).cast());
+            let m = _mm_loadu_si128(limit.as_ptr().add(8 * k).cast());
+            _mm_cmplt_epi16(_mm_xor_si128(l, flip), _mm_xor_si128(m, flip))
+        };
+        // Each 16-bit lane is all ones or all zeros: the signed pack keeps it as one byte.
+        _mm_movemask_epi8(_mm_packs_epi16(lt(0), lt(1))) as u32
     }
 }
 
@@ -1695,16 +1742,79 @@ mod tests {
     }
 
     #[test]
+    fn luma_limit_is_the_darkness_test() {
+        // `l < luma_limit(m, t)` exactly when `darkness(m, l) > t`, near the boundary and at
+        // the extremes of luma, background and threshold.
+        let ts = [
+            -16320i16, -5, -1, 0, 1, 2, 3, 63, 64, 640, 8000, 16319, 16320,
+        ];
+        for m in (0..=65280u16).step_by(251).chain([65279, 65280]) {
+            for &t in &ts {
+                let edge = i32::from(m) - 4 * i32::from(t) - 3;
+                let near = (edge - 9..=edge + 9).filter(|l| (0..=65280).contains(l));
+                for l in near.chain([0, 1, 65279, 65280]) {
+                    let l = l as u16;
+                    assert_eq!(
+                        l < luma_limit(m, t),
+                        darkness(m, l) > t,
+                        "m {m} t {t} l {l}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn run_scan_matches_a_pixel_by_pixel_scan() {
+        // Runs that start, end or continue at chunk edges, whole chunks inside a run, rows
+        // narrower than a chunk and a partial last chunk: the runs are those of a plain scan.
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for w in [1usize, 5, 15, 16, 17, 31, 32, 33, 47, 640] {
+            for density in [0u64, 1, 4, 8, 12, 15, 16] {
+                let luma: Vec<u16> = (0..w).map(|_| (next() % 16 < density) as u16).collect();
+                let limit = vec![1u16; w];
+                let mut l = RunLabeller::default();
+                l.push_row(&luma, &limit, 0);
+                let got: Vec<(u32, u32)> = l.runs.iter().map(|r| (r.x0, r.x1)).collect();
+                let mut want = Vec::new();
+                let mut x = 0;
+                while x < w {
+                    if luma[x] < 1 {
+                        let x0 = x;
+                        while x < w && luma[x] < 1 {
+                            x += 1;
+                        }
+                        want.push((x0 as u32, x as u32));
+                    } else {
+                        x += 1;
+                    }
+                }
+                assert_eq!(got, want, "w {w} density {density}");
+            }
+        }
+    }
+
+    #[test]
     fn labelling_is_8_connected() {
         // Two pixels touching diagonally form one component.
         let mut dark = vec![0i16; 9];
         dark[0] = 100;
         dark[4] = 100;
         dark[8] = 100;
+        // Darkness as luma under a flat background of 200 grey levels.
         let count = |dark: &[i16]| {
+            let (m, t) = (200 * 256, 10);
+            let luma: Vec<u16> = dark.iter().map(|&d| m - 4 * d as u16).collect();
+            let limit = vec![luma_limit(m, t); 3];
             let mut l = RunLabeller::default();
-            for (y, row) in dark.chunks_exact(3).enumerate() {
-                l.push_row(row, y, 10);
+            for (y, row) in luma.chunks_exact(3).enumerate() {
+                l.push_row(row, &limit, y);
             }
             l.finish()
         };
@@ -1784,13 +1894,7 @@ mod profile {
         });
         let mut hist = [0u32; HIST_BINS];
         time("histogram", &mut || {
-            hist = darkness_histogram(
-                &ws.luma,
-                &ws.boxes.mean,
-                bg,
-                &mut ws.boxes.row,
-                &mut ws.dark,
-            );
+            hist = darkness_histogram(&ws.luma, &ws.boxes.mean, bg);
         });
         let st = HistStats::from_hist(&hist);
         let tu = (auto_threshold(&hist, &st) * 64.0) as i16;
@@ -1800,8 +1904,8 @@ mod profile {
                 &ws.boxes.mean,
                 bg,
                 tu,
+                &mut ws.limits,
                 &mut ws.boxes.row,
-                &mut ws.dark,
                 &mut ws.labeller,
             );
         });

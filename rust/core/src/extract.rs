@@ -226,8 +226,7 @@ pub fn extract_markers_with(
         .block_size
         .unwrap_or_else(|| default_block_size(h, w));
 
-    compute_luma(image, params.polarity, &mut ws.luma);
-    let bg = background(&ws.luma, h, w, block, &mut ws.boxes);
+    let bg = luma_and_background(image, params.polarity, block, &mut ws.luma, &mut ws.boxes);
     let hist = darkness_histogram(&ws.luma, &ws.boxes.mean, bg);
     let mut stats = HistStats::from_hist(&hist);
     let first_sigma = stats.sigma;
@@ -445,48 +444,35 @@ fn validate(image: &ImageView<'_, u8>, params: &ExtractParams) -> Result<()> {
     Ok(())
 }
 
-/// Luma x 256 in `u16`; for bright markers the image is inverted so markers are dark.
-fn compute_luma(image: &ImageView<'_, u8>, polarity: Polarity, out: &mut Vec<u16>) {
-    let n = image.height() * image.width();
-    // Every element is written below: only a new size needs the buffer resized (a fresh 600 KB
-    // zero fill per 640x480 frame otherwise).
-    resize_for_overwrite(out, n);
-    let data = image.data();
-    match image.channels() {
+/// Luma x 256 of one image row in `u16`; for bright markers inverted so markers are dark.
+#[inline(always)]
+fn luma_row(data: &[u8], channels: usize, polarity: Polarity, out: &mut [u16]) {
+    match channels {
         1 => {
             for (o, &g) in out.iter_mut().zip(data) {
                 *o = u16::from(g) << 8;
             }
         }
-        3 => luma_bgr(data, out),
-        _ => luma_bgra(data, out),
+        // u16 arithmetic is exact: the weights sum to 256. Alpha is ignored.
+        3 => {
+            for (o, px) in out.iter_mut().zip(data.chunks_exact(3)) {
+                *o = LUMA_B as u16 * u16::from(px[0])
+                    + LUMA_G as u16 * u16::from(px[1])
+                    + LUMA_R as u16 * u16::from(px[2]);
+            }
+        }
+        _ => {
+            for (o, px) in out.iter_mut().zip(data.chunks_exact(4)) {
+                *o = LUMA_B as u16 * u16::from(px[0])
+                    + LUMA_G as u16 * u16::from(px[1])
+                    + LUMA_R as u16 * u16::from(px[2]);
+            }
+        }
     }
     if polarity == Polarity::Bright {
         // 255 * 256 is the largest luma; the difference cannot underflow.
         for v in out.iter_mut() {
             *v = 65280 - *v;
-        }
-    }
-}
-
-multiversion! {
-    /// Luma of BGR pixels (u16 arithmetic is exact: the weights sum to 256).
-    fn luma_bgr(data: &[u8], out: &mut [u16]) {
-        for (o, px) in out.iter_mut().zip(data.chunks_exact(3)) {
-            *o = LUMA_B as u16 * u16::from(px[0])
-                + LUMA_G as u16 * u16::from(px[1])
-                + LUMA_R as u16 * u16::from(px[2]);
-        }
-    }
-}
-
-multiversion! {
-    /// Luma of BGRA pixels (alpha ignored).
-    fn luma_bgra(data: &[u8], out: &mut [u16]) {
-        for (o, px) in out.iter_mut().zip(data.chunks_exact(4)) {
-            *o = LUMA_B as u16 * u16::from(px[0])
-                + LUMA_G as u16 * u16::from(px[1])
-                + LUMA_R as u16 * u16::from(px[2]);
         }
     }
 }
@@ -536,19 +522,31 @@ fn bin_factor(block: usize) -> usize {
 }
 
 multiversion! {
-    /// Local background: the box mean of luma over about `block x block` pixels with reflect-101
-    /// borders, computed on `F x F` bin sums (a box of `2 * (block / (2 F)) + 1` bins) and left
-    /// at bin resolution in `buf.mean`. The background only has to be smooth on the box scale;
-    /// reading it back at each pixel's bin changes nothing that matters for the threshold.
-    fn background(luma: &[u16], h: usize, w: usize, block: usize, buf: &mut BoxBuffers) -> Background {
+    /// Luma of the image into `luma` ([`luma_row`]), and the local background: the box mean of
+    /// luma over about `block x block` pixels with reflect-101 borders, computed on `F x F` bin
+    /// sums (a box of `2 * (block / (2 F)) + 1` bins) and left at bin resolution in `buf.mean`.
+    /// The background only has to be smooth on the box scale; reading it back at each pixel's
+    /// bin changes nothing that matters for the threshold. Each bin row's luma rows are summed
+    /// right after they are computed, while still in cache (one pass over the image, not two).
+    fn luma_and_background(
+        image: &ImageView<'_, u8>,
+        polarity: Polarity,
+        block: usize,
+        luma: &mut Vec<u16>,
+        buf: &mut BoxBuffers,
+    ) -> Background {
+        let (h, w) = (image.height(), image.width());
+        // Every element is written below: only a new size needs the buffer resized (a fresh
+        // 600 KB zero fill per 640x480 frame otherwise).
+        resize_for_overwrite(luma, h * w);
         let factor = bin_factor(block);
         let (bins_h, bins_w) = (h.div_ceil(factor), w.div_ceil(factor));
         // `bin_sums` assigns every bin.
         resize_for_overwrite(&mut buf.binned, bins_h * bins_w);
         if factor == 4 {
-            bin_sums::<4>(luma, h, w, &mut buf.binned, &mut buf.bin_cols);
+            bin_sums::<4>(image, polarity, luma, &mut buf.binned, &mut buf.bin_cols);
         } else {
-            bin_sums::<2>(luma, h, w, &mut buf.binned, &mut buf.bin_cols);
+            bin_sums::<2>(image, polarity, luma, &mut buf.binned, &mut buf.bin_cols);
         }
         let radius = block / (2 * factor);
         box_mean_binned(
@@ -565,29 +563,43 @@ multiversion! {
     }
 }
 
-/// Sums of `F x F` pixel bins; partial bins at the right/bottom edge repeat the last pixel so that
-/// every bin sums `F * F` values. The `F` rows of a bin row are first added column by column
-/// (vector adds), then each bin sums `F` columns: one horizontal pass per bin row, not `F`.
+/// Luma rows ([`luma_row`]) and sums of `F x F` pixel bins; partial bins at the right/bottom
+/// edge repeat the last pixel so that every bin sums `F * F` values. The `F` rows of a bin row
+/// are computed and added column by column (vector adds), then each bin sums `F` columns: one
+/// horizontal pass per bin row, not `F`.
 #[inline(always)]
 fn bin_sums<const F: usize>(
-    luma: &[u16],
-    h: usize,
-    w: usize,
+    image: &ImageView<'_, u8>,
+    polarity: Polarity,
+    luma: &mut [u16],
     out: &mut [u32],
     cols: &mut Vec<u32>,
 ) {
+    let (h, w, ch) = (image.height(), image.width(), image.channels());
+    let data = image.data();
     let bins_w = w.div_ceil(F);
     let full = w / F;
     resize_for_overwrite(cols, w);
     for (by, orow) in out.chunks_exact_mut(bins_w).enumerate() {
-        let first = &luma[(by * F).min(h - 1) * w..][..w];
-        for (c, &v) in cols.iter_mut().zip(first) {
-            *c = u32::from(v);
-        }
-        for k in 1..F {
-            let row = &luma[(by * F + k).min(h - 1) * w..][..w];
-            for (c, &v) in cols.iter_mut().zip(row) {
-                *c += u32::from(v);
+        for k in 0..F {
+            let y = by * F + k;
+            if y < h {
+                luma_row(
+                    &data[y * w * ch..][..w * ch],
+                    ch,
+                    polarity,
+                    &mut luma[y * w..][..w],
+                );
+            }
+            let row = &luma[y.min(h - 1) * w..][..w];
+            if k == 0 {
+                for (c, &v) in cols.iter_mut().zip(row) {
+                    *c = u32::from(v);
+                }
+            } else {
+                for (c, &v) in cols.iter_mut().zip(row) {
+                    *c += u32::from(v);
+                }
             }
         }
         for (o, px) in orow.iter_mut().zip(cols.chunks_exact(F)) {
@@ -1885,12 +1897,9 @@ mod profile {
                 t.elapsed().as_secs_f64() * 1e6 / reps as f64
             );
         };
-        time("luma", &mut || {
-            compute_luma(&view, Polarity::Dark, &mut ws.luma)
-        });
-        let mut bg = background(&ws.luma, h, w, 61, &mut ws.boxes);
-        time("background", &mut || {
-            bg = background(&ws.luma, h, w, 61, &mut ws.boxes);
+        let mut bg = luma_and_background(&view, Polarity::Dark, 61, &mut ws.luma, &mut ws.boxes);
+        time("luma and background", &mut || {
+            bg = luma_and_background(&view, Polarity::Dark, 61, &mut ws.luma, &mut ws.boxes);
         });
         let mut hist = [0u32; HIST_BINS];
         time("histogram", &mut || {

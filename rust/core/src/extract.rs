@@ -999,6 +999,17 @@ impl RunLabeller {
         let mut open: Option<usize> = None;
         let mut x = 0;
         while x < w {
+            if open.is_none() {
+                // Background: a tight loop over whole chunks until one holds a marker pixel.
+                while x + SCAN_CHUNK <= w
+                    && hit_bits(&luma[x..][..SCAN_CHUNK], &limit[x..][..SCAN_CHUNK]) == 0
+                {
+                    x += SCAN_CHUNK;
+                }
+                if x == w {
+                    break;
+                }
+            }
             let n = SCAN_CHUNK.min(w - x);
             let bits = hit_bits(&luma[x..x + n], &limit[x..x + n]);
             let all = (1u32 << n) - 1;

@@ -132,6 +132,8 @@ SUPPORT = {
     "__main__.py": "the runner (python -m benches)",
     "__init__.py": "makes benches a package for the runner",
     "bench_motion.py": "motion regression speed per architecture (feeds the model card)",
+    "bench_native_builds.py": "two builds of the native core timed in alternating rounds "
+                              "(before/after records of native speed work)",
     "export_paint_frames.py": "writes real frames with painted markers for the TacDiff GPU runs",
     "gpu_train_tacdiff.sh": "the recipe of the shipped TacDiff models on one GPU "
                             "(docs/your-own-sensor.md)",

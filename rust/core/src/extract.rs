@@ -62,9 +62,9 @@ const MIN_INTERIOR_FOR_AREA_RULE: usize = 3;
 const BORDER_KEEP_RATIO: f32 = 0.5;
 /// Largest background box (pixels): keeps the binned window sums within u32.
 pub const MAX_BLOCK: usize = 255;
-/// Pixels tested at once when scanning for marker runs (16: one SSE2 move-mask, and the
-/// hits of a chunk are the low bits of a `u32`).
-const SCAN_CHUNK: usize = 16;
+/// Pixels tested at once when scanning for marker runs (32: two SSE2 move-masks, and the
+/// hits of a chunk are the low bits of a `u64`, with room for `1 << 32`).
+const SCAN_CHUNK: usize = 32;
 /// Width of the ring around a marker's box used for its local background (pixels).
 const RING_GAP: usize = 2;
 /// Default `min_area`: this fraction of the frame's pixels (at least [`MIN_AREA_FLOOR`])...
@@ -1012,16 +1012,16 @@ impl RunLabeller {
             }
             let n = SCAN_CHUNK.min(w - x);
             let bits = hit_bits(&luma[x..x + n], &limit[x..x + n]);
-            let all = (1u32 << n) - 1;
+            let all = (1u64 << n) - 1;
             // Background, or the inside of a run: nothing starts or ends in this chunk.
             if (bits == 0 && open.is_none()) || (bits == all && open.is_some()) {
                 x += n;
                 continue;
             }
-            // A run starts at a set bit and ends at the next clear one (`pos` <= 16 < 32).
+            // A run starts at a set bit and ends at the next clear one (`pos` <= 32 < 64).
             let mut pos = 0u32;
             loop {
-                let from = u32::MAX << pos;
+                let from = u64::MAX << pos;
                 match open {
                     Some(x0) => {
                         let ends = !bits & all & from;
@@ -1095,7 +1095,7 @@ impl RunLabeller {
 
 /// Bit `i` set where `luma[i] < limit[i]`, for at most [`SCAN_CHUNK`] pixels.
 #[inline(always)]
-fn hit_bits(luma: &[u16], limit: &[u16]) -> u32 {
+fn hit_bits(luma: &[u16], limit: &[u16]) -> u64 {
     #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
     if let (Ok(l), Ok(m)) = (
         <&[u16; SCAN_CHUNK]>::try_from(luma),
@@ -1103,25 +1103,25 @@ fn hit_bits(luma: &[u16], limit: &[u16]) -> u32 {
     ) {
         return hit_bits_sse2(l, m);
     }
-    let mut bits = 0u32;
+    let mut bits = 0u64;
     for (i, (&l, &m)) in luma.iter().zip(limit).enumerate() {
-        bits |= u32::from(l < m) << i;
+        bits |= u64::from(l < m) << i;
     }
     bits
 }
 
-/// [`hit_bits`] of a full chunk in SSE2 (part of the x86-64 baseline): two unsigned 16-bit
+/// [`hit_bits`] of a full chunk in SSE2 (part of the x86-64 baseline): unsigned 16-bit
 /// compares (signed after flipping the sign bits), packed to bytes, one move-mask. LLVM does
 /// not form the move-mask from the portable loop.
 #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
 #[inline(always)]
-fn hit_bits_sse2(luma: &[u16; SCAN_CHUNK], limit: &[u16; SCAN_CHUNK]) -> u32 {
+fn hit_bits_sse2(luma: &[u16; SCAN_CHUNK], limit: &[u16; SCAN_CHUNK]) -> u64 {
     use std::arch::x86_64::{
         _mm_cmplt_epi16, _mm_loadu_si128, _mm_movemask_epi8, _mm_packs_epi16, _mm_set1_epi16,
         _mm_xor_si128,
     };
     // SAFETY: SSE2 is enabled for this build (the cfg above); each load reads 8 u16 (16 bytes)
-    // at `v[8 k..]`, inside a 16-element array for k in {0, 1}, and unaligned loads have no
+    // at `v[8 k..]`, inside a 32-element array for k in 0..4, and unaligned loads have no
     // alignment requirement.
     unsafe {
         let flip = _mm_set1_epi16(i16::MIN);
@@ -1131,7 +1131,9 @@ fn hit_bits_sse2(luma: &[u16; SCAN_CHUNK], limit: &[u16; SCAN_CHUNK]) -> u32 {
             _mm_cmplt_epi16(_mm_xor_si128(l, flip), _mm_xor_si128(m, flip))
         };
         // Each 16-bit lane is all ones or all zeros: the signed pack keeps it as one byte.
-        _mm_movemask_epi8(_mm_packs_epi16(lt(0), lt(1))) as u32
+        let lo = _mm_movemask_epi8(_mm_packs_epi16(lt(0), lt(1))) as u32;
+        let hi = _mm_movemask_epi8(_mm_packs_epi16(lt(2), lt(3))) as u32;
+        u64::from(lo) | (u64::from(hi) << 16)
     }
 }
 
@@ -1798,7 +1800,7 @@ mod tests {
             state ^= state << 17;
             state
         };
-        for w in [1usize, 5, 15, 16, 17, 31, 32, 33, 47, 640] {
+        for w in [1usize, 5, 15, 16, 17, 31, 32, 33, 47, 63, 64, 65, 640] {
             for density in [0u64, 1, 4, 8, 12, 15, 16] {
                 let luma: Vec<u16> = (0..w).map(|_| (next() % 16 < density) as u16).collect();
                 let limit = vec![1u16; w];

@@ -1,8 +1,9 @@
 """Two builds of the native module, timed in alternating rounds in one process: the tracker's
 frame update (extraction + matching, ``_native.Tracker.update_image``) on rendered grasps at
-640x480 and 320x240, one thread. For before/after records of a change to the native core: build
-each commit (``maturin develop --release``), copy its ``python/tacswitch/_native.abi3.so``
-aside, then
+640x480 and 320x240, and on 90 frames of a REAL GelSight Mini grasp video (320x240) when the
+data folder is there (``--video``), one thread. For before/after records of a change to the
+native core: build each commit (``maturin develop --release``), copy its
+``python/tacswitch/_native.abi3.so`` aside, then
 
     python benches/bench_native_builds.py before=PATH after=PATH [--rounds 15]
 
@@ -25,6 +26,10 @@ import numpy as np
 from harness import machine, single_thread, table
 
 from tacswitch import extract_markers, sim
+from tacswitch.grasp.dataset import read_video
+
+DEFAULT_VIDEO = (Path(__file__).resolve().parents[2]
+                 / "shared/data/real/gsmini_slip_train/avocado_real/exp_num_5/camera_0.avi")
 
 
 def load_build(name: str, path: Path) -> ModuleType:
@@ -79,15 +84,23 @@ def main() -> int:
     ap.add_argument("builds", nargs="+", help="NAME=PATH of a built _native.abi3.so (two or more)")
     ap.add_argument("--rounds", type=int, default=15)
     ap.add_argument("--passes", type=int, default=3, help="passes over the frames per round")
+    ap.add_argument("--video", type=Path, default=DEFAULT_VIDEO,
+                    help="a real marker video for the real row (skipped when missing)")
     args = ap.parse_args()
     single_thread()
     mods = {k: load_build(k, p) for k, p in parse_builds(args.builds).items()}
     print(machine())
     rows = []
+    sets: list[tuple[str, np.ndarray, list[np.ndarray]]] = []
     for preset in ("gelsight", "gelsight_mini"):
         seq = sim.grasp_sequence(preset, "slip", n_frames=60, seed=0)
-        frames = [np.ascontiguousarray(f) for f in seq.frames[30:60]]
-        ref = extract_markers(seq.reference).centres
+        sets.append((f"rendered {preset}", seq.reference,
+                     [np.ascontiguousarray(f) for f in seq.frames[30:60]]))
+    if args.video.is_file():
+        video = [f for _, f in zip(range(90), read_video(args.video), strict=False)]
+        sets.append(("REAL GelSight Mini video", video[0], video))
+    for name, first, frames in sets:
+        ref = extract_markers(first).centres
         got: dict[str, list[tuple[float, float]]] = {k: [] for k in mods}
         for _ in range(args.rounds):
             for k, m in mods.items():
@@ -99,7 +112,7 @@ def main() -> int:
         for k, r in got.items():
             cpu = float(np.median([c for c, _ in r]))
             wall = float(np.median([wl for _, wl in r]))
-            rows.append([f"{preset} {w}x{h}", k, f"{cpu:.0f}", f"{wall:.0f}",
+            rows.append([f"{name} {w}x{h}", k, f"{cpu:.0f}", f"{wall:.0f}",
                          f"**{cpu / base:.2f}x**", "yes" if same[k] else "**no**"])
     print(table(["frames", "build", "frames/s (CPU)", "frames/s (wall)",
                  "vs first (CPU)", "outputs identical to first"], rows))

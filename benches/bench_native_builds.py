@@ -99,8 +99,8 @@ def main() -> int:
     if args.video.is_file():
         video = [f for _, f in zip(range(90), read_video(args.video), strict=False)]
         sets.append(("REAL GelSight Mini video", video[0], video))
-    for name, first, frames in sets:
-        ref = extract_markers(first).centres
+    for name, ref_frame, frames in sets:
+        ref = extract_markers(ref_frame).centres
         got: dict[str, list[tuple[float, float]]] = {k: [] for k in mods}
         for _ in range(args.rounds):
             for k, m in mods.items():

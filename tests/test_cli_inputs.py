@@ -10,6 +10,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from video_files import decode, write_video
 
 import tacswitch as ts
 from tacswitch import sim
@@ -32,28 +33,6 @@ def folder(tmp_path: Path, grasp: sim.GraspSequence) -> Path:
     (path / "2.png").write_bytes(buf.tobytes()[: len(buf) // 3])  # truncated
     (path / "5.png").write_bytes(b"not an image at all")
     return path
-
-
-def write_video(path: Path, frames: list[np.ndarray], fourcc: str = "MJPG") -> Path:
-    h, w = frames[0].shape[:2]
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*fourcc), 30, (w, h))
-    assert writer.isOpened()
-    for f in frames:
-        writer.write(f)
-    writer.release()
-    return path
-
-
-def decode(path: Path) -> list[np.ndarray]:
-    cap = cv2.VideoCapture(str(path))
-    frames = []
-    while True:
-        ok, frame = cap.read()
-        if not ok:
-            break
-        frames.append(frame)
-    cap.release()
-    return frames
 
 
 def read_csv(path: Path) -> np.ndarray:
@@ -110,7 +89,7 @@ def test_motion_skips_and_names_unreadable_images(
 def test_markers_reads_a_video_frame(tmp_path: Path, grasp: sim.GraspSequence,
                                      capsys: pytest.CaptureFixture[str]) -> None:
     # A lossless video, so the frames are exactly the images extracted from.
-    video = write_video(tmp_path / "rec.mkv", [grasp.reference, *grasp.frames], "FFV1")
+    video = write_video(tmp_path / "rec.mkv", [grasp.reference, *grasp.frames], "FFV1", fps=30)
     out = tmp_path / "m"
     assert main(["markers", str(video), "-o", str(out)]) == 0
     assert "rec.mkv (frame 0):" in capsys.readouterr().out
@@ -128,7 +107,7 @@ def test_markers_reads_a_video_frame(tmp_path: Path, grasp: sim.GraspSequence,
 
 
 def test_rest_centres_from_a_video_feed_motion(tmp_path: Path, grasp: sim.GraspSequence) -> None:
-    video = write_video(tmp_path / "rec.mkv", [grasp.reference, *grasp.frames], "FFV1")
+    video = write_video(tmp_path / "rec.mkv", [grasp.reference, *grasp.frames], "FFV1", fps=30)
     assert main(["markers", str(video), "-o", str(tmp_path / "m"), "-q"]) == 0
     cv2.imwrite(str(tmp_path / "img.png"), grasp.frames[-1])
     cv2.imwrite(str(tmp_path / "ref.png"), grasp.reference)
@@ -141,7 +120,7 @@ def test_rest_centres_from_a_video_feed_motion(tmp_path: Path, grasp: sim.GraspS
 
 def test_ffv1_video_output_is_bit_exact(tmp_path: Path, grasp: sim.GraspSequence) -> None:
     frames = [grasp.reference, *grasp.frames[:5]]
-    video = write_video(tmp_path / "rec.mkv", frames, "FFV1")
+    video = write_video(tmp_path / "rec.mkv", frames, "FFV1", fps=30)
     out = tmp_path / "out"
     assert main(["remove-markers", str(video), "-o", str(out), "--codec", "ffv1", "-q"]) == 0
     assert sorted(p.name for p in out.iterdir()) == [".tacswitch-remove-markers.json", "rec.mkv"]
@@ -226,7 +205,7 @@ def test_bad_extraction_options_are_usage_errors(tmp_path: Path, bad: list[str],
 def test_motion_runs_a_model_over_a_video_from_its_first_frame(
         tmp_path: Path, grasp: sim.GraspSequence, capsys: pytest.CaptureFixture[str]) -> None:
     frames = [ts.remove_markers(f) for f in [grasp.reference, *grasp.frames]]
-    video = write_video(tmp_path / "clean.mkv", frames, "FFV1")
+    video = write_video(tmp_path / "clean.mkv", frames, "FFV1", fps=30)
     assert main(["motion", str(video), "--method", "model", "-o", str(tmp_path / "o"),
                  "-q"]) == 0
     with open(tmp_path / "o" / "clean.csv") as fh:

@@ -8,29 +8,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from video_files import decode, write_video
 
 import tacswitch as ts
 from tacswitch import sim
 from tacswitch.motion import real_pairs as rp
-
-
-def write_video(path: Path, frames: list[np.ndarray]) -> Path:
-    h, w = frames[0].shape[:2]
-    vw = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 25, (w, h))
-    for f in frames:
-        vw.write(f)
-    vw.release()
-    return path
-
-
-def decoded(path: Path) -> list[np.ndarray]:
-    cap = cv2.VideoCapture(str(path))
-    out = []
-    while True:
-        ok, f = cap.read()
-        if not ok:
-            return out
-        out.append(f)
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +28,7 @@ def videos(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_targets_are_the_trackers_motion_on_the_kept_frames(videos: Path) -> None:
     path = videos / "exp_0" / "camera_0.avi"
     track = rp.track_video(path, every=3)
-    frames = decoded(path)
+    frames = decode(path)
     tracker = ts.MarkerTracker(frames[0])
     want = []
     for t, f in enumerate(frames[:track.used]):
@@ -61,7 +43,7 @@ def test_targets_are_the_trackers_motion_on_the_kept_frames(videos: Path) -> Non
 
 
 def test_inputs_show_no_marker_left(videos: Path) -> None:
-    frame = decoded(videos / "exp_1" / "camera_0.avi")[5]
+    frame = decode(videos / "exp_1" / "camera_0.avi")[5]
     before = len(ts.extract_markers(frame).centres)
     after = len(ts.extract_markers(rp.markerless(frame)).centres)
     assert before > 50 and after <= 0.1 * before
@@ -69,7 +51,7 @@ def test_inputs_show_no_marker_left(videos: Path) -> None:
 
 def test_the_static_recipe_fills_every_frame_on_one_mask(videos: Path) -> None:
     path = videos / "exp_1" / "camera_0.avi"
-    raw = decoded(path)
+    raw = decode(path)
     static = rp.track_video(path, every=4)
     per_frame = rp.track_video(path, every=4, static=False)
     union = np.zeros(raw[0].shape[:2], bool)
@@ -111,7 +93,7 @@ def test_pairs_stay_within_a_video_and_look_back(videos: Path) -> None:
 
 
 def test_videos_of_other_sizes_or_no_video_are_refused(tmp_path: Path, videos: Path) -> None:
-    frames = decoded(videos / "exp_0" / "camera_0.avi")[:3]
+    frames = decode(videos / "exp_0" / "camera_0.avi")[:3]
     other = write_video(tmp_path / "big.avi", [cv2.resize(f, None, fx=1.25, fy=1.25)
                                                for f in frames])
     with pytest.raises(ValueError, match="videos: frames of one size"):

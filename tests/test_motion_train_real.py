@@ -8,12 +8,13 @@ import subprocess
 import sys
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pytest
 
 torch = pytest.importorskip("torch")
 pytest.importorskip("onnx")
+
+from video_files import write_video  # noqa: E402
 
 import tacswitch as ts  # noqa: E402
 from tacswitch import sim  # noqa: E402
@@ -26,13 +27,7 @@ def videos(tmp_path_factory: pytest.TempPathFactory) -> Path:
     root = tmp_path_factory.mktemp("train_videos")
     for k, kind in enumerate(("hold", "slip", "vibration")):
         seq = sim.grasp_sequence("gelsight_mini", kind, n_frames=8, seed=40 + k)
-        frames = [seq.reference, *seq.frames]
-        h, w = frames[0].shape[:2]
-        vw = cv2.VideoWriter(str(root / f"grasp_{k}.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 25,
-                             (w, h))
-        for f in frames:
-            vw.write(f)
-        vw.release()
+        write_video(root / f"grasp_{k}.avi", [seq.reference, *seq.frames])
     return root
 
 

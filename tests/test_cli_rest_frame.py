@@ -54,8 +54,17 @@ def read_csv(path: Path) -> list[dict[str, str]]:
 # --- the choice itself ---------------------------------------------------------------------
 
 def _frames(*counts: int | None) -> list[np.ndarray | None]:
-    """Stand-in frames whose first pixel is their marker count (None: unreadable)."""
-    return [None if c is None else np.full((2, 2, 3), c, np.uint8) for c in counts]
+    """Stand-in frames whose first pixel is their marker count (None: unreadable), on a steady
+    grey (the camera settled: :func:`tacswitch.tracking.settled_index` finds nothing)."""
+    out: list[np.ndarray | None] = []
+    for c in counts:
+        if c is None:
+            out.append(None)
+            continue
+        f = np.full((16, 16, 3), 128, np.uint8)
+        f[0, 0] = c
+        out.append(f)
+    return out
 
 
 def _count(frame: np.ndarray) -> int:

@@ -3,12 +3,15 @@
 ``tacswitch track`` and ``tacswitch slip`` measure every frame's marker motion from a rest
 frame, the frame whose markers are the reference. A recording may start on a frame that cannot
 serve: a blank frame while the camera settles, or a frame where few markers are found (motion
-blur, a textured object in contact). Tracking against it would stop (no marker) or lose most
-markers for the whole recording. So the first :data:`LOOK_AHEAD` readable frames are read
-ahead and counted, and the rest frame is the first of them whose marker count reaches
-:data:`USABLE_FRACTION` of the most any of them shows: frame 0 whenever it is usable, the
-recording's own timing otherwise. Frames before it are not tracked. Only when none of them shows
-a marker does the command stop, with one line naming the source.
+blur, a textured object in contact), or a frame from before the camera settled: under-exposed,
+or left in its buffer from before the recording (:func:`tacswitch.tracking.settled_index`: a
+jump of the whole image between still frames, early in the stream). Tracking against it would
+stop (no marker), lose most markers for the whole recording, or offset every motion by the
+jump. So the first :data:`LOOK_AHEAD` readable frames are read ahead, counted and compared,
+and the rest frame is the first of them, from the settled one on, whose marker count reaches
+:data:`USABLE_FRACTION` of the most any of them shows: frame 0 whenever it is settled and
+usable, the recording's own timing otherwise. Frames before it are not tracked. Only when none
+of them shows a marker does the command stop, with one line naming the source.
 
 The frames read ahead are replayed unchanged, so the commands see the same stream (and the same
 frame numbers) as without the look-ahead; a camera is read ahead by about one second.
@@ -21,7 +24,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tacswitch.tracking import REST_LOOK_AHEAD, REST_USABLE_FRACTION, usable_rest_frame
+from tacswitch.tracking import (
+    REST_LOOK_AHEAD,
+    REST_USABLE_FRACTION,
+    rest_thumbnail,
+    settled_index,
+    usable_rest_frame,
+)
 
 #: The look-ahead and the usable fraction: :mod:`tacswitch.tracking`'s rest-frame rule (shared
 #: with the ROS processor). Module globals here so a test can shorten the look-ahead.
@@ -41,6 +50,8 @@ class RestFrame:
         best: the most markers found on a frame of the look-ahead ...
         best_index: ... on this frame (the first with that many).
         looked: readable frames looked at (at most the look-ahead).
+        settled: the first frame after the camera settled
+            (:func:`tacswitch.tracking.settled_index`).
     """
 
     index: int
@@ -49,11 +60,18 @@ class RestFrame:
     best: int
     best_index: int
     looked: int
+    settled: int = 0
 
     def message(self) -> str:
         """Which frame is the rest frame and why, one line (for a rest frame after frame 0)."""
-        shows = "no markers" if self.first == 0 else f"only {self.first} markers"
         skipped = ("frame 0 is" if self.index == 1 else f"frames 0-{self.index - 1} are")
+        if 0 < self.settled <= self.index and self.first >= USABLE_FRACTION * self.best:
+            before = "frame 0 comes" if self.settled == 1 else (
+                f"frames 0-{self.settled - 1} come")
+            return (f"source: {before} before the camera settled (exposure changing, or a "
+                    f"jump of the whole image at frame {self.settled}), so frame {self.index} "
+                    f"is the rest frame ({self.markers} markers); {skipped} not tracked")
+        shows = "no markers" if self.first == 0 else f"only {self.first} markers"
         return (f"source: frame 0 shows {shows}, so frame {self.index} is the rest frame "
                 f"({self.markers} markers; the first of frames 0-{self.looked - 1} with at "
                 f"least {USABLE_FRACTION:.0%} of the most found, {self.best} on frame "
@@ -87,6 +105,7 @@ def choose_rest_frame(stream: Iterable[np.ndarray | None], count: Callable[[np.n
     end = object()
     buffer: list[np.ndarray | None] = []
     counts: list[int] = []
+    thumbs: list[np.ndarray] = []
     error: Exception | None = None
     try:
         while len(counts) < look_ahead:
@@ -97,13 +116,15 @@ def choose_rest_frame(stream: Iterable[np.ndarray | None], count: Callable[[np.n
             buffer.append(frame)
             if frame is not None:
                 counts.append(int(count(frame)))
+                thumbs.append(rest_thumbnail(frame))
     except Exception as exc:  # replayed where it happened (a disconnected camera, ...)
         if not counts:
             raise
         error = exc
     rest = None
     if counts:
-        index = usable_rest_frame(counts, USABLE_FRACTION)
+        settled = settled_index(thumbs)
+        index = usable_rest_frame(counts, USABLE_FRACTION, settled)
         if index is None:
             if error is not None:
                 raise error
@@ -111,7 +132,8 @@ def choose_rest_frame(stream: Iterable[np.ndarray | None], count: Callable[[np.n
             raise ValueError(f"source: no markers found in the first frame of {source!r}{after} "
                              f"(a blank or markerless recording?){hint}")
         best = max(counts)
-        rest = RestFrame(index, counts[index], counts[0], best, counts.index(best), len(counts))
+        rest = RestFrame(index, counts[index], counts[0], best, counts.index(best), len(counts),
+                         settled)
     return rest, _replay(buffer, error, it)
 
 

@@ -15,6 +15,7 @@ object are not independent).
 from __future__ import annotations
 
 import csv
+import itertools
 import os
 import sys
 from collections.abc import Iterator
@@ -28,7 +29,13 @@ from tacswitch.grasp.features import marker_pitch, sequence_features
 from tacswitch.markers import extract_markers
 from tacswitch.motion.sequence import MarkerlessTracker
 from tacswitch.removal import remove_markers
-from tacswitch.tracking import MarkerTracker
+from tacswitch.tracking import (
+    REST_LOOK_AHEAD,
+    MarkerTracker,
+    rest_thumbnail,
+    settled_index,
+    usable_rest_frame,
+)
 
 VIDEO_SUFFIXES = (".avi", ".mp4", ".mkv", ".mov")
 
@@ -104,39 +111,45 @@ class TrackedClip:
 
 def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
                ) -> TrackedClip:
-    """Tracks markers through ``frames`` (the first frame is the reference). ``markerless``:
-    the markers are removed from every frame first (:func:`tacswitch.remove_markers`) and the
-    motion predicted by :class:`tacswitch.MarkerlessTracker` at the first frame's marker
-    centres: the markerless sensor this recording would have been."""
-    motions: list[NDArray[np.float32]] = []
-    valids: list[NDArray[np.bool_]] = []
-    tracker = None
-    mtracker = None
-    points = np.zeros((0, 2), np.float32)
-    width = 0
-    for frame in frames:
-        if tracker is None and mtracker is None:
-            width = int(frame.shape[1])
-            points = extract_markers(frame).centres
-            if markerless:
-                mtracker = MarkerlessTracker(None, points)
-            else:
-                tracker = MarkerTracker(points)
-        if len(points) == 0:
-            motions.append(np.zeros((0, 2), np.float32))
-            valids.append(np.zeros(0, bool))
-            continue
-        if mtracker is not None:
-            m = mtracker.update(remove_markers(frame))
+    """Tracks markers through ``frames``. With markers the reference is the rest frame
+    ``tacswitch slip`` takes (:mod:`tacswitch.cli.rest_frame`: the first usable frame after
+    the camera settled, among the first :data:`~tacswitch.tracking.REST_LOOK_AHEAD`); the
+    frames before it are not tracked and read as rest (zero motion), so frame numbers stay
+    the video's. ``markerless``: the markers are removed from every frame first
+    (:func:`tacswitch.remove_markers`) and the motion predicted by
+    :class:`tacswitch.MarkerlessTracker` from the first frame, at its marker centres: the
+    markerless sensor this recording would have been (``tacswitch slip --markerless`` also
+    starts at the first frame)."""
+    it = iter(frames)
+    head = list(itertools.islice(it, REST_LOOK_AHEAD))
+    if not head:
+        raise ValueError("frames: no readable frame")
+    width = int(head[0].shape[1])
+    rest = 0
+    if not markerless:
+        counts = [len(extract_markers(f)) for f in head]
+        settled = settled_index([rest_thumbnail(f) for f in head])
+        rest = usable_rest_frame(counts, start=settled) or 0
+    points = extract_markers(head[rest]).centres
+    n = len(points)
+    motions: list[NDArray[np.float32]] = [np.zeros((n, 2), np.float32)] * rest
+    valids: list[NDArray[np.bool_]] = [np.ones(n, bool)] * rest
+    if markerless:
+        mtracker = MarkerlessTracker(None, points)
+        for frame in itertools.chain(head, it):
+            m = mtracker.update(remove_markers(frame)) if n else np.zeros((0, 2), np.float32)
             motions.append(np.asarray(m, np.float32))
-            valids.append(np.ones(len(m), bool))
-        else:
-            assert tracker is not None
+            valids.append(np.ones(n, bool))
+    else:
+        tracker = MarkerTracker(points) if n else None
+        for frame in itertools.chain(head[rest:], it):
+            if tracker is None:
+                motions.append(np.zeros((0, 2), np.float32))
+                valids.append(np.zeros(0, bool))
+                continue
             m, v = tracker.update(frame)
             motions.append(np.array(m, np.float32))
             valids.append(np.array(v, bool))
-    if not motions:
-        raise ValueError("frames: no readable frame")
     return TrackedClip(np.stack(motions), np.stack(valids), points, marker_pitch(points), width)
 
 
@@ -147,7 +160,9 @@ def cached_clip(video: Path, cache: Path | None, *, markerless: bool = False) ->
 
     target = None
     if cache is not None:
-        tag = "markerless" if markerless else "markers"
+        # "markers-v2": the rest frame after the camera settles (2026-11-28); a cache of the
+        # earlier tracks (from frame 0) is tracked again rather than read.
+        tag = "markerless" if markerless else "markers-v2"
         key = f"{video.parent.parent.name}__{video.parent.name}__{video.stem}__{tag}.npz"
         target = cache / key
         if target.is_file():

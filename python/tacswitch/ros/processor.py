@@ -22,8 +22,10 @@ Every result message carries the input message's header (stamp and frame_id).
 The reference frame (``reference``):
 
 - ``"first"``: the first usable frame. With markers, the first ``look_ahead`` readable frames
-  are held and the reference is the first of them showing at least half the most markers any
-  of them shows (a blank frame while the camera settles, or a blurred one, is skipped): the
+  are held and the reference is the first of them, after the camera settled (exposure still
+  changing, stale frames ended by a jump: :func:`tacswitch.tracking.settled_index`), showing
+  at least half the most markers any of them shows (a blank frame while the camera settles,
+  or a blurred one, is skipped): the
   rule of ``tacswitch slip`` and ``track`` (:mod:`tacswitch.cli.rest_frame`), applied to
   frames pushed one at a time, since a subscription cannot be read ahead and replayed, and a
   library module does not import the CLI. The held frames are then processed at once, so the
@@ -76,7 +78,13 @@ from tacswitch.bags import (
     decode_image,
     header_stamp_ns,
 )
-from tacswitch.tracking import REST_LOOK_AHEAD, REST_USABLE_FRACTION, usable_rest_frame
+from tacswitch.tracking import (
+    REST_LOOK_AHEAD,
+    REST_USABLE_FRACTION,
+    rest_thumbnail,
+    settled_index,
+    usable_rest_frame,
+)
 
 MOTION_MODES = ("markers", "markerless")
 REFERENCE_MODES = ("first", "frame", "service")
@@ -419,14 +427,20 @@ class TactileProcessor:
         """The reference among the frames held: the first showing at least
         :data:`USABLE_FRACTION` of the most markers any of them shows (module doc)."""
         held, self._held = self._held, []
-        index = usable_rest_frame([h.markers for h in held], USABLE_FRACTION)
+        settled = settled_index([rest_thumbnail(h.frame) for h in held])
+        index = usable_rest_frame([h.markers for h in held], USABLE_FRACTION, settled)
         if index is None:
             self._stats.before_reference += len(held)
             self.warn(f"tacswitch: none of {len(held)} frames shows a marker (a blank or "
                       "markerless stream? set motion to 'markerless'); looking again")
             return
         best = max(h.markers for h in held)
-        if index:
+        if index and 0 < settled <= index:
+            self.warn(f"tacswitch: frames before {settled} come before the camera settled "
+                      f"(exposure changing, or a jump of the whole image), so frame {index} "
+                      f"of the first {len(held)} is the reference ({held[index].markers} "
+                      "markers); frames before it get no motion or slip")
+        elif index:
             self.warn(f"tacswitch: frame 0 shows {held[0].markers} markers, so frame {index} "
                       f"of the first {len(held)} is the reference ({held[index].markers}; the "
                       f"most is {best}); frames before it get no motion or slip")

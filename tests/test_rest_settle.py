@@ -1,0 +1,158 @@
+"""The rest frame waits for the camera to settle: an exposure still changing, or stale frames
+from before the recording ended by a jump of the whole image (seen on real GelSight Mini slip
+recordings: frame 0 darker in 56 of 300 videos, a jump at frame 5 in 33), are not rest.
+
+Checked on synthetic thumbnails (``settled_index``), the commands' look-ahead
+(``choose_rest_frame``) and the slip data's tracking (``track_clip``) on rendered GelSight Mini
+frames (``tacswitch.sim``).
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from video_files import write_video
+
+from tacswitch import MarkerTracker, extract_markers, sim
+from tacswitch.cli import main
+from tacswitch.cli.rest_frame import choose_rest_frame
+from tacswitch.grasp.dataset import track_clip
+from tacswitch.tracking import (
+    REST_STALE_FRAMES,
+    REST_THUMBNAIL,
+    rest_thumbnail,
+    settled_index,
+)
+
+W, H = REST_THUMBNAIL
+
+
+def _scene(seed: int, level: float = 120.0) -> np.ndarray:
+    """A textured thumbnail (grey levels around ``level``)."""
+    rng = np.random.default_rng(seed)
+    return (level + 40.0 * rng.random((H, W))).astype(np.float32)
+
+
+def _noisy(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """``img`` with a codec's worth of noise (about 0.5 grey levels)."""
+    return (img + rng.normal(0.0, 0.6, img.shape)).astype(np.float32)
+
+
+def test_a_steady_stream_is_settled_from_its_first_frame() -> None:
+    rng = np.random.default_rng(0)
+    a = _scene(1)
+    assert settled_index([_noisy(a, rng) for _ in range(30)]) == 0
+    assert settled_index([a]) == 0
+    assert settled_index([]) == 0
+
+
+def test_a_dark_first_frame_is_passed_over() -> None:
+    rng = np.random.default_rng(0)
+    a = _scene(1)
+    thumbs = [0.7 * a, 0.97 * a] + [_noisy(a, rng) for _ in range(20)]
+    assert settled_index(thumbs) == 1
+
+
+@settings(max_examples=30, deadline=None)
+@given(jump=st.integers(1, REST_STALE_FRAMES), seed=st.integers(0, 1000))
+def test_stale_frames_ended_by_a_jump_are_passed_over(jump: int, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    stale, now = _scene(seed), _scene(seed + 1)
+    thumbs = [_noisy(stale, rng) for _ in range(jump)] + [_noisy(now, rng) for _ in range(20)]
+    assert settled_index(thumbs) == jump
+
+
+def test_a_change_building_over_frames_is_not_a_jump() -> None:
+    # A press: the image changes over six frames, not in one.
+    rng = np.random.default_rng(0)
+    a, b = _scene(1), _scene(2)
+    ramp = [a + (b - a) * k / 6.0 for k in range(7)]
+    thumbs = [_noisy(a, rng)] * 3 + [_noisy(x, rng) for x in ramp] + [_noisy(b, rng)] * 10
+    assert settled_index(thumbs) == 0
+
+
+def test_a_jump_later_than_the_stale_frames_is_the_scene() -> None:
+    rng = np.random.default_rng(0)
+    a, b = _scene(1), _scene(2)
+    late = REST_STALE_FRAMES + 3
+    thumbs = [_noisy(a, rng) for _ in range(late)] + [_noisy(b, rng) for _ in range(10)]
+    assert settled_index(thumbs) == 0
+
+
+def test_thumbnails_of_grey_and_bgr_frames_agree() -> None:
+    grey = np.tile(np.arange(320, dtype=np.uint8)[None, :], (240, 1))
+    bgr = np.repeat(grey[..., None], 3, axis=2)
+    assert rest_thumbnail(grey).shape == (H, W)
+    np.testing.assert_allclose(rest_thumbnail(grey), rest_thumbnail(bgr), atol=1.0)
+    with pytest.raises(TypeError, match="frame: expected dtype uint8"):
+        rest_thumbnail(np.zeros((4, 4, 3), np.float64))
+
+
+# --- rendered GelSight Mini frames ---------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def seq() -> sim.GraspSequence:
+    return sim.grasp_sequence("gelsight_mini", "hold", n_frames=16, seed=3)
+
+
+def _stale_start(seq: sim.GraspSequence, stale: int = 4) -> list[np.ndarray]:
+    """A recording whose first ``stale`` frames are the gel deformed (the pressed state of the
+    grasp, left in the camera's buffer), then the gel at rest, then the grasp."""
+    pressed = seq.frames[-1]
+    return [pressed] * stale + [seq.reference] * 6 + list(seq.frames)
+
+
+def test_the_commands_rest_frame_follows_the_stale_frames(seq: sim.GraspSequence) -> None:
+    frames = _stale_start(seq)
+    rest, stream = choose_rest_frame(iter(frames), lambda f: len(extract_markers(f)),
+                                     source="s")
+    assert rest is not None and rest.index == 4 and rest.settled == 4
+    assert "before the camera settled" in rest.message() and "frames 0-3" in rest.message()
+    assert len(list(stream)) == len(frames)
+    # A dark first frame (exposure settling) is passed over too.
+    dark = [(0.6 * seq.reference).astype(np.uint8)] + [seq.reference] * 8
+    rest, _ = choose_rest_frame(iter(dark), lambda f: len(extract_markers(f)), source="s")
+    assert rest is not None and rest.index == 1
+
+
+def test_tracking_for_the_slip_data_measures_from_the_settled_rest(
+        seq: sim.GraspSequence) -> None:
+    frames = _stale_start(seq)
+    clip = track_clip(iter(frames))
+    assert clip.motion.shape[0] == len(frames)  # frame numbers stay the video's
+    # Frames before the rest frame read as rest; the still gel after it moves by nothing
+    # (from frame 0, the pressed state, it would have moved by the whole press).
+    assert np.all(clip.motion[:4] == 0) and clip.valid[:4].all()
+    still = clip.motion[4:10][clip.valid[4:10]]
+    assert np.abs(still).max() < 0.5
+    # The test can fail: measured from frame 0 (the pressed state), the still gel moves.
+    tracker = MarkerTracker(extract_markers(frames[0]).centres)
+    m, v = tracker.update(frames[6])
+    assert np.abs(m[v]).max() > 1.0
+
+
+def test_slip_starts_after_the_stale_frames(tmp_path: Path, seq: sim.GraspSequence,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    frames = _stale_start(seq)
+    video = write_video(tmp_path / "v.mkv", frames, fourcc="FFV1")
+    log = tmp_path / "l.csv"
+    assert main(["slip", str(video), "--log", str(log), "-q"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "frames 0-3 come before the camera settled" in err[0]
+    with open(log) as fh:
+        rows = list(csv.DictReader(fh))
+    # The log starts at the rest frame, with the video's frame numbers, and is the log of the
+    # recording without the stale frames, four frames on.
+    clean = write_video(tmp_path / "c.mkv", frames[4:], fourcc="FFV1")
+    assert main(["slip", str(clean), "--log", str(tmp_path / "c.csv"), "-q"]) == 0
+    with open(tmp_path / "c.csv") as fh:
+        ref = list(csv.DictReader(fh))
+    assert [int(r["frame"]) for r in rows] == list(range(4, len(frames)))
+    assert [r["phase"] for r in rows] == [r["phase"] for r in ref]
+    assert [r["slip"] for r in rows] == [r["slip"] for r in ref]
+    assert all(r["phase"] == "no contact" and r["slip"] != "1" for r in rows[:6])

@@ -156,3 +156,19 @@ def test_slip_starts_after_the_stale_frames(tmp_path: Path, seq: sim.GraspSequen
     assert [r["phase"] for r in rows] == [r["phase"] for r in ref]
     assert [r["slip"] for r in rows] == [r["slip"] for r in ref]
     assert all(r["phase"] == "no contact" and r["slip"] != "1" for r in rows[:6])
+
+
+def test_a_markerless_stream_starts_after_the_stale_frames(
+        tmp_path: Path, seq: sim.GraspSequence, capsys: pytest.CaptureFixture[str]) -> None:
+    # Predicted motion needs no markers on the rest frame; the camera must still have settled.
+    frames = _stale_start(seq)
+    video = write_video(tmp_path / "v.mkv", frames, fourcc="FFV1")
+    log = tmp_path / "l.csv"
+    assert main(["slip", str(video), "--markerless", "--log", str(log), "-q"]) == 0
+    err = capsys.readouterr().err
+    assert "frames 0-3 come before the camera settled" in err
+    assert "so frame 4 is the rest frame; frames 0-3 are not tracked" in err
+    with open(log) as fh:
+        assert int(next(csv.DictReader(fh))["frame"]) == 4
+    clip = track_clip(iter(frames[:12]), markerless=True)
+    assert clip.motion.shape[0] == 12 and np.all(clip.motion[:4] == 0)

@@ -61,6 +61,8 @@ class RestFrame:
     best_index: int
     looked: int
     settled: int = 0
+    #: False when markers were not counted (a markerless stream: only the settling decides).
+    counted: bool = True
 
     def message(self) -> str:
         """Which frame is the rest frame and why, one line (for a rest frame after frame 0)."""
@@ -68,9 +70,10 @@ class RestFrame:
         if 0 < self.settled <= self.index and self.first >= USABLE_FRACTION * self.best:
             before = "frame 0 comes" if self.settled == 1 else (
                 f"frames 0-{self.settled - 1} come")
+            found = f" ({self.markers} markers)" if self.counted else ""
             return (f"source: {before} before the camera settled (exposure changing, or a "
                     f"jump of the whole image at frame {self.settled}), so frame {self.index} "
-                    f"is the rest frame ({self.markers} markers); {skipped} not tracked")
+                    f"is the rest frame{found}; {skipped} not tracked")
         shows = "no markers" if self.first == 0 else f"only {self.first} markers"
         return (f"source: frame 0 shows {shows}, so frame {self.index} is the rest frame "
                 f"({self.markers} markers; the first of frames 0-{self.looked - 1} with at "
@@ -78,7 +81,8 @@ class RestFrame:
                 f"{self.best_index}); {skipped} not tracked")
 
 
-def choose_rest_frame(stream: Iterable[np.ndarray | None], count: Callable[[np.ndarray], int],
+def choose_rest_frame(stream: Iterable[np.ndarray | None],
+                      count: Callable[[np.ndarray], int] | None,
                       *, source: str, max_frames: int | None = None, hint: str = ""
                       ) -> tuple[RestFrame | None, Iterator[np.ndarray | None]]:
     """Reads up to :data:`LOOK_AHEAD` readable frames of ``stream`` ahead (at most
@@ -86,7 +90,8 @@ def choose_rest_frame(stream: Iterable[np.ndarray | None], count: Callable[[np.n
 
     Args:
         stream: frames, None for an unreadable one (:func:`tacswitch.cli.sources.frames`).
-        count: markers found on a frame (the command's own extraction options).
+        count: markers found on a frame (the command's own extraction options); None for a
+            markerless stream (the first settled frame is the rest frame).
         source: the source as the user named it (for the error).
         max_frames: the command's ``--max-frames`` (frames past it are never tracked).
         hint: appended to the error (e.g. ``"; check --polarity"``).
@@ -115,7 +120,7 @@ def choose_rest_frame(stream: Iterable[np.ndarray | None], count: Callable[[np.n
             frame: np.ndarray | None = item  # type: ignore[assignment]
             buffer.append(frame)
             if frame is not None:
-                counts.append(int(count(frame)))
+                counts.append(1 if count is None else int(count(frame)))
                 thumbs.append(rest_thumbnail(frame))
     except Exception as exc:  # replayed where it happened (a disconnected camera, ...)
         if not counts:
@@ -133,7 +138,7 @@ def choose_rest_frame(stream: Iterable[np.ndarray | None], count: Callable[[np.n
                              f"(a blank or markerless recording?){hint}")
         best = max(counts)
         rest = RestFrame(index, counts[index], counts[0], best, counts.index(best), len(counts),
-                         settled)
+                         settled, count is not None)
     return rest, _replay(buffer, error, it)
 
 

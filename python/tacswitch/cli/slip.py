@@ -216,13 +216,12 @@ def run(args: argparse.Namespace) -> int:
         writer.writerow(LOG_COLUMNS)
         try:
             stream = frames(args.source) if bag is None else iter(bag)
-            rest = None
-            if not args.markerless:  # predicted motion needs no markers on the rest frame
-                rest, stream = choose_rest_frame(
-                    stream, lambda f: len(ts.extract_markers(f)), source=args.source,
-                    max_frames=args.max_frames)
-                if rest is not None and rest.index > 0:
-                    warn("slip", rest.message())
+            # Predicted motion needs no markers on the rest frame, only a settled camera.
+            rest, stream = choose_rest_frame(
+                stream, None if args.markerless else lambda f: len(ts.extract_markers(f)),
+                source=args.source, max_frames=args.max_frames)
+            if rest is not None and rest.index > 0:
+                warn("slip", rest.message())
             for frame in stream:
                 if args.max_frames is not None and n >= args.max_frames:
                     break

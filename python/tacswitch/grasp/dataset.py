@@ -117,18 +117,18 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
     frames before it are not tracked and read as rest (zero motion), so frame numbers stay
     the video's. ``markerless``: the markers are removed from every frame first
     (:func:`tacswitch.remove_markers`) and the motion predicted by
-    :class:`tacswitch.MarkerlessTracker` from the first frame, at its marker centres: the
-    markerless sensor this recording would have been (``tacswitch slip --markerless`` also
-    starts at the first frame)."""
+    :class:`tacswitch.MarkerlessTracker` from the first frame after the camera settled (no
+    marker count: ``tacswitch slip --markerless`` starts there too), at its marker centres:
+    the markerless sensor this recording would have been."""
     it = iter(frames)
     head = list(itertools.islice(it, REST_LOOK_AHEAD))
     if not head:
         raise ValueError("frames: no readable frame")
     width = int(head[0].shape[1])
-    rest = 0
+    settled = settled_index([rest_thumbnail(f) for f in head])
+    rest = settled
     if not markerless:
         counts = [len(extract_markers(f)) for f in head]
-        settled = settled_index([rest_thumbnail(f) for f in head])
         rest = usable_rest_frame(counts, start=settled) or 0
     points = extract_markers(head[rest]).centres
     n = len(points)
@@ -136,7 +136,7 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
     valids: list[NDArray[np.bool_]] = [np.ones(n, bool)] * rest
     if markerless:
         mtracker = MarkerlessTracker(None, points)
-        for frame in itertools.chain(head, it):
+        for frame in itertools.chain(head[rest:], it):
             m = mtracker.update(remove_markers(frame)) if n else np.zeros((0, 2), np.float32)
             motions.append(np.asarray(m, np.float32))
             valids.append(np.ones(n, bool))
@@ -160,9 +160,9 @@ def cached_clip(video: Path, cache: Path | None, *, markerless: bool = False) ->
 
     target = None
     if cache is not None:
-        # "markers-v2": the rest frame after the camera settles (2026-11-28); a cache of the
+        # "-v2": the rest frame after the camera settles (2026-11-28); a cache of the
         # earlier tracks (from frame 0) is tracked again rather than read.
-        tag = "markerless" if markerless else "markers-v2"
+        tag = "markerless-v2" if markerless else "markers-v2"
         key = f"{video.parent.parent.name}__{video.parent.name}__{video.stem}__{tag}.npz"
         target = cache / key
         if target.is_file():

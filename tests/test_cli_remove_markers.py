@@ -9,6 +9,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from video_files import decode, frame_rate, write_video
 
 import tacswitch as ts
 from tacswitch import sim
@@ -25,28 +26,7 @@ def grasp() -> sim.GraspSequence:
 @pytest.fixture
 def video(tmp_path: Path, grasp: sim.GraspSequence) -> Path:
     """A short mp4v video with markers, 30 fps."""
-    path = tmp_path / "grasp.mp4"
-    h, w = grasp.reference.shape[:2]
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"mp4v"), 30, (w, h))
-    assert writer.isOpened()
-    for f in [grasp.reference, *grasp.frames]:
-        writer.write(f)
-    writer.release()
-    return path
-
-
-def decode(path: Path) -> tuple[list[np.ndarray], float]:
-    cap = cv2.VideoCapture(str(path))
-    assert cap.isOpened(), path
-    frames = []
-    while True:
-        ok, frame = cap.read()
-        if not ok:
-            break
-        frames.append(frame)
-    fps = cap.get(cv2.CAP_PROP_FPS)
-    cap.release()
-    return frames, fps
+    return write_video(tmp_path / "grasp.mp4", [grasp.reference, *grasp.frames], "mp4v", 30)
 
 
 def marker_mask(frame: np.ndarray) -> np.ndarray:
@@ -60,9 +40,9 @@ def test_video_becomes_a_markerless_video(tmp_path: Path, video: Path) -> None:
     # No temporary file left; the record of the options that made each output.
     assert sorted(p.name for p in out.iterdir()) == [".tacswitch-remove-markers.json",
                                                      "grasp.mp4"]
-    src, src_fps = decode(video)
-    got, fps = decode(out / "grasp.mp4")
-    assert len(got) == len(src) == N_FRAMES and fps == pytest.approx(src_fps)
+    src, got = decode(video), decode(out / "grasp.mp4")
+    assert len(got) == len(src) == N_FRAMES
+    assert frame_rate(out / "grasp.mp4") == pytest.approx(frame_rate(video))
     for before, after in zip(src, got, strict=True):
         assert after.shape == before.shape
         mask = marker_mask(before)
@@ -78,7 +58,7 @@ def test_video_frames_are_exact_and_resume_frame_by_frame(tmp_path: Path, video:
     assert main(["remove-markers", str(video), "-o", str(out), "--frames", "-q"]) == 0
     names = sorted(p.name for p in (out / "grasp").iterdir())
     assert names == [f"{i:06d}.png" for i in range(N_FRAMES)]
-    src, _ = decode(video)
+    src = decode(video)
     for i, frame in enumerate(src):
         png = cv2.imread(str(out / "grasp" / f"{i:06d}.png"))
         assert png is not None
@@ -115,7 +95,7 @@ def test_video_resumes_and_an_interrupted_video_is_redone(
     (out / ".grasp.x1y2.part.mp4").write_bytes(b"left by a killed run")
     assert main(["remove-markers", str(video), "-o", str(out), "-q"]) == 0
     assert sorted(p.name for p in out.iterdir()) == [".tacswitch-remove-markers.json", "grasp.mp4"]
-    assert len(decode(out / "grasp.mp4")[0]) == N_FRAMES
+    assert len(decode(out / "grasp.mp4")) == N_FRAMES
     stamp = (out / "grasp.mp4").stat().st_mtime_ns
     capsys.readouterr()
     assert main(["remove-markers", str(video), "-o", str(out)]) == 0
@@ -132,7 +112,7 @@ def test_undecodable_frames_are_skipped_and_counted(tmp_path: Path, video: Path,
     out = tmp_path / "out"
     assert main(["remove-markers", str(video), "-o", str(out)]) == 0
     text = capsys.readouterr().out
-    got, _ = decode(out / "grasp.mp4")
+    got = decode(out / "grasp.mp4")
     assert 0 < len(got) < N_FRAMES
     assert f"({len(got)} frames, {N_FRAMES - len(got)} unreadable skipped)" in text
 
@@ -194,7 +174,7 @@ def test_hybrid_video_uses_its_first_frame_as_the_reference(
     assert main(["remove-markers", str(video), "-o", str(out), "--method", "hybrid",
                  "--frames"]) == 0
     assert "hybrid reference (no contact) = frame 0" in capsys.readouterr().out
-    src, _ = decode(video)
+    src = decode(video)
     png = cv2.imread(str(out / "grasp" / f"{N_FRAMES - 1:06d}.png"))
     np.testing.assert_array_equal(png, ts.remove_markers(src[-1], method="hybrid", ref=src[0]))
     help_text = subprocess.run([sys.executable, "-m", "tacswitch", "remove-markers", "--help"],

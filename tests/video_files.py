@@ -23,6 +23,7 @@ def write_video(path: Path, frames: list[np.ndarray], fourcc: str = "MJPG",
 def decode(path: Path) -> list[np.ndarray]:
     """Every frame OpenCV decodes from ``path``, in order."""
     cap = cv2.VideoCapture(str(path))
+    assert cap.isOpened(), f"OpenCV cannot open {path}"
     frames = []
     while True:
         ok, frame = cap.read()
@@ -31,3 +32,12 @@ def decode(path: Path) -> list[np.ndarray]:
         frames.append(frame)
     cap.release()
     return frames
+
+
+def frame_rate(path: Path) -> float:
+    """The frame rate OpenCV reads from ``path``'s container, frames/s."""
+    cap = cv2.VideoCapture(str(path))
+    assert cap.isOpened(), f"OpenCV cannot open {path}"
+    fps = float(cap.get(cv2.CAP_PROP_FPS))
+    cap.release()
+    return fps

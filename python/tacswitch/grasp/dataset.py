@@ -125,12 +125,13 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
     if not head:
         raise ValueError("frames: no readable frame")
     width = int(head[0].shape[1])
-    settled = settled_index([rest_thumbnail(f) for f in head])
-    rest = settled
-    if not markerless:
-        counts = [len(extract_markers(f)) for f in head]
-        rest = usable_rest_frame(counts, start=settled) or 0
-    points = extract_markers(head[rest]).centres
+    rest = settled_index([rest_thumbnail(f) for f in head])
+    if markerless:
+        points = extract_markers(head[rest]).centres
+    else:
+        found = [extract_markers(f).centres for f in head]
+        rest = usable_rest_frame([len(c) for c in found], start=rest) or 0
+        points = found[rest]
     n = len(points)
     motions: list[NDArray[np.float32]] = [np.zeros((n, 2), np.float32)] * rest
     valids: list[NDArray[np.bool_]] = [np.ones(n, bool)] * rest

@@ -16,11 +16,14 @@ Rows:
   on); ``--seeds`` repeats the whole protocol from other first seeds, ``--select 1`` trains one
   seed per fold (the recipe before 2026-11-28);
 - ``--markerless``: the same on the markerless sensor each video would have been (markers
-  removed, motion predicted by ``MarkerlessTracker``), scorer trained on markers.
+  removed, motion predicted by ``MarkerlessTracker``): the marker scorer, a scorer trained on
+  the markerless tracks alone, and one trained on them and the same experiments' marker
+  tracks (the recipe since 2026-11-28; only the training objects' tracks, never the held-out
+  fold's). ``--no-marker-scorer`` skips the marker scorer's own cross-validation.
 
 ``--export PATH`` trains on every experiment and writes the scorer (the shipped models:
 ``python/tacswitch/models/slip_scorer.onnx``, and with ``--markerless``
-``slip_scorer_markerless.onnx``).
+``slip_scorer_markerless.onnx``, trained on the markerless and the marker tracks).
 
     python benches/bench_slip_real.py [--data DIR] [--seeds 3] [--workers 2] [--markerless]
 """
@@ -56,6 +59,8 @@ def main() -> int:
     ap.add_argument("--markerless", action="store_true")
     ap.add_argument("--export", type=Path, default=None)
     ap.add_argument("--no-rules", action="store_true", help="skip the paper-rule rows")
+    ap.add_argument("--no-marker-scorer", action="store_true",
+                    help="--markerless: skip the marker scorer's cross-validation")
     ap.add_argument("--select", type=int, default=VALIDATED_SEEDS,
                     help="seeds trained per model, the one the validation grasps favour kept "
                          "(default: %(default)s; 1: one seed)")
@@ -76,7 +81,10 @@ def main() -> int:
         from tacswitch.grasp.train import export_scorer
 
         if args.markerless:
-            clips = experiment_clips(exps, CACHE, markerless=True, workers=args.workers)
+            # The markerless tracks and, for the same experiments, the marker tracks.
+            markerless = experiment_clips(exps, CACHE, markerless=True, workers=args.workers)
+            clips = markerless + clips
+            labels = labels + labels
         elif args.simulated:
             sim_clips, sim_labels = simulated_clips(args.simulated, SIMULATED_SEED)
             clips = clips + [[c] for c in sim_clips]
@@ -84,7 +92,8 @@ def main() -> int:
         res = train_validated([[c.features() for c in exp] for exp in clips], labels,
                               validation, seeds=args.select, epochs=args.epochs,
                               log=lambda s: print(s, file=sys.stderr))
-        motion = "markers removed, MarkerlessTracker" if args.markerless else "markers"
+        motion = ("markers removed, MarkerlessTracker; and the marker tracks" if args.markerless
+                  else "markers")
         export_scorer(res, args.export, extra={
             "trained_on": f"{args.data.name}: {len(exps)} experiments, "
                           f"{len(set(objects))} objects (real GelSight Mini, {motion})"})
@@ -108,26 +117,37 @@ def main() -> int:
     if args.markerless:
         test = experiment_clips(exps, CACHE, markerless=True, workers=args.workers,
                                 progress=True)
+    marker_scorer = not (args.markerless and args.no_marker_scorer)
     for seed in range(args.seeds):
-        flags = cross_validated_flags(clips, labels, objects, seed=seed * args.select,
-                                      epochs=args.epochs,
-                                      test_sets={"markerless": test} if test else None,
-                                      extra=extra, validation=validation, seeds=args.select)
-        with_sim = f" + {len(extra[1])} rendered grasps" if extra else ""
-        if validation is not None:
-            with_sim += f", {args.select} seeds kept by validation"
-        print(format_scores(f"markers: learned{with_sim}, objects held out (5 folds, seed "
-                            f"{seed})", score_experiments(labels, flags["train"])), flush=True)
-        if test is not None:
-            print(format_scores(f"markerless: the marker scorer, objects held out (seed "
-                                f"{seed})", score_experiments(labels, flags["markerless"])),
+        if marker_scorer:
+            flags = cross_validated_flags(clips, labels, objects, seed=seed * args.select,
+                                          epochs=args.epochs,
+                                          test_sets={"markerless": test} if test else None,
+                                          extra=extra, validation=validation,
+                                          seeds=args.select)
+            with_sim = f" + {len(extra[1])} rendered grasps" if extra else ""
+            if validation is not None:
+                with_sim += f", {args.select} seeds kept by validation"
+            print(format_scores(f"markers: learned{with_sim}, objects held out (5 folds, seed "
+                                f"{seed})", score_experiments(labels, flags["train"])),
                   flush=True)
+        if test is not None:
+            if marker_scorer:
+                print(format_scores(f"markerless: the marker scorer, objects held out (seed "
+                                    f"{seed})", score_experiments(labels, flags["markerless"])),
+                      flush=True)
             own = cross_validated_flags(test, labels, objects, seed=seed, epochs=args.epochs,
                                         seeds=1)
             print(format_scores(f"markerless: learned on markerless motion, objects held out "
                                 f"(seed {seed})", score_experiments(labels, own["train"])),
                   flush=True)
-    if extra is not None:
+            both = cross_validated_flags(test, labels, objects, seed=seed, epochs=args.epochs,
+                                         seeds=1, paired=clips)
+            print(format_scores(f"markerless: learned on markerless + marker motion, objects "
+                                f"held out (seed {seed})", score_experiments(labels,
+                                                                             both["train"])),
+                  flush=True)
+    if extra is not None and marker_scorer:
         from tacswitch.grasp.crossval import torch_scorer
 
         # Simulated grasps of seeds never trained on nor validated on, scored by the scorer

@@ -101,3 +101,37 @@ def test_errors_name_the_argument(labelled: Path, tmp_path: Path,
     assert "--seeds: must be in [1, 100]" in capsys.readouterr().err
     assert main(["evaluate", "slip", str(labelled), "--seeds", "2", "-q"]) != 0
     assert "--seeds: applies to --cv (training) only" in capsys.readouterr().err
+    assert main(["evaluate", "slip", str(labelled), "--markerless", "--no-marker-tracks",
+                 "-q"]) != 0
+    assert "--no-marker-tracks: applies to --cv with --markerless only" in capsys.readouterr().err
+    assert main(["train", "slip", str(labelled), "--out", str(tmp_path / "m.onnx"),
+                 "--no-marker-tracks", "-q"]) != 0
+    assert "--no-marker-tracks: applies to --markerless only" in capsys.readouterr().err
+
+
+def _trained_on(model: Path) -> str:
+    import onnxruntime as ort
+
+    meta = ort.InferenceSession(str(model), providers=["CPUExecutionProvider"]).get_modelmeta()
+    return meta.custom_metadata_map["tacswitch.trained_on"]
+
+
+def test_train_slip_markerless_also_learns_from_the_marker_tracks(labelled: Path,
+                                                                   tmp_path: Path) -> None:
+    """A markerless scorer trains on the markerless tracks and, by default, on the same
+    videos' marker tracks (both tracked and cached); ``--no-marker-tracks`` leaves them out."""
+    pytest.importorskip("torch")
+    cache = tmp_path / "cache"
+    model = tmp_path / "markerless.onnx"
+    code, text = run("train", "slip", str(labelled), "--markerless", "--out", str(model),
+                     "--epochs", "1", "--cache", str(cache))
+    assert code == 0 and model.is_file()
+    assert "6 experiments (markerless and marker tracks)" in text
+    assert "(markerless and marker tracks)" in _trained_on(model)
+    names = sorted(p.name for p in cache.iterdir())
+    assert sum("markerless-v2" in n for n in names) == 6
+    assert sum("markers-v2" in n for n in names) == 6
+    alone = tmp_path / "alone.onnx"
+    code, text = run("train", "slip", str(labelled), "--markerless", "--no-marker-tracks",
+                     "--out", str(alone), "--epochs", "1", "--cache", str(cache))
+    assert code == 0 and "marker tracks" not in _trained_on(alone)

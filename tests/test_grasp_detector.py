@@ -240,3 +240,47 @@ def test_rolling_median_matches_numpy_over_the_window(values: list[float], size:
         assert rm.median(extra) == pytest.approx(float(np.median(with_extra)))
     if not values:
         assert rm.median() == 0.0
+
+
+class _Tagged:
+    """A stand-in clip whose features carry an id (what a fold trained on is then visible)."""
+
+    def __init__(self, tag: float) -> None:
+        self.tag = tag
+
+    def features(self) -> np.ndarray:
+        return np.full((1, 1), self.tag, np.float32)
+
+
+def test_paired_view_trains_only_on_the_training_objects(monkeypatch) -> None:
+    """``cross_validated_flags(paired=...)``: each fold trains on its training objects' clips
+    and their paired view (e.g. a markerless scorer on the marker tracks of the same grasps),
+    never on the held-out objects' paired clips."""
+    from tacswitch.grasp import crossval
+    from tacswitch.grasp.train import SlipTrainResult
+
+    objects = ["a", "a", "b", "c", "c", "d", "e", "e"]
+    labels = [True, False, True, False, True, False, True, False]
+    clips = [[_Tagged(i)] for i in range(len(objects))]
+    paired = [[_Tagged(100 + i)] for i in range(len(objects))]
+    seen: list[set[int]] = []
+
+    def fake_train(features, labels, *, epochs, seed, log=None):  # type: ignore[no-untyped-def]
+        seen.append({int(v[0][0, 0]) for v in features})
+        assert len(features) == len(labels)
+        return SlipTrainResult(len(seen) - 1, len(labels), sum(labels), epochs, seed)
+
+    monkeypatch.setattr("tacswitch.grasp.train.train_scorer", fake_train)
+    monkeypatch.setattr(crossval, "torch_scorer", lambda net: net)
+    monkeypatch.setattr(crossval, "clip_flags", lambda c, model, threshold: np.zeros(1, bool))
+    crossval.cross_validated_flags(clips, labels, objects, seeds=1, paired=paired)
+    fold_of = object_folds(objects, 5)
+    assert len(seen) == 5
+    for f, ids in enumerate(seen):
+        train = {i for i, k in enumerate(fold_of) if k != f}
+        assert ids == train | {100 + i for i in train}
+    seen.clear()
+    crossval.cross_validated_flags(clips, labels, objects, seeds=1)
+    assert all(max(ids) < 100 for ids in seen)
+    with pytest.raises(ValueError, match="paired: one entry per experiment"):
+        crossval.cross_validated_flags(clips, labels, objects, seeds=1, paired=paired[:3])

@@ -49,6 +49,7 @@ def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
                         "decisions on 36 rendered validation grasps (slip, hold, vibration; "
                         "GelSight and Mini) are best (default: 3; 1: one seed; markers only: "
                         "with --markerless one seed is trained)")
+    _marker_tracks_option(p, "--cv: ")
     p.add_argument("--json", default=None, help="also write the scores and each experiment's "
                                                 "decision to this JSON file")
     p.set_defaults(run=run_evaluate)
@@ -74,7 +75,27 @@ def add_train_parser(what: argparse._SubParsersAction) -> None:
                         "(GelSight, GelSight Mini) to the training set: the textbook slip "
                         "your recordings may lack (default: 24, as the shipped scorer; 0: none; "
                         "ignored with --markerless)")
+    _marker_tracks_option(p, "")
     p.set_defaults(run=run_train)
+
+
+def _marker_tracks_option(p: argparse.ArgumentParser, scope: str) -> None:
+    p.add_argument("--no-marker-tracks", action="store_true",
+                   help=f"{scope}with --markerless, train on the markerless tracks alone (by "
+                        "default the same videos' marker tracks join the training set, which "
+                        "decides better on real grasps of unseen objects: BENCHMARKS.md)")
+
+
+def _paired_marker_clips(args: argparse.Namespace, exps):  # type: ignore[no-untyped-def]
+    """The marker tracks of the experiments, to train a markerless scorer on beside the
+    markerless ones (None without --markerless or with --no-marker-tracks)."""
+    from tacswitch.grasp.dataset import experiment_clips
+
+    if not args.markerless or args.no_marker_tracks:
+        return None
+    cache = Path(args.cache) if args.cache else Path(args.data) / ".tacswitch-cache"
+    return experiment_clips(exps, cache, markerless=False, workers=args.workers,
+                            progress=not args.quiet)
 
 
 def _load(args: argparse.Namespace):  # type: ignore[no-untyped-def]
@@ -111,6 +132,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
     seeds = _seeds_option(args)
     if args.seeds is not None and not args.cv:
         raise UsageError("--seeds: applies to --cv (training) only")
+    if args.no_marker_tracks and not (args.cv and args.markerless):
+        raise UsageError("--no-marker-tracks: applies to --cv with --markerless only")
     exps, clips = _load(args)
     labels = [e.slip for e in exps]
     if args.cv:
@@ -119,6 +142,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
         validation = validation_grasps() if seeds > 1 and not args.markerless else None
         flags = cross_validated_flags(clips, labels, [e.object for e in exps], folds=args.cv,
                                       validation=validation, seeds=seeds,
+                                      paired=_paired_marker_clips(args, exps),
                                       quiet=args.quiet)["train"]
         name = f"learned, {args.cv} folds grouped by object"
     elif args.rule == "paper":
@@ -167,6 +191,8 @@ def run_train(args: argparse.Namespace) -> int:
     if args.simulated is not None and not 0 <= args.simulated <= 1000:
         raise UsageError(f"--simulated: must be in [0, 1000]; got {args.simulated}")
     seeds = _seeds_option(args)
+    if args.no_marker_tracks and not args.markerless:
+        raise UsageError("--no-marker-tracks: applies to --markerless only")
     out = output_file(args.out, "--out")
     try:
         import torch  # noqa: F401
@@ -182,6 +208,10 @@ def run_train(args: argparse.Namespace) -> int:
     exps, clips = _load(args)
     labels = [e.slip for e in exps]
     feats = [[c.features() for c in exp] for exp in clips]
+    paired = _paired_marker_clips(args, exps)
+    if paired is not None:
+        feats += [[c.features() for c in exp] for exp in paired]
+        labels = labels + labels
     if n_sim and not args.markerless:
         sim_clips, sim_labels = simulated_clips(n_sim, SIMULATED_SEED)
         feats += [[c.features()] for c in sim_clips]
@@ -190,11 +220,14 @@ def run_train(args: argparse.Namespace) -> int:
     validation = validation_grasps() if seeds > 1 and not args.markerless else None
     res = train_validated(feats, labels, validation, seed=args.seed, seeds=seeds,
                           epochs=epochs, log=log)
+    n_rendered = len(labels) - len(exps) * (1 if paired is None else 2)
+    views = "" if paired is None else " (markerless and marker tracks)"
     export_scorer(res, out, extra={"trained_on": f"{Path(args.data).name}: {len(exps)} "
-                                                 f"experiments, {sum(e.slip for e in exps)} "
-                                                 f"slip; {len(labels) - len(exps)} rendered"})
+                                                 f"experiments{views}, "
+                                                 f"{sum(e.slip for e in exps)} slip; "
+                                                 f"{n_rendered} rendered"})
     if not args.quiet:
         kept = (f", seed {res.seed} kept of {len(res.validation)}" if res.validation else "")
-        print(f"wrote {out} ({len(exps)} experiments, {sum(e.slip for e in exps)} slip, "
-              f"{len(labels) - len(exps)} rendered grasps, {epochs} epochs{kept})")
+        print(f"wrote {out} ({len(exps)} experiments{views}, {sum(e.slip for e in exps)} "
+              f"slip, {n_rendered} rendered grasps, {epochs} epochs{kept})")
     return 0

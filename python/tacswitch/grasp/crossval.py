@@ -91,14 +91,21 @@ def cross_validated_flags(clips: list[list[TrackedClip]], labels: list[bool],
                           extra: tuple[list[list[TrackedClip]], list[bool]] | None = None,
                           validation: Grasps | None = None,
                           seeds: int = VALIDATED_SEEDS,
+                          paired: list[list[TrackedClip]] | None = None,
                           quiet: bool = True) -> dict[str, list[list[NDArray[np.bool_]]]]:
     """Flags of every experiment's videos from a scorer trained on ``clips`` of the other
     folds' objects (:func:`object_folds`): under key ``"train"`` for ``clips`` themselves and
     under each name of ``test_sets`` (the same experiments seen otherwise, e.g. markerless).
     ``extra`` (experiments, labels) joins every fold's training set (e.g. rendered grasps).
-    Each fold's scorer is :func:`train_validated`'s (``seeds`` seeds from ``seed``, kept by the
-    ``validation`` grasps; without them, seed ``seed`` alone)."""
+    ``paired``: another view of the same experiments, index for index (the marker tracks of
+    markerless ``clips``); each fold also trains on the paired view of its training objects,
+    never of the held-out ones. Each fold's scorer is :func:`train_validated`'s (``seeds``
+    seeds from ``seed``, kept by the ``validation`` grasps; without them, seed ``seed``
+    alone)."""
     feats = [[c.features() for c in exp] for exp in clips]
+    if paired is not None and len(paired) != len(clips):
+        raise ValueError(f"paired: one entry per experiment ({len(clips)}); got {len(paired)}")
+    paired_feats = [[c.features() for c in exp] for exp in paired] if paired else None
     extra_feats = [[c.features() for c in exp] for exp in extra[0]] if extra else []
     extra_labels = list(extra[1]) if extra else []
     fold_of = object_folds(objects, folds)
@@ -109,9 +116,13 @@ def cross_validated_flags(clips: list[list[TrackedClip]], labels: list[bool],
         if not quiet:
             print(f"fold {f + 1}/{folds}: training on {len(train)} experiments",
                   file=sys.stderr)
-        res = train_validated([feats[i] for i in train] + extra_feats,
-                              [labels[i] for i in train] + extra_labels, validation,
-                              seed=seed, seeds=seeds, epochs=epochs)
+        train_feats = [feats[i] for i in train]
+        train_labels = [labels[i] for i in train]
+        if paired_feats is not None:
+            train_feats += [paired_feats[i] for i in train]
+            train_labels += [labels[i] for i in train]
+        res = train_validated(train_feats + extra_feats, train_labels + extra_labels,
+                              validation, seed=seed, seeds=seeds, epochs=epochs)
         scorer = torch_scorer(res.net)
         for name, test in sets.items():
             for i, k in enumerate(fold_of):

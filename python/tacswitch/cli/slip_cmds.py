@@ -93,9 +93,13 @@ def _paired_marker_clips(args: argparse.Namespace, exps):  # type: ignore[no-unt
 
     if not args.markerless or args.no_marker_tracks:
         return None
-    cache = Path(args.cache) if args.cache else Path(args.data) / ".tacswitch-cache"
-    return experiment_clips(exps, cache, markerless=False, workers=args.workers,
+    return experiment_clips(exps, _cache_dir(args), markerless=False, workers=args.workers,
                             progress=not args.quiet)
+
+
+def _cache_dir(args: argparse.Namespace) -> Path:
+    """``--cache``, or ``DATA/.tacswitch-cache``: where the tracked clips are kept."""
+    return Path(args.cache) if args.cache else Path(args.data) / ".tacswitch-cache"
 
 
 def _load(args: argparse.Namespace):  # type: ignore[no-untyped-def]
@@ -109,9 +113,8 @@ def _load(args: argparse.Namespace):  # type: ignore[no-untyped-def]
         msg = str(exc)
         raise ValueError(msg.replace("root:", "data:", 1)
                          .replace("labels:", "--labels:", 1)) from None
-    cache = Path(args.cache) if args.cache else Path(args.data) / ".tacswitch-cache"
-    clips = experiment_clips(exps, cache, markerless=args.markerless, workers=args.workers,
-                             progress=not args.quiet)
+    clips = experiment_clips(exps, _cache_dir(args), markerless=args.markerless,
+                             workers=args.workers, progress=not args.quiet)
     return exps, clips
 
 

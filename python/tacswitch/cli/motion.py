@@ -41,9 +41,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--method", choices=("auto", "ensemble", "model", "flow", "outward",
                                         "mechanics"),
                    default="auto",
-                   help="auto (default): ensemble without --ref or when --ref lacks the "
-                        "frame's contact (the no-contact frame), flow with a --ref of the same "
-                        "contact; ensemble: the mean of the mechanics rule and the learned "
+                   help="auto (default): ensemble without --ref, flow with a --ref (the "
+                        "no-contact frame or a frame of the same contact); ensemble: the mean "
+                        "of the mechanics rule and the learned "
                         "single-frame model (--model: its learned part, default the shipped "
                         "'single'); model: the ONNX "
                         "model; flow: dense optical flow from --ref (training-free, needs "
@@ -149,8 +149,8 @@ def run(args: argparse.Namespace) -> int:
         # ensemble's single-frame half).
         load_model_option(lambda m: learned_model(m, device), args.model)
     ref = read_image(input_file(args.ref, "--ref"), "--ref", quiet=True) if args.ref else None
-    # "auto" runs the ensemble without --ref or against a no-contact --ref, flow otherwise
-    # (which ignores the gain): check --gain as the ensemble's.
+    # "auto" runs the ensemble without --ref and flow with one (which ignores the gain):
+    # check --gain as the ensemble's.
     gain = _gain_option(args.gain, "ensemble" if args.method == "auto" else args.method)
     centres = _read_centres(str(input_file(args.centres, "--centres"))) if args.centres else None
     from tacswitch.cli.bagio import bag_sink, only_bag

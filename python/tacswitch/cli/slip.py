@@ -70,7 +70,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     m = p.add_argument_group("markerless sensor (motion predicted instead of tracked)")
     m.add_argument("--markerless", action="store_true",
                    help="the frames have no markers: predict each frame's marker motion from "
-                        "the reference frame with tacswitch.predict_motion")
+                        "the reference frame (the learned rule: tacswitch.MarkerlessTracker and "
+                        "the shipped markerless scorer; --rule paper: tacswitch.predict_motion)")
     m.add_argument("--ref", default=None, metavar="IMG",
                    help="markerless no-contact reference frame (default: the first frame)")
     m.add_argument("--centres", default=None, metavar="CSV",

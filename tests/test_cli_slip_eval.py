@@ -50,7 +50,7 @@ def test_evaluate_slip_scores_every_experiment(labelled: Path, tmp_path: Path) -
     code, text = run("evaluate", "slip", str(labelled), "--json", str(out), "-q",
                      "--cache", str(tmp_path / "cache"))
     assert code == 0
-    assert "| markers: learned (shipped model) |" in text
+    assert "| markers: learned (shipped marker scorer) |" in text
     res = json.loads(out.read_text())
     assert len(res["experiments"]) == 6
     s = res["scores"]
@@ -62,6 +62,36 @@ def test_evaluate_slip_scores_every_experiment(labelled: Path, tmp_path: Path) -
                      "--cache", str(tmp_path / "cache"))
     assert code == 0 and "| markers: paper rule |" in text
     assert (tmp_path / "cache").is_dir() and len(list((tmp_path / "cache").iterdir())) == 6
+
+
+def test_evaluate_slip_markerless_scores_with_the_markerless_scorer(
+        labelled: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Predicted motion is scored by the shipped markerless scorer, as `tacswitch slip
+    --markerless` scores it; tracked markers by the marker scorer; --model overrides both."""
+    from tacswitch.grasp import crossval
+
+    used: list[object] = []
+    real = crossval.clip_flags
+
+    def spy(clip, **options):  # type: ignore[no-untyped-def]
+        used.append(options.get("model"))
+        return real(clip, **options)
+
+    monkeypatch.setattr(crossval, "clip_flags", spy)
+    cache = str(tmp_path / "cache")
+    code, text = run("evaluate", "slip", str(labelled), "--markerless", "-q", "--cache", cache)
+    assert code == 0 and "| markerless: learned (shipped markerless scorer) |" in text
+    assert used and set(used) == {"markerless"}
+    used.clear()
+    code, _ = run("evaluate", "slip", str(labelled), "-q", "--cache", cache)
+    assert code == 0 and set(used) == {"markers"}
+    used.clear()
+    from tacswitch.grasp.detector import slip_model_path
+
+    mine = str(slip_model_path("markers"))
+    code, text = run("evaluate", "slip", str(labelled), "--markerless", "-q", "--cache", cache,
+                     "--model", mine)
+    assert code == 0 and set(used) == {mine} and f"learned ({mine})" in text
 
 
 def test_train_slip_writes_a_model_the_slip_loop_uses(labelled: Path, tmp_path: Path) -> None:

@@ -138,8 +138,9 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--ref: --method flow measures motion from a reference frame; pass the "
                          "markerless no-contact frame")
     if args.sequence and args.method != "auto":
-        raise UsageError(f"--sequence: the tracker chooses its own methods (the mechanics rule "
-                         f"at the contact, flow from it); drop --method {args.method}")
+        raise UsageError(f"--sequence: the tracker chooses its own methods (flow from the "
+                         f"--ref no-contact frame; without --ref the mechanics rule on the "
+                         f"first frame, flow from it); drop --method {args.method}")
     device = device_option(args.device)
     model = load_model_option(lambda m: load_model(m, device), args.model)
     if args.method in LEARNED_PART:

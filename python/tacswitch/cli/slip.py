@@ -19,19 +19,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "slip",
         help="run the slip loop on a video, an image folder or a camera",
-        description="Tracks markers frame by frame (the first frame is the no-contact "
-        "reference of the markers' rest positions) and applies the slip rule from the start "
-        "of each grasp: by default the frame where the contact is established, found from "
-        "the marker motion (contact onset: the markers leave their rest positions; "
-        "established: they stop moving; release: they return), or --start FRAME. Frames "
-        "outside a grasp are never flagged. The start is printed and logged. A CSV log (frame, "
+        description="Tracks markers frame by frame (the first frame after the camera settled "
+        "is the no-contact reference of the markers' rest positions) and follows each grasp "
+        "from the marker motion (contact onset: the markers leave their rest positions; "
+        "established: they stop moving; release: they return). The learned rule (default) "
+        "scores every frame from the onset to the release; --rule paper applies the paper's "
+        "displacement rule from the established contact, or from --start FRAME. Frames "
+        "outside a contact are never flagged. The start is printed and logged. A CSV log (frame, "
         "phase, grasp, grasp_start, slip, ...) is written and flushed every frame, so an "
         "interruption never loses it.",
         epilog="A recording that starts in contact has no onset to detect: pass --start 0 "
-        "(or the frame where the grasp is established). When the first frame shows no "
-        "markers, or fewer than half as many as a frame of the first 30, the first frame that "
-        "shows that many is the reference instead (said on stderr); the frames before it have "
-        "no log rows, and frame numbers stay the source's.",
+        "(or the frame where the grasp is established). The reference skips the frames "
+        "before the camera settled (exposure still changing, or stale frames ended by a jump "
+        "of the whole image) and, with markers, a first frame that shows no markers or fewer "
+        "than half as many as a frame of the first 30 (said on stderr); the frames before it "
+        "have no log rows, and frame numbers stay the source's.",
     )
     p.add_argument("source", help="video file, folder of images, camera index (0, 1, ...), or "
                                   "ROS bag (with --topic)")

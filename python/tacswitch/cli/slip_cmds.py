@@ -35,7 +35,9 @@ def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
     _common(p)
     p.add_argument("--rule", choices=("learned", "paper"), default="learned",
                    help="the learned scorer (default) or the paper's displacement rule")
-    p.add_argument("--model", default=None, help="ONNX scorer (default: the shipped one)")
+    p.add_argument("--model", default=None,
+                   help="ONNX scorer (default: the shipped one, for markers or with --markerless "
+                        "for predicted motion)")
     p.add_argument("--score-threshold", type=float, default=None, metavar="LOGIT",
                    help="--rule learned flags a frame whose score exceeds this (default: the "
                         "model's, 0)")
@@ -153,10 +155,12 @@ def run_evaluate(args: argparse.Namespace) -> int:
         flags = [[clip_flags(c, rule="paper", **opts) for c in exp] for exp in clips]
         name = "paper rule" + ("" if rigid is None else f" + rigid ({rigid})")
     else:
-        model = args.model
+        # Without --model, the shipped scorer of the tracks' kind (as `tacswitch slip` picks).
+        kind = "markerless" if args.markerless else "marker"
+        model = args.model or ("markerless" if args.markerless else "markers")
         flags = [[clip_flags(c, model=model, threshold=args.score_threshold) for c in exp]
                  for exp in clips]
-        name = f"learned ({model or 'shipped model'})"
+        name = f"learned ({args.model or f'shipped {kind} scorer'})"
     scores = score_experiments(labels, flags)
     print(TABLE_HEADER)
     print(format_scores(("markerless: " if args.markerless else "markers: ") + name, scores))

@@ -1,8 +1,9 @@
 """``tacswitch finetune --images DIR``: adapt TacDiff to your own marker sensor (needs torch).
 
 The paper's marker-offset strategy, made to look like inference: your frames have markers and no
-ground truth, so each frame's markers are removed by TELEA (a pseudo-markerless frame, never a
-loss target), and each real marker's appearance (its darkening relative to the gel, soft edge
+ground truth, so each frame's markers are removed by the start model's own fill (``--pseudo
+model``, the default; ``--pseudo telea``: TELEA), a pseudo-markerless frame, never a loss
+target, and each real marker's appearance (its darkening relative to the gel, soft edge
 and compression ring included) is transplanted about half a marker pitch away, onto real gel
 (``--shifts``: in several directions, for more training gel from the same frames).
 The network learns to fill those moved markers with the mask remove_markers would use; the loss

@@ -245,7 +245,8 @@ EXTRACTION_OPTIONS: tuple[tuple[str, str, dict[str, Any]], ...] = (
                                     "help": "odd box size for the local background, px "
                                             "(default: max(15, min(H, W) // 8))"}),
     ("--min-area", "min_area", {"type": count, "metavar": "PX",
-                                "help": "smallest marker, px (default: max(4, 5e-5 * H * W))"}),
+                                "help": "smallest marker, px (default: max(4, 5e-5 * H * W), "
+                                        "at most a quarter of the typical marker's area)"}),
     ("--max-area", "max_area", {"type": count, "metavar": "PX",
                                 "help": "largest marker, px (default: 0.02 * H * W)"}),
     ("--min-fill", "min_fill", {"type": fraction, "metavar": "F",

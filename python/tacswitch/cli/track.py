@@ -13,11 +13,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "track",
         help="track markers through a video or image folder (motion per frame, CSV)",
-        description="The first frame is the reference. Writes one CSV row per frame and marker: "
-        "frame, marker, x_ref, y_ref, dx, dy, valid (dx, dy empty when lost). The file is "
-        "flushed every frame. When the first frame shows no markers, or fewer than half as "
-        "many as a frame of the first 30, the first frame that shows that many is the "
-        "reference instead (said on stderr); the frames before it have no rows.",
+        description="The first usable frame is the reference. Writes one CSV row per frame "
+        "and marker: frame, marker, x_ref, y_ref, dx, dy, valid (dx, dy empty when lost). The "
+        "file is flushed every frame. The reference skips the frames before the camera "
+        "settled (exposure still changing, or stale frames ended by a jump of the whole "
+        "image) and a first frame that shows no markers or fewer than half as many as a "
+        "frame of the first 30 (said on stderr); the frames before it have no rows.",
     )
     p.add_argument("source", help="video file, folder of images, camera index, or ROS bag "
                                   "(with --topic)")

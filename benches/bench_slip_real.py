@@ -11,21 +11,23 @@ Rows:
 - the paper's displacement rule from the detected grasp start, and with the rigid criterion
   (what ``tacswitch slip --rule paper`` does), on every experiment (nothing is fitted);
 - the learned scorer, 5-fold cross-validation grouped by object: every experiment is scored by
-  a model that never saw its object. Each fold trains the recipe (``train_validated``: 3 seeds,
-  the one kept that decides best on 36 rendered validation grasps, seeds 4000+, never trained
-  on); ``--seeds`` repeats the whole protocol from other first seeds, ``--select 1`` trains one
-  seed per fold (the recipe before 2026-11-28);
+  a model that never saw its object. Each fold trains the recipe (``train_committee``: 8
+  scorers from consecutive seeds, a grasp flagged once 4 have fired in it); ``--seeds``
+  repeats the whole protocol from other first seeds, ``--committee 1`` trains one scorer per
+  fold, ``--votes`` sets the votes;
 - ``--markerless``: the same on the markerless sensor each video would have been (markers
   removed, motion predicted by ``MarkerlessTracker``): the marker scorer, a scorer trained on
   the markerless tracks alone, and one trained on them and the same experiments' marker
   tracks (the recipe since 2026-11-28; only the training objects' tracks, never the held-out
-  fold's). ``--no-marker-scorer`` skips the marker scorer's own cross-validation.
+  fold's), each a committee as above. ``--no-marker-scorer`` skips the marker scorer's own
+  cross-validation.
 
 ``--export PATH`` trains on every experiment and writes the scorer (the shipped models:
 ``python/tacswitch/models/slip_scorer.onnx``, and with ``--markerless``
 ``slip_scorer_markerless.onnx``, trained on the markerless and the marker tracks).
 
     python benches/bench_slip_real.py [--data DIR] [--seeds 3] [--workers 2] [--markerless]
+        [--committee 8] [--votes 4]
 """
 
 from __future__ import annotations
@@ -35,16 +37,11 @@ import sys
 import time
 from pathlib import Path
 
-from tacswitch.grasp.crossval import (
-    VALIDATED_SEEDS,
-    clip_flags,
-    cross_validated_flags,
-    train_validated,
-    validation_grasps,
-)
+from tacswitch.grasp.crossval import clip_flags, cross_validated_flags
 from tacswitch.grasp.dataset import experiment_clips, read_labels
 from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
 from tacswitch.grasp.simulated import SIMULATED_PER_KIND, SIMULATED_SEED, simulated_clips
+from tacswitch.grasp.train import COMMITTEE, VOTES, train_committee
 
 DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared/data/real/gsmini_slip_train"
 CACHE = Path(__file__).resolve().parents[1] / "bench-results" / "slip_real"
@@ -61,9 +58,11 @@ def main() -> int:
     ap.add_argument("--no-rules", action="store_true", help="skip the paper-rule rows")
     ap.add_argument("--no-marker-scorer", action="store_true",
                     help="--markerless: skip the marker scorer's cross-validation")
-    ap.add_argument("--select", type=int, default=VALIDATED_SEEDS,
-                    help="seeds trained per model, the one the validation grasps favour kept "
-                         "(default: %(default)s; 1: one seed)")
+    ap.add_argument("--committee", type=int, default=COMMITTEE,
+                    help="scorers per model, from consecutive seeds (default: %(default)s; "
+                         "1: one scorer)")
+    ap.add_argument("--votes", type=int, default=None,
+                    help="members that must fire in a grasp (default: the recipe's)")
     ap.add_argument("--simulated", type=int, default=SIMULATED_PER_KIND,
                     help="rendered grasps per kind and sensor added to every training set "
                          "of the marker scorer (default: %(default)s; 0: real grasps only)")
@@ -76,7 +75,9 @@ def main() -> int:
     clips = experiment_clips(exps, CACHE, workers=args.workers, progress=True)
     print(f"tracked {sum(len(c) for c in clips)} videos in {time.perf_counter() - t0:.0f} s",
           file=sys.stderr)
-    validation = None if args.markerless or args.select <= 1 else validation_grasps()
+    epochs = {} if args.epochs is None else {"epochs": args.epochs}
+    committee = (f"{args.committee} scorers, {args.votes or min(VOTES, args.committee)} votes"
+                 if args.committee > 1 else "one scorer")
     if args.export is not None:
         from tacswitch.grasp.train import export_scorer
 
@@ -89,8 +90,8 @@ def main() -> int:
             sim_clips, sim_labels = simulated_clips(args.simulated, SIMULATED_SEED)
             clips = clips + [[c] for c in sim_clips]
             labels = labels + sim_labels
-        res = train_validated([[c.features() for c in exp] for exp in clips], labels,
-                              validation, seeds=args.select, epochs=args.epochs,
+        res = train_committee([[c.features() for c in exp] for exp in clips], labels,
+                              seeds=args.committee, votes=args.votes, **epochs,
                               log=lambda s: print(s, file=sys.stderr))
         motion = ("markers removed, MarkerlessTracker; and the marker tracks" if args.markerless
                   else "markers")
@@ -120,44 +121,42 @@ def main() -> int:
     marker_scorer = not (args.markerless and args.no_marker_scorer)
     for seed in range(args.seeds):
         if marker_scorer:
-            flags = cross_validated_flags(clips, labels, objects, seed=seed * args.select,
+            flags = cross_validated_flags(clips, labels, objects, seed=seed * args.committee,
                                           epochs=args.epochs,
                                           test_sets={"markerless": test} if test else None,
-                                          extra=extra, validation=validation,
-                                          seeds=args.select)
+                                          extra=extra, seeds=args.committee, votes=args.votes)
             with_sim = f" + {len(extra[1])} rendered grasps" if extra else ""
-            if validation is not None:
-                with_sim += f", {args.select} seeds kept by validation"
-            print(format_scores(f"markers: learned{with_sim}, objects held out (5 folds, seed "
-                                f"{seed})", score_experiments(labels, flags["train"])),
-                  flush=True)
+            print(format_scores(f"markers: learned{with_sim}, {committee}, objects held out "
+                                f"(5 folds, seed {seed * args.committee})",
+                                score_experiments(labels, flags["train"])), flush=True)
         if test is not None:
             if marker_scorer:
                 print(format_scores(f"markerless: the marker scorer, objects held out (seed "
                                     f"{seed})", score_experiments(labels, flags["markerless"])),
                       flush=True)
-            own = cross_validated_flags(test, labels, objects, seed=seed, epochs=args.epochs,
-                                        seeds=1)
-            print(format_scores(f"markerless: learned on markerless motion, objects held out "
-                                f"(seed {seed})", score_experiments(labels, own["train"])),
-                  flush=True)
-            both = cross_validated_flags(test, labels, objects, seed=seed, epochs=args.epochs,
-                                         seeds=1, paired=clips)
-            print(format_scores(f"markerless: learned on markerless + marker motion, objects "
-                                f"held out (seed {seed})", score_experiments(labels,
-                                                                             both["train"])),
-                  flush=True)
+            first = seed * args.committee
+            own = cross_validated_flags(test, labels, objects, seed=first, epochs=args.epochs,
+                                        seeds=args.committee, votes=args.votes)
+            print(format_scores(f"markerless: learned on markerless motion, {committee}, "
+                                f"objects held out (seed {first})",
+                                score_experiments(labels, own["train"])), flush=True)
+            both = cross_validated_flags(test, labels, objects, seed=first, epochs=args.epochs,
+                                         seeds=args.committee, votes=args.votes, paired=clips)
+            print(format_scores(f"markerless: learned on markerless + marker motion, "
+                                f"{committee}, objects held out (seed {first})",
+                                score_experiments(labels, both["train"])), flush=True)
     if extra is not None and marker_scorer:
         from tacswitch.grasp.crossval import torch_scorer
 
         # Simulated grasps of seeds never trained on nor validated on, scored by the scorer
         # trained on every real experiment and the rendered training grasps (as shipped).
         held, held_labels = simulated_clips(HELD_OUT_SIM, HELD_OUT_SIM_SEED)
-        res = train_validated([[c.features() for c in exp] for exp in clips] + [
-            [c.features() for c in exp] for exp in extra[0]], labels + extra[1], validation,
-            seeds=args.select, epochs=args.epochs)
+        res = train_committee([[c.features() for c in exp] for exp in clips] + [
+            [c.features() for c in exp] for exp in extra[0]], labels + extra[1],
+            seeds=args.committee, votes=args.votes, **epochs)
         scorer = torch_scorer(res.net)
-        flags_sim = [[clip_flags(c, model=scorer, threshold=0.0)] for c in held]
+        flags_sim = [[clip_flags(c, model=scorer, threshold=0.0, votes=res.votes)]
+                     for c in held]
         paper_sim = [[clip_flags(c, rule="paper")] for c in held]
         print(format_scores(f"SIMULATED held-out grasps ({len(held)}: slip / hold / vibration, "
                             "GelSight + Mini): learned", score_experiments(held_labels, flags_sim)))

@@ -5,7 +5,7 @@ The same code as the README's example; tests/test_readme.py keeps the two equal.
 import tacswitch as ts
 from tacswitch import sim
 
-seq = sim.grasp_sequence("gelsight_mini", "slip", n_frames=24, seed=0)
+seq = sim.grasp_sequence("gelsight_mini", "slip", n_frames=30, seed=0)
 frames = [seq.reference, *seq.frames]              # a recording that starts without contact
 for rule in ("learned", "paper"):                   # "learned" is the default
     tracker = ts.MarkerTracker(frames[0])

@@ -25,7 +25,7 @@ BLANK = 3  # blank frames before them
 
 @pytest.fixture(scope="module")
 def seq() -> sim.GraspSequence:
-    return sim.grasp_sequence("gelsight_mini", "slip", n_frames=24, seed=9)
+    return sim.grasp_sequence("gelsight_mini", "slip", n_frames=30, seed=9)
 
 
 def blank(seq: sim.GraspSequence) -> np.ndarray:

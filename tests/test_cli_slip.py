@@ -176,6 +176,10 @@ def test_learned_rule_options(tmp_path: Path, capsys: pytest.CaptureFixture[str]
                        (["--rule", "paper", "--score-threshold", "1"],
                         "--score-threshold: applies to --rule learned only"),
                        (["--score-threshold", "nan"], "--score-threshold: must be finite"),
+                       (["--rule", "paper", "--votes", "2"],
+                        "--votes: applies to --rule learned only"),
+                       (["--votes", "0"], "--votes: must be >= 1"),
+                       (["--votes", "99"], "--votes: must be >= 1, at most the committee's"),
                        (["--slip-model", str(tmp_path / "none.onnx")], "--slip-model")):
         assert main(["slip", rec, "--log", log, "-q", *extra]) == 2
         err = capsys.readouterr().err

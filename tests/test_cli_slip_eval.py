@@ -94,18 +94,29 @@ def test_evaluate_slip_markerless_scores_with_the_markerless_scorer(
     assert code == 0 and set(used) == {mine} and f"learned ({mine})" in text
 
 
-def test_train_slip_writes_a_model_the_slip_loop_uses(labelled: Path, tmp_path: Path) -> None:
+def test_train_slip_writes_a_model_the_slip_loop_uses(labelled: Path, tmp_path: Path,
+                                                      capsys: pytest.CaptureFixture[str]
+                                                      ) -> None:
     pytest.importorskip("torch")
     model = tmp_path / "mine.onnx"
     code, _ = run("train", "slip", str(labelled), "--out", str(model), "--epochs", "3", "-q",
                   "--cache", str(tmp_path / "cache"), "--simulated", "1")
     assert code == 0 and model.is_file()
+    from tacswitch.grasp.detector import load_scorer
+    from tacswitch.grasp.train import COMMITTEE, VOTES
+
+    scorer = load_scorer(model)
+    assert (scorer.committee, scorer.votes) == (COMMITTEE, VOTES)
     video = next(labelled.rglob("*.avi"))
     log = tmp_path / "log.csv"
     code, _ = run("slip", str(video), "--log", str(log), "--slip-model", str(model), "-q")
     assert code == 0
     with open(log) as fh:
         assert len(list(csv.DictReader(fh))) == 19
+    capsys.readouterr()
+    assert main(["slip", str(video), "--log", str(log), "--slip-model", str(model), "-q",
+                 "--votes", str(COMMITTEE + 1)]) != 0
+    assert f"--votes: must be >= 1, at most the committee's {COMMITTEE}" in capsys.readouterr().err
 
 
 def test_errors_name_the_argument(labelled: Path, tmp_path: Path,
@@ -131,6 +142,11 @@ def test_errors_name_the_argument(labelled: Path, tmp_path: Path,
     assert "--seeds: must be in [1, 100]" in capsys.readouterr().err
     assert main(["evaluate", "slip", str(labelled), "--seeds", "2", "-q"]) != 0
     assert "--seeds: applies to --cv (training) only" in capsys.readouterr().err
+    assert main(["evaluate", "slip", str(labelled), "--votes", "2", "-q"]) != 0
+    assert "--votes: applies to --cv (training) only" in capsys.readouterr().err
+    assert main(["train", "slip", str(labelled), "--out", str(tmp_path / "m.onnx"),
+                 "--seeds", "2", "--votes", "3", "-q"]) != 0
+    assert "--votes: must be in [1, --seeds=2]; got 3" in capsys.readouterr().err
     assert main(["evaluate", "slip", str(labelled), "--markerless", "--no-marker-tracks",
                  "-q"]) != 0
     assert "--no-marker-tracks: applies to --cv with --markerless only" in capsys.readouterr().err
@@ -165,3 +181,28 @@ def test_train_slip_markerless_also_learns_from_the_marker_tracks(labelled: Path
     code, text = run("train", "slip", str(labelled), "--markerless", "--no-marker-tracks",
                      "--out", str(alone), "--epochs", "1", "--cache", str(cache))
     assert code == 0 and "marker tracks" not in _trained_on(alone)
+
+
+def test_evaluate_slip_cv_trains_a_voting_committee_per_fold(labelled: Path, tmp_path: Path,
+                                                              monkeypatch: pytest.MonkeyPatch
+                                                              ) -> None:
+    """``--cv K``: every fold trains a committee of ``--seeds`` scorers that flags with
+    ``--votes`` of them, on the other folds' objects only."""
+    pytest.importorskip("torch")
+    from tacswitch.grasp import train
+
+    seen: list[tuple[int, int | None, int]] = []
+    real = train.train_committee
+
+    def spy(features, labels, **kw):  # type: ignore[no-untyped-def]
+        seen.append((kw["seeds"], kw["votes"], len(labels)))
+        return real(features, labels, **{**kw, "epochs": 2})
+
+    monkeypatch.setattr(train, "train_committee", spy)
+    out = tmp_path / "cv.json"
+    code, text = run("evaluate", "slip", str(labelled), "--cv", "3", "--seeds", "2", "--votes",
+                     "1", "-q", "--cache", str(tmp_path / "cache"), "--json", str(out))
+    assert code == 0 and "| markers: learned, 3 folds grouped by object |" in text
+    # 3 objects of 2 experiments: each fold trains on the 4 experiments of the other two.
+    assert seen == [(2, 1, 4)] * 3
+    assert len(json.loads(out.read_text())["experiments"]) == 6

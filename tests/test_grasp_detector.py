@@ -13,7 +13,7 @@ from tacswitch import sim
 from tacswitch.grasp.detector import GraspSlipDetector, load_scorer, run_clip
 from tacswitch.grasp.evaluate import object_folds, score_experiments
 from tacswitch.grasp.features import N_FEATURES
-from tacswitch.grasp.phases import GRASP, NO_CONTACT, PRESSING
+from tacswitch.grasp.phases import GRASP, NO_CONTACT, PRESSING, Step
 
 LEAD = 4
 
@@ -67,8 +67,10 @@ def test_shipped_scorers_load_and_score(name: str | None) -> None:
     scorer = load_scorer(name)
     x = np.zeros((3, N_FEATURES), np.float32)
     out = scorer(x)
-    assert out.shape == (3,) and np.isfinite(out).all()
-    np.testing.assert_allclose(out, out[0])  # frames scored independently
+    # A committee: one logit per member and frame, and half the members must fire.
+    assert out.shape == (3, scorer.committee) and np.isfinite(out).all()
+    assert scorer.committee == 8 and scorer.votes == 4
+    np.testing.assert_allclose(out, np.broadcast_to(out[0], out.shape), rtol=1e-5)  # per frame
     assert np.isfinite(scorer.threshold) and scorer.warmup >= 0
     assert scorer.path.name.startswith("slip_scorer")
 
@@ -180,48 +182,96 @@ def test_train_and_export_roundtrip(tmp_path) -> None:  # type: ignore[no-untype
         train_scorer(feats[:1], labels[:1])
 
 
-def _fake_training(monkeypatch, good: set[int]) -> list[int]:
-    """train_scorer replaced by one that records its seeds and returns the seed as the net;
-    the validation decisions are right for the seeds in ``good``, and flag every grasp for the
-    others (what unstable seeds do on rendered holds)."""
-    from tacswitch.grasp import crossval
-    from tacswitch.grasp.train import SlipTrainResult
-
-    trained: list[int] = []
-
-    def fake_train(features, labels, *, epochs, seed, log=None):  # type: ignore[no-untyped-def]
-        trained.append(seed)
-        return SlipTrainResult(seed, len(labels), sum(labels), epochs, seed)
-
-    def fake_flags(clip, *, model, threshold):  # type: ignore[no-untyped-def]
-        slip, seed = clip
-        return np.array([slip or seed not in good])
-
-    monkeypatch.setattr("tacswitch.grasp.train.train_scorer", fake_train)
-    monkeypatch.setattr(crossval, "torch_scorer", lambda net: net)
-    monkeypatch.setattr(crossval, "clip_flags",
-                        lambda c, model, threshold: fake_flags((c, model), model=model,
-                                                               threshold=threshold))
-    return trained
+def _grid() -> np.ndarray:
+    xs, ys = np.meshgrid(np.arange(20.0, 181.0, 20.0), np.arange(20.0, 141.0, 20.0))
+    return np.stack([xs.ravel(), ys.ravel()], 1).astype(np.float32)
 
 
-def test_train_validated_keeps_the_seed_the_validation_grasps_favour(monkeypatch) -> None:
-    from tacswitch.grasp.crossval import train_validated
+def test_committee_trains_one_scorer_per_seed_and_exports_every_logit(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    pytest.importorskip("torch")
+    from tacswitch.grasp.train import export_scorer, frame_scores, train_committee
 
-    validation = ([True, False, False], [True, False, False])  # "clips" = their label here
-    trained = _fake_training(monkeypatch, good={6})
-    res = train_validated([[]], [True], validation, seed=5, seeds=3)
-    assert trained == [5, 6, 7] and res.seed == 6
-    assert res.validation == [0.5, 1.0, 0.5]
-    # A tie keeps the lowest seed; without validation grasps (or one seed) one seed is trained.
-    trained = _fake_training(monkeypatch, good={0, 1, 2})
-    assert train_validated([[]], [True], validation, seeds=3).seed == 0 and trained == [0, 1, 2]
-    trained = _fake_training(monkeypatch, good=set())
-    res = train_validated([[]], [True], None, seed=4, seeds=3)
-    assert trained == [4] and res.seed == 4 and res.validation == []
-    trained = _fake_training(monkeypatch, good=set())
-    assert train_validated([[]], [True], validation, seed=2, seeds=1).seed == 2
-    assert trained == [2]
+    rng = np.random.default_rng(1)
+    feats, labels = [], []
+    for i in range(12):
+        video = rng.normal(0, 0.1, (20, N_FEATURES)).astype(np.float32)
+        if i % 2 == 0:
+            video[12:15, 4] += 3.0
+        feats.append([video])
+        labels.append(i % 2 == 0)
+    res = train_committee(feats, labels, seed=3, seeds=3, votes=2, epochs=15)
+    assert (res.committee, res.votes, res.seed) == (3, 2, 3)
+    x = feats[0][0]
+    logits = frame_scores(res.net, x)
+    assert logits.shape == (len(x), 3)
+    # The members differ (each its own seed) and each is the scorer train_scorer makes alone.
+    assert not np.allclose(logits[:, 0], logits[:, 1])
+    path = tmp_path / "committee.onnx"
+    export_scorer(res, path)
+    onnx = load_scorer(path)
+    assert (onnx.committee, onnx.votes) == (3, 2)
+    np.testing.assert_allclose(onnx(x), logits, rtol=1e-4, atol=1e-4)
+    det = GraspSlipDetector(_grid(), image_width=200, model=path)
+    assert det.votes == 2
+    with pytest.raises(ValueError, match="votes: must be >= 1, at most the committee's 3"):
+        GraspSlipDetector(_grid(), image_width=200, model=path, votes=4)
+    one = train_committee(feats, labels, seeds=1, epochs=2)
+    assert (one.committee, one.votes) == (1, 1) and frame_scores(one.net, x).shape == (len(x),)
+    for bad, match in (({"seeds": 0}, "seeds"), ({"seeds": 2, "votes": 3}, "votes")):
+        with pytest.raises(ValueError, match=match):
+            train_committee(feats, labels, epochs=1, **bad)  # type: ignore[arg-type]
+
+
+def test_committee_flags_a_grasp_once_enough_members_have_fired() -> None:
+    """Each member that scores a frame above the threshold has fired for the rest of the
+    contact; slip is flagged once ``votes`` have, on the frames where one fires, and a new
+    contact starts with no votes."""
+    pts = _grid()
+    # Three members; frame by frame, which ones score above 0.
+    plan = {5: [0], 6: [], 7: [1], 8: [], 9: [2], 10: [0]}
+    calls: list[int] = []
+
+    def scorer(x: np.ndarray) -> np.ndarray:
+        calls.append(len(calls))
+        out = -np.ones((len(x), 3), np.float32)
+        for k in plan.get(frame[0], []):
+            out[:, k] = 1.0
+        return out
+
+    frame = [0]
+    det = GraspSlipDetector(pts, image_width=200, model=scorer, votes=2, start=0)
+    got = []
+    for t in range(12):
+        frame[0] = t
+        st = det.update(np.zeros_like(pts) + 0.01 * t)
+        got.append((st.slip, st.votes))
+    assert [s for s, _ in got] == [False] * 7 + [True, False, True, True, False]
+    assert got[7][1] == 2 and got[9][1] == 3
+    assert det.first_slip == 7
+    # Released (no contact), then a new contact: its members start unfired.
+    det = GraspSlipDetector(pts, image_width=200, model=scorer, votes=2)
+    phases = iter(["no contact"] * 6 + ["grasp"] * 2 + ["no contact"] + ["pressing"] * 3)
+    det.segmenter.update = lambda m, v: Step(next(phases), False, 1, None, None, 0.0, 0.0)
+    plan.clear()
+    plan.update({6: [0], 7: [1], 9: [2], 10: [0], 11: [1]})
+    got = []
+    for t in range(12):
+        frame[0] = t
+        st = det.update(np.zeros_like(pts))
+        got.append((st.slip, st.votes))
+    assert got == [(False, 0)] * 6 + [(False, 1), (True, 2), (False, 0), (False, 1),
+                                      (True, 2), (True, 3)]
+    with pytest.raises(ValueError, match="votes: must be >= 1"):
+        GraspSlipDetector(pts, image_width=200, model=scorer, votes=0)
+    with pytest.raises(TypeError, match="votes"):
+        GraspSlipDetector(pts, image_width=200, model=scorer, votes=1.5)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="votes: applies to rule='learned' only"):
+        GraspSlipDetector(pts, image_width=200, rule="paper", votes=2)
+    # A callable's committee size is known at its first score: more votes than members fail.
+    det = GraspSlipDetector(pts, image_width=200, model=scorer, votes=4, start=0)
+    with pytest.raises(ValueError, match="votes: must be >= 1, at most the committee's 3"):
+        for _ in range(6):
+            det.update(np.zeros_like(pts))
 
 
 @given(st.lists(st.floats(-1e6, 1e6, allow_nan=False), max_size=60),
@@ -272,7 +322,7 @@ def test_paired_view_trains_only_on_the_training_objects(monkeypatch) -> None:
 
     monkeypatch.setattr("tacswitch.grasp.train.train_scorer", fake_train)
     monkeypatch.setattr(crossval, "torch_scorer", lambda net: net)
-    monkeypatch.setattr(crossval, "clip_flags", lambda c, model, threshold: np.zeros(1, bool))
+    monkeypatch.setattr(crossval, "clip_flags", lambda c, **kw: np.zeros(1, bool))
     crossval.cross_validated_flags(clips, labels, objects, seeds=1, paired=paired)
     fold_of = object_folds(objects, 5)
     assert len(seen) == 5

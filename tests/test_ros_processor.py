@@ -25,7 +25,7 @@ from tacswitch.ros import processor as proc
 from tacswitch.ros.convert import from_ros, to_ros
 from tacswitch.ros.processor import ProcessorConfig, TactileProcessor, process_all
 
-N = 24
+N = 30
 T0 = 1_700_000_000_000_000_000
 DT = 33_333_333
 

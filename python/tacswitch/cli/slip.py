@@ -50,8 +50,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "with --markerless for predicted motion; make your own with "
                         "`tacswitch train slip`)")
     p.add_argument("--score-threshold", type=float, default=None, metavar="LOGIT",
-                   help="--rule learned flags a frame whose score exceeds this (default: the "
-                        "model's, 0); higher: fewer false alarms, later and fewer detections")
+                   help="--rule learned: a committee member fires on a frame whose score "
+                        "exceeds this (default: the model's, 0); higher: fewer false alarms, "
+                        "later and fewer detections")
+    p.add_argument("--votes", type=int, default=None, metavar="K",
+                   help="--rule learned: flag a grasp once K members of the scorer's committee "
+                        "have fired in it (default: the model's, 4 of 8); fewer: earlier and "
+                        "more detections, more false alarms")
     p.add_argument("--threshold-px", type=float, default=None,
                    help="--rule paper: displacement threshold (default: 3.25 px scaled to the "
                         "frame width)")
@@ -176,9 +181,12 @@ def _check(args: argparse.Namespace) -> None:
         raise UsageError(f"--{paper_given[0].replace('_', '-')}: applies to --rule paper only")
     if args.rule == "paper":
         for flag, value in (("--slip-model", args.slip_model),
-                            ("--score-threshold", args.score_threshold)):
+                            ("--score-threshold", args.score_threshold),
+                            ("--votes", args.votes)):
             if value is not None:
                 raise UsageError(f"{flag}: applies to --rule learned only")
+    if args.votes is not None and args.votes < 1:
+        raise UsageError(f"--votes: must be >= 1; got {args.votes}")
     if args.score_threshold is not None and not np.isfinite(args.score_threshold):
         raise UsageError(f"--score-threshold: must be finite; got {args.score_threshold}")
     if args.rigid_only and args.rigid_threshold_px is None:
@@ -345,6 +353,17 @@ class _LearnedLoop:
         self.args = args
         self.model = (str(input_file(args.slip_model, "--slip-model")) if args.slip_model
                       else "markerless" if args.markerless else "markers")
+        if args.votes is not None:
+            from tacswitch.cli.options import UsageError
+            from tacswitch.grasp.detector import load_scorer
+
+            try:
+                size = load_scorer(self.model).committee
+            except (ValueError, FileNotFoundError) as exc:
+                raise ValueError(str(exc).replace("model:", "--slip-model:", 1)) from None
+            if args.votes > size:
+                raise UsageError(f"--votes: must be >= 1, at most the committee's {size} "
+                                 f"members; got {args.votes}")
         self.tracker: Any = None
         self.detector: Any = None
         self.offset = 0  # the rest frame: the detector counts frames from it
@@ -362,9 +381,11 @@ class _LearnedLoop:
         try:
             self.detector = GraspSlipDetector(
                 self.tracker.reference, image_width=frame.shape[1], model=self.model,
-                threshold=self.args.score_threshold, start=_start_after(self.args, offset))
+                threshold=self.args.score_threshold, votes=self.args.votes,
+                start=_start_after(self.args, offset))
         except (ValueError, FileNotFoundError) as exc:
-            raise ValueError(str(exc).replace("model:", "--slip-model:", 1)) from None
+            raise ValueError(str(exc).replace("model:", "--slip-model:", 1)
+                             .replace("votes:", "--votes:", 1)) from None
 
     def step(self, frame: np.ndarray, n: int, t: float) -> tuple[list, bool, bool, Any]:
         st = self.detector.update(*self.tracker.update(frame))

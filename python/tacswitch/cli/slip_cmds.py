@@ -46,11 +46,7 @@ def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
     p.add_argument("--cv", type=int, default=0, metavar="K",
                    help="instead of the model: train and score K folds grouped by object "
                         "(needs tacswitch[train])")
-    p.add_argument("--seeds", type=int, default=None, metavar="N",
-                   help="--cv: per fold, train N scorers (seeds 0, 1, ...) and keep the one whose "
-                        "decisions on 36 rendered validation grasps (slip, hold, vibration; "
-                        "GelSight and Mini) are best (default: 3; 1: one seed; markers only: "
-                        "with --markerless one seed is trained)")
+    _committee_options(p, "--cv: per fold, ")
     _marker_tracks_option(p, "--cv: ")
     p.add_argument("--json", default=None, help="also write the scores and each experiment's "
                                                 "decision to this JSON file")
@@ -67,11 +63,7 @@ def add_train_parser(what: argparse._SubParsersAction) -> None:
     p.add_argument("--epochs", type=int, default=None, help="passes over the experiments "
                                                             f"(default: {EPOCHS})")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
-    p.add_argument("--seeds", type=int, default=None, metavar="N",
-                   help="train N scorers (seeds --seed, --seed + 1, ...) and keep the one whose "
-                        "decisions on 36 rendered validation grasps (slip, hold, vibration; "
-                        "GelSight and Mini) are best (default: 3; 1: one seed; markers only: "
-                        "with --markerless one seed is trained)")
+    _committee_options(p, "")
     p.add_argument("--simulated", type=int, default=None, metavar="N",
                    help="add N rendered grasps per kind (slip / hold / vibration) and sensor "
                         "(GelSight, GelSight Mini) to the training set: the textbook slip "
@@ -79,6 +71,31 @@ def add_train_parser(what: argparse._SubParsersAction) -> None:
                         "ignored with --markerless)")
     _marker_tracks_option(p, "")
     p.set_defaults(run=run_train)
+
+
+def _committee_options(p: argparse.ArgumentParser, scope: str) -> None:
+    from tacswitch.grasp.train import COMMITTEE, VOTES
+
+    p.add_argument("--seeds", type=int, default=None, metavar="N",
+                   help=f"{scope}train a committee of N scorers (seeds --seed, --seed + 1, ...; "
+                        f"default: {COMMITTEE}; 1: one scorer): a grasp is flagged once --votes "
+                        "of them have fired in it, which decides more steadily on unseen "
+                        "objects than any one scorer (BENCHMARKS.md)")
+    p.add_argument("--votes", type=int, default=None, metavar="K",
+                   help=f"{scope}members that must fire in a grasp (default: {VOTES}, at most "
+                        "--seeds; fewer: more slips caught, more false alarms)")
+
+
+def _committee(args: argparse.Namespace) -> tuple[int, int | None]:
+    """``--seeds`` and ``--votes``, checked (defaults: the recipe's)."""
+    from tacswitch.grasp.train import COMMITTEE
+
+    if args.seeds is not None and not 1 <= args.seeds <= 100:
+        raise UsageError(f"--seeds: must be in [1, 100]; got {args.seeds}")
+    seeds = COMMITTEE if args.seeds is None else int(args.seeds)
+    if args.votes is not None and not 1 <= args.votes <= seeds:
+        raise UsageError(f"--votes: must be in [1, --seeds={seeds}]; got {args.votes}")
+    return seeds, args.votes
 
 
 def _marker_tracks_option(p: argparse.ArgumentParser, scope: str) -> None:
@@ -134,19 +151,17 @@ def run_evaluate(args: argparse.Namespace) -> int:
         raise UsageError("--rigid-threshold-px: applies to --rule paper only")
     if args.cv and args.cv < 2:
         raise UsageError(f"--cv: at least 2 folds; got {args.cv}")
-    seeds = _seeds_option(args)
-    if args.seeds is not None and not args.cv:
-        raise UsageError("--seeds: applies to --cv (training) only")
+    seeds, votes = _committee(args)
+    for opt, val in (("--seeds", args.seeds), ("--votes", args.votes)):
+        if val is not None and not args.cv:
+            raise UsageError(f"{opt}: applies to --cv (training) only")
     if args.no_marker_tracks and not (args.cv and args.markerless):
         raise UsageError("--no-marker-tracks: applies to --cv with --markerless only")
     exps, clips = _load(args)
     labels = [e.slip for e in exps]
     if args.cv:
-        from tacswitch.grasp.crossval import validation_grasps
-
-        validation = validation_grasps() if seeds > 1 and not args.markerless else None
         flags = cross_validated_flags(clips, labels, [e.object for e in exps], folds=args.cv,
-                                      validation=validation, seeds=seeds,
+                                      seeds=seeds, votes=votes,
                                       paired=_paired_marker_clips(args, exps),
                                       quiet=args.quiet)["train"]
         name = f"learned, {args.cv} folds grouped by object"
@@ -179,15 +194,6 @@ def run_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _seeds_option(args: argparse.Namespace) -> int:
-    """``--seeds`` (default :data:`tacswitch.grasp.crossval.VALIDATED_SEEDS`), checked."""
-    from tacswitch.grasp.crossval import VALIDATED_SEEDS
-
-    if args.seeds is not None and not 1 <= args.seeds <= 100:
-        raise UsageError(f"--seeds: must be in [1, 100]; got {args.seeds}")
-    return VALIDATED_SEEDS if args.seeds is None else int(args.seeds)
-
-
 def run_train(args: argparse.Namespace) -> int:
     from tacswitch.cli.options import UsageError, output_file
 
@@ -197,7 +203,7 @@ def run_train(args: argparse.Namespace) -> int:
         raise UsageError(f"--epochs: must be >= 1; got {args.epochs}")
     if args.simulated is not None and not 0 <= args.simulated <= 1000:
         raise UsageError(f"--simulated: must be in [0, 1000]; got {args.simulated}")
-    seeds = _seeds_option(args)
+    seeds, votes = _committee(args)
     if args.no_marker_tracks and not args.markerless:
         raise UsageError("--no-marker-tracks: applies to --markerless only")
     out = output_file(args.out, "--out")
@@ -205,8 +211,7 @@ def run_train(args: argparse.Namespace) -> int:
         import torch  # noqa: F401
     except ImportError:
         raise ValueError("train slip: needs torch: pip install 'tacswitch[train]'") from None
-    from tacswitch.grasp.crossval import train_validated, validation_grasps
-    from tacswitch.grasp.train import EPOCHS, export_scorer
+    from tacswitch.grasp.train import EPOCHS, export_scorer, train_committee
 
     epochs = args.epochs if args.epochs is not None else EPOCHS
     from tacswitch.grasp.simulated import SIMULATED_PER_KIND, SIMULATED_SEED, simulated_clips
@@ -224,8 +229,7 @@ def run_train(args: argparse.Namespace) -> int:
         feats += [[c.features()] for c in sim_clips]
         labels = labels + sim_labels
     log = None if args.quiet else (lambda s: print(s, file=sys.stderr))
-    validation = validation_grasps() if seeds > 1 and not args.markerless else None
-    res = train_validated(feats, labels, validation, seed=args.seed, seeds=seeds,
+    res = train_committee(feats, labels, seed=args.seed, seeds=seeds, votes=votes,
                           epochs=epochs, log=log)
     n_rendered = len(labels) - len(exps) * (1 if paired is None else 2)
     views = "" if paired is None else " (markerless and marker tracks)"
@@ -234,7 +238,8 @@ def run_train(args: argparse.Namespace) -> int:
                                                  f"{sum(e.slip for e in exps)} slip; "
                                                  f"{n_rendered} rendered"})
     if not args.quiet:
-        kept = (f", seed {res.seed} kept of {len(res.validation)}" if res.validation else "")
+        kept = (f", {res.committee} scorers, {res.votes} votes" if res.committee > 1
+                else ", one scorer")
         print(f"wrote {out} ({len(exps)} experiments{views}, {sum(e.slip for e in exps)} "
               f"slip, {n_rendered} rendered grasps, {epochs} epochs{kept})")
     return 0

@@ -4,10 +4,12 @@
 (:class:`tacswitch.grasp.phases.GraspSegmenter`: contact onset, established contact, release)
 and decides slip with one of two rules:
 
-- ``"learned"`` (default): a small classifier over causal features of the tracked field
-  (:mod:`tacswitch.grasp.features`), trained on real GelSight Mini grasps that were lifted and
-  shaken, some slipping (``MODEL_CARD_slip.md``). It runs only while the markers show a contact
-  (from the onset to the release); nothing is flagged before the onset or after the release.
+- ``"learned"`` (default): a committee of small classifiers over causal features of the tracked
+  field (:mod:`tacswitch.grasp.features`), trained on real GelSight Mini grasps that were lifted
+  and shaken, some slipping (``MODEL_CARD_slip.md``). Each member that scores a frame above the
+  threshold has fired for the rest of that contact; slip is flagged once ``votes`` members have
+  fired, on the frames where one fires. It runs only while the markers show a contact (from
+  the onset to the release); nothing is flagged before the onset or after the release.
 - ``"paper"``: the paper's displacement rule from the grasp start, optionally with the rigid
   criterion (:class:`tacswitch.SlipDetector`).
 
@@ -51,6 +53,7 @@ def slip_model_path(path: str | os.PathLike[str] | None = None) -> Path:
 
 class OnnxScorer:
     """A slip scorer exported by ``tacswitch train slip``: ``B x N_FEATURES`` -> ``B`` logits,
+    or ``B x K`` for a committee of ``K`` (``committee``; ``votes``: members that must fire),
     run on one onnxruntime thread (the slip loop is single-threaded), on the CPU by default:
     one frame's features are a few hundred bytes, which a GPU round trip would only slow."""
 
@@ -63,6 +66,8 @@ class OnnxScorer:
         self.path = path
         self.threshold = float(json.loads(meta.get("tacswitch.threshold", "0")))
         self.warmup = int(json.loads(meta.get("tacswitch.warmup", "3")))
+        self.committee = int(json.loads(meta.get("tacswitch.committee", "1")))
+        self.votes = int(json.loads(meta.get("tacswitch.votes", "1")))
         n = int(json.loads(meta.get("tacswitch.n_features", str(N_FEATURES))))
         if n != N_FEATURES:
             raise ValueError(f"model: {str(path)!r} takes {n} features; this tacswitch "
@@ -90,14 +95,16 @@ class GraspSlipState:
         grasp: 1-based number of the current grasp, 0 before the first.
         grasp_start: frame where the current grasp started, None outside a grasp.
         slip: slip in this frame.
-        score: the learned rule's logit (NaN when it did not run: other rule, warm-up, or
-            outside a contact).
+        score: the learned rule's logit, the mean over a committee's members (NaN when it did
+            not run: other rule, warm-up, or outside a contact).
         criterion: ``"learned"``, ``"displacement"``, ``"rigid"``, ``"both"`` or None.
         max_displacement: largest marker displacement since the grasp start, px (paper rule;
             NaN with the learned rule).
         marker: index of that marker, -1 if none.
         rigid_residual: the rigid criterion's residual, px (NaN when not evaluated).
         n_valid: markers tracked in this frame.
+        votes: learned rule: committee members that have fired in this grasp so far (0 with
+            the paper rule).
     """
 
     frame: int
@@ -111,6 +118,7 @@ class GraspSlipState:
     marker: int
     rigid_residual: float
     n_valid: int
+    votes: int = 0
 
 
 class GraspSlipDetector:
@@ -126,8 +134,11 @@ class GraspSlipDetector:
         rule: ``"learned"`` (default) or ``"paper"``.
         model: ONNX scorer for the learned rule: a path, ``"markers"`` (the default, for
             tracked markers) or ``"markerless"`` (for motion predicted on a markerless sensor),
-            or a callable ``B x N_FEATURES`` -> ``B`` logits.
-        threshold: the learned rule's logit threshold (default: the model's).
+            or a callable ``B x N_FEATURES`` -> ``B`` logits (``B x K`` for a committee).
+        threshold: the learned rule's logit threshold, per member (default: the model's).
+        votes: the learned rule: committee members that must have fired in a grasp before it
+            is flagged (default: the model's; 1 for a callable). Fewer: earlier and more
+            detections, more false alarms.
         threshold_px: the paper rule's displacement threshold (default 3.25 px at 640 wide,
             scaled to ``image_width``).
         rigid_threshold_px: the paper rule's rigid criterion (pixels or ``"auto"``).
@@ -138,7 +149,8 @@ class GraspSlipDetector:
 
     def __init__(self, points: Any, *, image_width: int | None = None, rule: str = "learned",
                  model: str | os.PathLike[str] | Scorer | None = None,
-                 threshold: float | None = None, threshold_px: float | None = None,
+                 threshold: float | None = None, votes: int | None = None,
+                 threshold_px: float | None = None,
                  rigid_threshold_px: float | str | None = None, rigid_only: bool = False,
                  smooth_frames: int = 1, start: int | None = None) -> None:
         from tacswitch.slip import SlipDetector, scaled_threshold
@@ -164,7 +176,12 @@ class GraspSlipDetector:
         self._scorer: Scorer | None = None
         self.threshold = 0.0
         self.warmup = 3
+        self.votes = 1
+        self._committee: int | None = None
+        self._fired: NDArray[np.bool_] | None = None
         if rule == "paper":
+            if votes is not None:
+                raise ValueError("votes: applies to rule='learned' only")
             self._paper = SlipDetector(epsilon, rigid_threshold_px=rigid_threshold_px,
                                        use_displacement=not rigid_only, points=self.points,
                                        image_width=self.image_width,
@@ -180,10 +197,16 @@ class GraspSlipDetector:
                 onnx = load_scorer(model)
                 self._scorer = onnx
                 self.threshold, self.warmup = onnx.threshold, onnx.warmup
+                self.votes, self._committee = onnx.votes, onnx.committee
             if threshold is not None:
                 if not np.isfinite(threshold):
                     raise ValueError(f"threshold: must be finite; got {threshold!r}")
                 self.threshold = float(threshold)
+            if votes is not None:
+                if isinstance(votes, bool) or not isinstance(votes, (int, np.integer)):
+                    raise TypeError(f"votes: expected an int; got {type(votes).__name__}")
+                self.votes = int(votes)
+            self._check_votes(self._committee)
 
     def update(self, motion: Any, valid: Any = None) -> GraspSlipState:
         """Feeds the next frame's motion (``N x 2`` px since the first frame; NaN = lost) and
@@ -202,15 +225,32 @@ class GraspSlipDetector:
         feats = self._features.update(m, v)
         score = float("nan")
         contact = step.phase in (PRESSING, GRASP)
+        if not contact:
+            self._fired = None  # released: the next contact starts with no votes
+        slip = False
         if contact and self.frame >= self.warmup:
             # The scene decides: the scorer runs only while a contact is on the gel.
-            score = float(self._scorer(feats[None, :])[0])
-        slip = bool(score > self.threshold)
+            logits = np.asarray(self._scorer(feats[None, :]), np.float64).reshape(-1)
+            if self._fired is None:
+                self._check_votes(len(logits))
+                self._fired = np.zeros(len(logits), bool)
+            above = logits > self.threshold
+            self._fired |= above
+            score = float(logits.mean())
+            slip = bool(above.any()) and int(self._fired.sum()) >= self.votes
         if slip and self.first_slip is None:
             self.first_slip = self.frame
+        fired = 0 if self._fired is None else int(self._fired.sum())
         return GraspSlipState(self.frame, step.phase, step.grasp, step.start, slip, score,
                               "learned" if slip else None, float("nan"), -1, float("nan"),
-                              int(v.sum()))
+                              int(v.sum()), fired)
+
+    def _check_votes(self, committee: int | None) -> None:
+        """``ValueError`` naming ``votes`` unless 1 <= votes <= the committee's size (when
+        known)."""
+        if self.votes < 1 or (committee is not None and self.votes > committee):
+            top = "" if committee is None else f", at most the committee's {committee} members"
+            raise ValueError(f"votes: must be >= 1{top}; got {self.votes}")
 
     def _paper_step(self, step: Step, m: NDArray[np.float32], v: NDArray[np.bool_]
                     ) -> GraspSlipState:

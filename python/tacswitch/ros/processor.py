@@ -117,7 +117,8 @@ class ProcessorConfig:
         reference_frame: ``reference="frame"``: the readable frame (0-based).
         look_ahead: ``reference="first"`` with markers: frames held to choose it (1-300).
         rule: the slip rule, ``"learned"`` or ``"paper"``.
-        score_threshold: learned rule: logit above which a frame slips (None: the model's).
+        score_threshold: learned rule: logit above which a committee member fires (None: the
+            model's).
         threshold_px: paper rule: displacement threshold, px (None: 3.25 px at 640 wide,
             scaled to the frame width).
         outputs: which results to publish, a subset of ``("markerless", "motion", "slip")``.

@@ -145,7 +145,8 @@ def _window_problem() -> str | None:
 
 
 LOG_COLUMNS = ["frame", "phase", "grasp", "grasp_start", "slip", "criterion",
-               "max_displacement_px", "marker", "rigid_residual_px", "score", "valid_markers",
+               "max_displacement_px", "marker", "rigid_residual_px", "score", "votes",
+               "valid_markers",
                "time_s"]
 
 
@@ -399,7 +400,8 @@ def _learned_row(n: int, st, t: float, offset: int) -> list:  # type: ignore[no-
     score = "" if st.score != st.score else f"{st.score:.3f}"  # NaN: the scorer did not run
     return [n, st.phase, st.grasp or "",
             "" if st.grasp_start is None else st.grasp_start + offset,
-            int(st.slip), st.criterion or "", "", "", "", score, st.n_valid, f"{t:.4f}"]
+            int(st.slip), st.criterion or "", "", "", "", score, score and st.votes,
+            st.n_valid, f"{t:.4f}"]
 
 
 class MarkerlessSequence:
@@ -560,9 +562,9 @@ def _row(n: int, step, state, n_valid: int, t: float,  # type: ignore[no-untyped
     ``offset``: the rest frame, where the segmenter's frame numbers start."""
     head = [n, step.phase, step.grasp or "", "" if step.start is None else step.start + offset]
     if state is None:
-        return [*head, 0, "", "", "", "", "", n_valid, f"{t:.4f}"]
+        return [*head, 0, "", "", "", "", "", "", n_valid, f"{t:.4f}"]
     return [*head, int(state.slip), state.criterion or "", f"{state.max_displacement:.3f}",
-            state.marker, f"{state.rigid_residual:.3f}", "", state.n_compared, f"{t:.4f}"]
+            state.marker, f"{state.rigid_residual:.3f}", "", "", state.n_compared, f"{t:.4f}"]
 
 
 def _starts_text(starts: list[int], args: argparse.Namespace, segmenter,  # type: ignore[no-untyped-def]

@@ -41,7 +41,7 @@ from tacswitch.grasp.crossval import clip_flags, cross_validated_flags
 from tacswitch.grasp.dataset import experiment_clips, read_labels
 from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
 from tacswitch.grasp.simulated import SIMULATED_PER_KIND, SIMULATED_SEED, simulated_clips
-from tacswitch.grasp.train import COMMITTEE, VOTES, train_committee
+from tacswitch.grasp.train import COMMITTEE, committee_votes, train_committee
 
 DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared/data/real/gsmini_slip_train"
 CACHE = Path(__file__).resolve().parents[1] / "bench-results" / "slip_real"
@@ -75,9 +75,8 @@ def main() -> int:
     clips = experiment_clips(exps, CACHE, workers=args.workers, progress=True)
     print(f"tracked {sum(len(c) for c in clips)} videos in {time.perf_counter() - t0:.0f} s",
           file=sys.stderr)
-    epochs = {} if args.epochs is None else {"epochs": args.epochs}
-    committee = (f"{args.committee} scorers, {args.votes or min(VOTES, args.committee)} votes"
-                 if args.committee > 1 else "one scorer")
+    committee = (f"{args.committee} scorers, {committee_votes(args.committee, args.votes)} "
+                 "votes" if args.committee > 1 else "one scorer")
     if args.export is not None:
         from tacswitch.grasp.train import export_scorer
 
@@ -91,7 +90,7 @@ def main() -> int:
             clips = clips + [[c] for c in sim_clips]
             labels = labels + sim_labels
         res = train_committee([[c.features() for c in exp] for exp in clips], labels,
-                              seeds=args.committee, votes=args.votes, **epochs,
+                              seeds=args.committee, votes=args.votes, epochs=args.epochs,
                               log=lambda s: print(s, file=sys.stderr))
         motion = ("markers removed, MarkerlessTracker; and the marker tracks" if args.markerless
                   else "markers")
@@ -153,7 +152,7 @@ def main() -> int:
         held, held_labels = simulated_clips(HELD_OUT_SIM, HELD_OUT_SIM_SEED)
         res = train_committee([[c.features() for c in exp] for exp in clips] + [
             [c.features() for c in exp] for exp in extra[0]], labels + extra[1],
-            seeds=args.committee, votes=args.votes, **epochs)
+            seeds=args.committee, votes=args.votes, epochs=args.epochs)
         scorer = torch_scorer(res.net)
         flags_sim = [[clip_flags(c, model=scorer, threshold=0.0, votes=res.votes)]
                      for c in held]

@@ -186,8 +186,6 @@ def _check(args: argparse.Namespace) -> None:
                             ("--votes", args.votes)):
             if value is not None:
                 raise UsageError(f"{flag}: applies to --rule learned only")
-    if args.votes is not None and args.votes < 1:
-        raise UsageError(f"--votes: must be >= 1; got {args.votes}")
     if args.score_threshold is not None and not np.isfinite(args.score_threshold):
         raise UsageError(f"--score-threshold: must be finite; got {args.score_threshold}")
     if args.rigid_only and args.rigid_threshold_px is None:
@@ -355,16 +353,18 @@ class _LearnedLoop:
         self.model = (str(input_file(args.slip_model, "--slip-model")) if args.slip_model
                       else "markerless" if args.markerless else "markers")
         if args.votes is not None:
+            # Checked now, against the scorer's committee: a usage error before any frame.
             from tacswitch.cli.options import UsageError
-            from tacswitch.grasp.detector import load_scorer
+            from tacswitch.grasp.detector import check_votes, load_scorer
 
             try:
                 size = load_scorer(self.model).committee
             except (ValueError, FileNotFoundError) as exc:
                 raise ValueError(str(exc).replace("model:", "--slip-model:", 1)) from None
-            if args.votes > size:
-                raise UsageError(f"--votes: must be >= 1, at most the committee's {size} "
-                                 f"members; got {args.votes}")
+            try:
+                check_votes(args.votes, size)
+            except ValueError as exc:
+                raise UsageError(f"--{exc}") from None
         self.tracker: Any = None
         self.detector: Any = None
         self.offset = 0  # the rest frame: the detector counts frames from it
@@ -385,8 +385,7 @@ class _LearnedLoop:
                 threshold=self.args.score_threshold, votes=self.args.votes,
                 start=_start_after(self.args, offset))
         except (ValueError, FileNotFoundError) as exc:
-            raise ValueError(str(exc).replace("model:", "--slip-model:", 1)
-                             .replace("votes:", "--votes:", 1)) from None
+            raise ValueError(str(exc).replace("model:", "--slip-model:", 1)) from None
 
     def step(self, frame: np.ndarray, n: int, t: float) -> tuple[list, bool, bool, Any]:
         st = self.detector.update(*self.tracker.update(frame))
@@ -400,7 +399,7 @@ def _learned_row(n: int, st, t: float, offset: int) -> list:  # type: ignore[no-
     score = "" if st.score != st.score else f"{st.score:.3f}"  # NaN: the scorer did not run
     return [n, st.phase, st.grasp or "",
             "" if st.grasp_start is None else st.grasp_start + offset,
-            int(st.slip), st.criterion or "", "", "", "", score, score and st.votes,
+            int(st.slip), st.criterion or "", "", "", "", score, st.votes if score else "",
             st.n_valid, f"{t:.4f}"]
 
 

@@ -39,8 +39,8 @@ def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
                    help="ONNX scorer (default: the shipped one, for markers or with --markerless "
                         "for predicted motion)")
     p.add_argument("--score-threshold", type=float, default=None, metavar="LOGIT",
-                   help="--rule learned flags a frame whose score exceeds this (default: the "
-                        "model's, 0)")
+                   help="--rule learned: a committee member fires on a frame whose score "
+                        "exceeds this (default: the model's, 0)")
     p.add_argument("--rigid-threshold-px", default=None, metavar="PX|auto",
                    help="--rule paper: add the rigid criterion")
     p.add_argument("--cv", type=int, default=0, metavar="K",

@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 from tacswitch.grasp.dataset import TrackedClip
 from tacswitch.grasp.detector import run_clip
 from tacswitch.grasp.evaluate import object_folds
+from tacswitch.grasp.train import COMMITTEE
 
 
 def clip_flags(clip: TrackedClip, **options: Any) -> NDArray[np.bool_]:
@@ -36,7 +37,7 @@ def cross_validated_flags(clips: list[list[TrackedClip]], labels: list[bool],
                           folds: int = 5,
                           test_sets: dict[str, list[list[TrackedClip]]] | None = None,
                           extra: tuple[list[list[TrackedClip]], list[bool]] | None = None,
-                          seeds: int | None = None, votes: int | None = None,
+                          seeds: int = COMMITTEE, votes: int | None = None,
                           paired: list[list[TrackedClip]] | None = None,
                           quiet: bool = True) -> dict[str, list[list[NDArray[np.bool_]]]]:
     """Flags of every experiment's videos from a scorer trained on ``clips`` of the other
@@ -47,8 +48,8 @@ def cross_validated_flags(clips: list[list[TrackedClip]], labels: list[bool],
     markerless ``clips``); each fold also trains on the paired view of its training objects,
     never of the held-out ones. Each fold's scorer is the recipe's committee
     (:func:`~tacswitch.grasp.train.train_committee`: ``seeds`` scorers from seed ``seed``,
-    default :data:`~tacswitch.grasp.train.COMMITTEE`, ``votes`` of them to flag)."""
-    from tacswitch.grasp.train import COMMITTEE, train_committee
+    ``votes`` of them to flag)."""
+    from tacswitch.grasp.train import train_committee
 
     feats = [[c.features() for c in exp] for exp in clips]
     if paired is not None and len(paired) != len(clips):
@@ -70,8 +71,7 @@ def cross_validated_flags(clips: list[list[TrackedClip]], labels: list[bool],
             train_feats += [paired_feats[i] for i in train]
             train_labels += [labels[i] for i in train]
         res = train_committee(train_feats + extra_feats, train_labels + extra_labels,
-                              seed=seed, seeds=COMMITTEE if seeds is None else seeds,
-                              votes=votes, **({} if epochs is None else {"epochs": epochs}))
+                              seed=seed, seeds=seeds, votes=votes, epochs=epochs)
         scorer = torch_scorer(res.net)
         for name, test in sets.items():
             for i, k in enumerate(fold_of):

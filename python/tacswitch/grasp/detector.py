@@ -85,6 +85,14 @@ def load_scorer(path: str | os.PathLike[str] | None = None) -> OnnxScorer:
     return cached(OnnxScorer, slip_model_path(path), "cpu")
 
 
+def check_votes(votes: int, committee: int | None) -> None:
+    """``ValueError`` naming ``votes`` unless 1 <= ``votes`` <= ``committee`` (the scorer's
+    members; None: not known yet)."""
+    if votes < 1 or (committee is not None and votes > committee):
+        top = "" if committee is None else f", at most the committee's {committee} members"
+        raise ValueError(f"votes: must be >= 1{top}; got {votes}")
+
+
 @dataclass(frozen=True)
 class GraspSlipState:
     """What :meth:`GraspSlipDetector.update` concluded for one frame.
@@ -206,7 +214,7 @@ class GraspSlipDetector:
                 if isinstance(votes, bool) or not isinstance(votes, (int, np.integer)):
                     raise TypeError(f"votes: expected an int; got {type(votes).__name__}")
                 self.votes = int(votes)
-            self._check_votes(self._committee)
+            check_votes(self.votes, self._committee)
 
     def update(self, motion: Any, valid: Any = None) -> GraspSlipState:
         """Feeds the next frame's motion (``N x 2`` px since the first frame; NaN = lost) and
@@ -232,7 +240,7 @@ class GraspSlipDetector:
             # The scene decides: the scorer runs only while a contact is on the gel.
             logits = np.asarray(self._scorer(feats[None, :]), np.float64).reshape(-1)
             if self._fired is None:
-                self._check_votes(len(logits))
+                check_votes(self.votes, len(logits))
                 self._fired = np.zeros(len(logits), bool)
             above = logits > self.threshold
             self._fired |= above
@@ -244,13 +252,6 @@ class GraspSlipDetector:
         return GraspSlipState(self.frame, step.phase, step.grasp, step.start, slip, score,
                               "learned" if slip else None, float("nan"), -1, float("nan"),
                               int(v.sum()), fired)
-
-    def _check_votes(self, committee: int | None) -> None:
-        """``ValueError`` naming ``votes`` unless 1 <= votes <= the committee's size (when
-        known)."""
-        if self.votes < 1 or (committee is not None and self.votes > committee):
-            top = "" if committee is None else f", at most the committee's {committee} members"
-            raise ValueError(f"votes: must be >= 1{top}; got {self.votes}")
 
     def _paper_step(self, step: Step, m: NDArray[np.float32], v: NDArray[np.bool_]
                     ) -> GraspSlipState:

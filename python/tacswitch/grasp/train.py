@@ -210,18 +210,27 @@ def fused_committee(committee: Any) -> Any:
     return Fused().eval()
 
 
-def train_committee(features: list[list[NDArray[np.float32]]], labels: list[bool], *,
-                    seed: int = 0, seeds: int = COMMITTEE, votes: int | None = None,
-                    epochs: int = EPOCHS, log: Any = None) -> SlipTrainResult:
-    """Trains ``seeds`` scorers (:func:`train_scorer`, seeds ``seed, seed + 1, ...``) on the same
-    experiments and returns them as one committee (``net``: ``B x seeds`` logits) that flags a
-    grasp once ``votes`` members (default :data:`VOTES`, at most ``seeds``) have fired in it.
-    With ``seeds=1``: the single scorer (``B`` logits), one vote."""
-    if not 1 <= seeds <= 100:
-        raise ValueError(f"seeds: must be in [1, 100]; got {seeds}")
+def committee_votes(seeds: int, votes: int | None = None) -> int:
+    """The votes of a committee of ``seeds`` scorers: ``votes``, checked, or :data:`VOTES` (at
+    most ``seeds``)."""
     v = min(VOTES, seeds) if votes is None else int(votes)
     if not 1 <= v <= seeds:
         raise ValueError(f"votes: must be in [1, seeds={seeds}]; got {votes}")
+    return v
+
+
+def train_committee(features: list[list[NDArray[np.float32]]], labels: list[bool], *,
+                    seed: int = 0, seeds: int = COMMITTEE, votes: int | None = None,
+                    epochs: int | None = None, log: Any = None) -> SlipTrainResult:
+    """Trains ``seeds`` scorers (:func:`train_scorer`, seeds ``seed, seed + 1, ...``) on the same
+    experiments and returns them as one committee (``net``: ``B x seeds`` logits) that flags a
+    grasp once ``votes`` members (default :data:`VOTES`, at most ``seeds``) have fired in it.
+    With ``seeds=1``: the single scorer (``B`` logits), one vote. ``epochs``: default
+    :data:`EPOCHS`."""
+    if not 1 <= seeds <= 100:
+        raise ValueError(f"seeds: must be in [1, 100]; got {seeds}")
+    v = committee_votes(seeds, votes)
+    epochs = EPOCHS if epochs is None else epochs
     results = []
     for s in range(seed, seed + seeds):
         if log is not None and seeds > 1:

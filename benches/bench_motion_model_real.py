@@ -123,7 +123,9 @@ def main() -> int:
         "zero": lambda im, c: np.zeros((len(c), 2), np.float32),
         "mechanics rule": lambda im, c: mechanics_motion(im, f0, c),
         "ensemble (predict_motion default)": lambda im, c: ensemble_motion(im, f0, c),
-        "flow": lambda im, c: flow_motion(im, f0, c)}
+        "flow": lambda im, c: flow_motion(im, f0, c),
+        "flow, suppress_imprint (MarkerlessTracker's default)":
+            lambda im, c: flow_motion(im, f0, c, suppress_imprint=True)}
     for name, m in models.items():
         if name in extra and m.design in ("consistent", "plain") and (
                 m.design == "consistent" or m.use_ref):
@@ -138,6 +140,8 @@ def main() -> int:
                 lambda im, c, g=gain: ensemble_motion(im, None, c, gain=g)}
         if gain == MECHANICS_GAIN:
             mini_fns["flow from the no-contact frame"] = lambda im, c: flow_motion(im, mini.f0, c)
+            mini_fns["flow from the no-contact frame, suppress_imprint (MarkerlessTracker)"] = (
+                lambda im, c: flow_motion(im, mini.f0, c, suppress_imprint=True))
             for name in extra:
                 m = models[name]
                 mini_fns[f"model {name}, single frame"] = (lambda mm: lambda im, c: mm(

@@ -143,8 +143,10 @@ def methods() -> dict[str, tuple[Method, bool]]:
         "zero": (lambda frames, f0, c: [np.zeros((len(c), 2), np.float32) for _ in frames],
                  False),
         "MarkerlessTracker (default)": (_tracker(), True),
+        "MarkerlessTracker, suppress_imprint=False": (_tracker(suppress_imprint=False), True),
         "pairwise from the first frame, auto": (_pairwise(), False),
-        "pairwise from the first frame, flow": (_pairwise(method="flow"), False),
+        "pairwise from the first frame, flow, suppress_imprint": (
+            _pairwise(method="flow", suppress_imprint=True), False),
         "single frame (ensemble)": (_single, False),
         **_model_methods(),
     }

@@ -126,22 +126,41 @@ def motion_row(data: str, method: str, m: dict[str, float], min_px: float, frame
             f"{min_px:.2f}", f"{frames} / {m['n_orient']}", f"{ms:.0f}"]
 
 
-def update_markdown(section: str, body: str) -> None:
-    """Replaces (or appends) ``section`` in BENCHMARKS.md, leaving other sections alone.
-    The file is replaced atomically, so an interrupted run never truncates it."""
-    path = Path(__file__).resolve().parents[1] / "BENCHMARKS.md"
+def update_markdown(section: str, body: str, path: Path | None = None) -> None:
+    """Replaces (or appends) ``section`` in BENCHMARKS.md (or ``path``), leaving other sections
+    alone. Within the section, the text written by hand around the generated ``body`` stays:
+    what comes before the line where the old body began (the first line starting as ``body``'s
+    first line does, up to its first colon) and after the old body's command line (the last
+    line starting as ``body``'s last ``Command: `...``` line does: readings, ``###``
+    subsections). The file is replaced atomically, so an interrupted run never truncates it."""
+    path = Path(__file__).resolve().parents[1] / "BENCHMARKS.md" if path is None else path
     text = path.read_text() if path.exists() else "# Benchmarks\n"
-    block = f"{section}\n\n{body.strip()}\n"
+    body = body.strip()
     start = text.find(section + "\n")
     if start < 0:
-        text = text.rstrip("\n") + "\n\n" + block
+        text = text.rstrip("\n") + "\n\n" + f"{section}\n\n{body}\n"
     else:
         nxt = text.find("\n## ", start + len(section))
         old = text[start:nxt] if nxt >= 0 else text[start:]
+        lines = old.splitlines()[1:]
         # The line naming the runner section (benches/sections.py) stays under the heading.
-        named = [ln for ln in old.splitlines() if ln.startswith("Bench section:")]
-        if named:
-            block = f"{section}\n\n{named[0]}\n\n{body.strip()}\n"
+        named = [ln for ln in lines if ln.startswith("Bench section:")][:1]
+        lines = [ln for ln in lines if not ln.startswith("Bench section:")]
+        # The body's first line up to its label ("Data:", "Measured ...:"), else its start.
+        head = body.splitlines()[0]
+        first = head[:head.index(":") + 1] if ":" in head[:40] else head[:12]
+        commands = [ln.split("`")[1] for ln in body.splitlines()
+                    if ln.startswith("Command: `") and ln.count("`") >= 2]
+        begin = next((i for i, ln in enumerate(lines) if first and ln.startswith(first)), None)
+        end = None
+        if commands:
+            end = next((i for i in reversed(range(len(lines)))
+                        if lines[i].startswith(f"Command: `{commands[-1]}`")), None)
+        before = "\n".join(lines[:begin]).strip() if begin is not None else ""
+        after = ("\n".join(lines[end + 1:]).strip()
+                 if end is not None and (begin is None or end >= begin) else "")
+        parts = [section, *named, before, body, after]
+        block = "\n\n".join(x for x in parts if x) + "\n"
         text = text[:start] + block + (text[nxt:] if nxt >= 0 else "")
     tmp = path.with_suffix(".md.tmp")
     tmp.write_text(text)

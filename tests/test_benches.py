@@ -103,3 +103,19 @@ def test_every_benchmarks_section_and_readme_result_names_its_runner_section() -
     for row in rows:
         named = re.findall(r"`([a-z-]+)` \|$", row)
         assert named and named[0] in names, f"README result row names no bench section: {row}"
+
+
+def test_a_section_update_keeps_the_text_written_around_its_table(tmp_path: Path) -> None:
+    from harness import update_markdown
+
+    doc = tmp_path / "B.md"
+    doc.write_text("# Benchmarks\n\n## A\n\nBench section: `a`\n\nReading by hand.\n\n"
+                   "Data: old\n\n| x |\n|---|\n| 1 |\n\nCommand: `python a.py` (notes)\n\n"
+                   "After by hand.\n\n### Sub\n\nkept\n\n## B\n\nother\n")
+    update_markdown("## A", "Data: new\n\n| x |\n|---|\n| 2 |\n\nCommand: `python a.py`", doc)
+    text = doc.read_text()
+    assert text == ("# Benchmarks\n\n## A\n\nBench section: `a`\n\nReading by hand.\n\n"
+                    "Data: new\n\n| x |\n|---|\n| 2 |\n\nCommand: `python a.py`\n\n"
+                    "After by hand.\n\n### Sub\n\nkept\n\n## B\n\nother\n")
+    update_markdown("## C", "Data: c\n\nCommand: `python c.py`", doc)
+    assert doc.read_text().endswith("## B\n\nother\n\n## C\n\nData: c\n\nCommand: `python c.py`\n")

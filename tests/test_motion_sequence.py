@@ -11,6 +11,14 @@ from tacswitch.motion import mechanics
 from tacswitch.motion.sequence import MarkerlessTracker
 
 
+def _ratio_and_cos(m: np.ndarray, true: np.ndarray, moved: np.ndarray) -> tuple[float, float]:
+    """Magnitude ratio and mean direction cosine of ``m`` against ``true`` where ``moved``."""
+    a, b = m[moved], true[moved]
+    ratio = np.linalg.norm(a, axis=1).sum() / np.linalg.norm(b, axis=1).sum()
+    cos = np.sum(a * b, 1) / (np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1))
+    return float(ratio), float(cos.mean())
+
+
 def test_with_the_no_contact_frame_it_is_the_direct_flow_from_it(grid) -> None:
     from gel_fixtures import _gel, _pressed_and_sheared
 
@@ -18,6 +26,8 @@ def test_with_the_no_contact_frame_it_is_the_direct_flow_from_it(grid) -> None:
 
     f0 = _gel()
     tr = MarkerlessTracker(f0, grid, gain="gelsight")
+    plain = MarkerlessTracker(f0, grid, suppress_imprint=False)
+    assert tr.suppress_imprint and not plain.suppress_imprint
     assert not tr.update(f0.copy()).any()  # no contact: exactly zero
     frames = [_pressed_and_sheared(f0, a) for a in (2.0, 5.0, 8.0)]
     from tacswitch.motion.reference import is_new_contact
@@ -25,17 +35,21 @@ def test_with_the_no_contact_frame_it_is_the_direct_flow_from_it(grid) -> None:
     assert all(is_new_contact(img, f0) for img, _ in frames)  # a contact the reference lacks
     for img, fld in frames:
         got = tr.update(img)
-        np.testing.assert_array_equal(got, flow_motion(img, f0, grid))
+        np.testing.assert_array_equal(got, flow_motion(img, f0, grid, suppress_imprint=True))
+        flat = plain.update(img)
+        np.testing.assert_array_equal(flat, flow_motion(img, f0, grid))
         true = sample_field(fld, grid)
         moved = np.linalg.norm(true, axis=1) >= 1.0
-        # The press and the shear at their size: the magnitude within 30 % (the earlier
-        # design took the press from the mechanics rule, a fraction of it on such a gel).
-        ratio = np.linalg.norm(got[moved], axis=1).sum() / np.linalg.norm(true[moved],
-                                                                          axis=1).sum()
-        assert 0.7 < ratio < 1.3, ratio
-        cos = np.sum(got[moved] * true[moved], 1) / (np.linalg.norm(got[moved], axis=1)
-                                                   * np.linalg.norm(true[moved], axis=1))
-        assert cos.mean() > 0.9
+
+        # The press and the shear at their size: the plain flow's magnitude within 30 % (the
+        # earlier design took the press from the mechanics rule, a fraction of it on such a
+        # gel). Suppressing the imprint smooths the field over a wider window, which costs
+        # magnitude at the press's peak (0.6 here; 0.8 on the real Mini videos, where it
+        # lowers the error) but not direction.
+        ratio, cos = _ratio_and_cos(flat, true, moved)
+        assert 0.7 < ratio < 1.3 and cos > 0.9, (ratio, cos)
+        ratio, cos = _ratio_and_cos(got, true, moved)
+        assert 0.5 < ratio < 1.3 and cos > 0.9, (ratio, cos)
         assert tr.anchor_index is None
     # Released: back to the no-contact frame, exactly zero.
     assert not tr.update(f0.copy()).any()
@@ -55,6 +69,8 @@ def test_reset_and_bad_inputs(mini, grid) -> None:
         MarkerlessTracker(mini.f0, grid, gain="digit")
     with pytest.raises(ValueError, match=r"^centres:"):
         MarkerlessTracker(mini.f0, np.zeros((3, 3), np.float32))
+    with pytest.raises(TypeError, match=r"^suppress_imprint: expected a bool"):
+        MarkerlessTracker(mini.f0, grid, suppress_imprint="yes")  # type: ignore[arg-type]
     empty = MarkerlessTracker(mini.f0, np.zeros((0, 2), np.float32))
     assert empty.update(mini.imgs[2]).shape == (0, 2)
     default = MarkerlessTracker(mini.f0)

@@ -142,7 +142,8 @@ def test_markerless_motion_matches_markerless_tracker() -> None:
     frames = grasp("slip")[:10]
     p = TactileProcessor(motion="markerless", outputs=["motion", "slip"])
     out = process_all(p, [message(f, i, "bgr8") for i, f in enumerate(frames)])
-    tracker = ts.MarkerlessTracker(frames[0])
+    # With the learned slip output, the plain flow the markerless scorer was trained on.
+    tracker = ts.MarkerlessTracker(frames[0], suppress_imprint=False)
     motions = by_name(out, "motion")
     assert [o.stamp_ns for o in motions] == [T0 + i * DT for i in range(10)]
     assert len(by_name(out, "slip")) == 10
@@ -152,6 +153,18 @@ def test_markerless_motion_matches_markerless_tracker() -> None:
         np.testing.assert_array_equal(np.stack([c["dx"], c["dy"]], 1), want)
         np.testing.assert_array_equal(np.stack([c["x"], c["y"]], 1), tracker.centres)
 
+
+
+def test_markerless_motion_alone_suppresses_the_imprint() -> None:
+    frames = grasp("slip")[:6]
+    p = TactileProcessor(motion="markerless", outputs=["motion"])
+    motions = by_name(process_all(p, [message(f, i, "bgr8") for i, f in enumerate(frames)]),
+                      "motion")
+    tracker = ts.MarkerlessTracker(frames[0])  # the default: imprint suppressed
+    assert tracker.suppress_imprint
+    for f, m in zip(frames, motions, strict=True):
+        c = cloud(m.msg)
+        np.testing.assert_array_equal(np.stack([c["dx"], c["dy"]], 1), tracker.update(f))
 
 # --- reference capture and the stream's accidents -------------------------------------------
 

@@ -427,7 +427,8 @@ class MarkerlessSequence:
                           load_model_option(load_model, args.model).centres_for(
                               *first.shape[:2]))
         self.positions = self.reference.copy()
-        self._tracker = ts.MarkerlessTracker(ref, self.reference)
+        # The plain flow, as the markerless scorer was trained (MarkerlessTracker's doc).
+        self._tracker = ts.MarkerlessTracker(ref, self.reference, suppress_imprint=False)
 
     def __len__(self) -> int:
         return len(self.reference)

@@ -111,7 +111,9 @@ class ProcessorConfig:
 
     Attributes:
         motion: ``"markers"`` (track the markers) or ``"markerless"`` (a markerless sensor:
-            :class:`tacswitch.MarkerlessTracker` from the reference frame).
+            :class:`tacswitch.MarkerlessTracker` from the reference frame; with the learned
+            ``slip`` output, without its imprint suppression, as the markerless slip scorer
+            was trained).
         method: marker removal for the ``markerless`` output (:func:`tacswitch.remove_markers`).
         reference: ``"first"``, ``"frame"`` or ``"service"`` (module doc).
         reference_frame: ``reference="frame"``: the readable frame (0-based).
@@ -463,7 +465,9 @@ class TactileProcessor:
             self.tracker = MarkerTracker(frame)
             points = self.tracker.reference
         else:
-            self.tracker = MarkerlessTracker(frame)
+            # The learned markerless scorer was trained on the plain flow: keep its inputs so.
+            self.tracker = MarkerlessTracker(
+                frame, suppress_imprint=not ("slip" in cfg.outputs and cfg.rule == "learned"))
             points = self.tracker.centres
         self.points = np.asarray(points, np.float32)
         self.detector = None

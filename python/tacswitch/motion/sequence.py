@@ -83,14 +83,13 @@ class MarkerlessTracker:
                  model: str | os.PathLike[str] | None = None,
                  suppress_imprint: bool = True) -> None:
         from tacswitch._checks import as_points, check_model_arg
+        from tacswitch.motion.flow import DEFAULT_PRESET, check_flow_options
         from tacswitch.motion.infer import _bgr, _rule_gain
         from tacswitch.motion.mechanics import MECHANICS_GAIN
 
         # Checked now: it is first used at the first update (for the default centres).
         check_model_arg(model)
-        if not isinstance(suppress_imprint, (bool, np.bool_)):
-            raise TypeError("suppress_imprint: expected a bool, got "
-                            f"{type(suppress_imprint).__name__}")
+        check_flow_options("dis", DEFAULT_PRESET, suppress_imprint)
         self.suppress_imprint = bool(suppress_imprint)
         self._model = model
         self.no_contact: NDArray[np.uint8] | None = None

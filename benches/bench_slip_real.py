@@ -14,7 +14,9 @@ Rows:
   a model that never saw its object. Each fold trains the recipe (``train_committee``: 8
   scorers from consecutive seeds, a grasp flagged once 4 have fired in it); ``--seeds``
   repeats the whole protocol from other first seeds, ``--committee 1`` trains one scorer per
-  fold, ``--votes`` sets the votes;
+  fold, ``--votes`` sets the votes. Every fold's training set also holds the rendered grasps
+  (``--simulated``) and ``--augment`` rescaled copies of each of its real experiments
+  (``tacswitch.grasp.augment``: displacements scaled and time resampled; none in the recipe);
 - ``--markerless``: the same on the markerless sensor each video would have been (markers
   removed, motion predicted by ``MarkerlessTracker``): the marker scorer, a scorer trained on
   the markerless tracks alone, and one trained on them and the same experiments' marker
@@ -27,7 +29,7 @@ Rows:
 ``slip_scorer_markerless.onnx``, trained on the markerless and the marker tracks).
 
     python benches/bench_slip_real.py [--data DIR] [--seeds 3] [--workers 2] [--markerless]
-        [--committee 8] [--votes 4]
+        [--committee 8] [--votes 4] [--augment 0] [--simulated 24]
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ import sys
 import time
 from pathlib import Path
 
+from tacswitch.grasp.augment import COPIES, marker_training_set
 from tacswitch.grasp.crossval import clip_flags, cross_validated_flags
 from tacswitch.grasp.dataset import experiment_clips, read_labels
 from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
@@ -66,6 +69,9 @@ def main() -> int:
     ap.add_argument("--simulated", type=int, default=SIMULATED_PER_KIND,
                     help="rendered grasps per kind and sensor added to every training set "
                          "of the marker scorer (default: %(default)s; 0: real grasps only)")
+    ap.add_argument("--augment", type=int, default=COPIES,
+                    help="rescaled copies of each real experiment in the marker scorer's "
+                         "training set (the training objects' only; default: %(default)s)")
     args = ap.parse_args()
 
     exps = read_labels(args.data)
@@ -85,10 +91,8 @@ def main() -> int:
             markerless = experiment_clips(exps, CACHE, markerless=True, workers=args.workers)
             clips = markerless + clips
             labels = labels + labels
-        elif args.simulated:
-            sim_clips, sim_labels = simulated_clips(args.simulated, SIMULATED_SEED)
-            clips = clips + [[c] for c in sim_clips]
-            labels = labels + sim_labels
+        else:
+            clips, labels = marker_training_set(clips, labels, args.simulated, args.augment)
         res = train_committee([[c.features() for c in exp] for exp in clips], labels,
                               seeds=args.committee, votes=args.votes, epochs=args.epochs,
                               log=lambda s: print(s, file=sys.stderr))
@@ -123,8 +127,11 @@ def main() -> int:
             flags = cross_validated_flags(clips, labels, objects, seed=seed * args.committee,
                                           epochs=args.epochs,
                                           test_sets={"markerless": test} if test else None,
-                                          extra=extra, seeds=args.committee, votes=args.votes)
-            with_sim = f" + {len(extra[1])} rendered grasps" if extra else ""
+                                          extra=extra, seeds=args.committee, votes=args.votes,
+                                          augment=args.augment)
+            with_sim = (f" + {args.augment} rescaled cop{'y' if args.augment == 1 else 'ies'}"
+                        if args.augment else "")
+            with_sim += f" + {len(extra[1])} rendered grasps" if extra else ""
             print(format_scores(f"markers: learned{with_sim}, {committee}, objects held out "
                                 f"(5 folds, seed {seed * args.committee})",
                                 score_experiments(labels, flags["train"])), flush=True)
@@ -150,9 +157,9 @@ def main() -> int:
         # Simulated grasps of seeds never trained on nor validated on, scored by the scorer
         # trained on every real experiment and the rendered training grasps (as shipped).
         held, held_labels = simulated_clips(HELD_OUT_SIM, HELD_OUT_SIM_SEED)
-        res = train_committee([[c.features() for c in exp] for exp in clips] + [
-            [c.features() for c in exp] for exp in extra[0]], labels + extra[1],
-            seeds=args.committee, votes=args.votes, epochs=args.epochs)
+        every, every_labels = marker_training_set(clips, labels, args.simulated, args.augment)
+        res = train_committee([[c.features() for c in exp] for exp in every], every_labels,
+                              seeds=args.committee, votes=args.votes, epochs=args.epochs)
         scorer = torch_scorer(res.net)
         flags_sim = [[clip_flags(c, model=scorer, threshold=0.0, votes=res.votes)]
                      for c in held]

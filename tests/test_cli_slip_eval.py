@@ -102,6 +102,12 @@ def test_train_slip_writes_a_model_the_slip_loop_uses(labelled: Path, tmp_path: 
     code, _ = run("train", "slip", str(labelled), "--out", str(model), "--epochs", "3", "-q",
                   "--cache", str(tmp_path / "cache"), "--simulated", "1")
     assert code == 0 and model.is_file()
+    assert "6 experiments, 3 slip; 6 rendered" in _trained_on(model)
+    copied = tmp_path / "copied.onnx"
+    code, _ = run("train", "slip", str(labelled), "--out", str(copied), "--epochs", "1", "-q",
+                  "--cache", str(tmp_path / "cache"), "--simulated", "0", "--seeds", "1",
+                  "--augment", "2")
+    assert code == 0 and "6 experiments, 2 rescaled copies of each" in _trained_on(copied)
     from tacswitch.grasp.detector import load_scorer
     from tacswitch.grasp.train import COMMITTEE, VOTES
 
@@ -153,6 +159,11 @@ def test_errors_name_the_argument(labelled: Path, tmp_path: Path,
     assert main(["train", "slip", str(labelled), "--out", str(tmp_path / "m.onnx"),
                  "--no-marker-tracks", "-q"]) != 0
     assert "--no-marker-tracks: applies to --markerless only" in capsys.readouterr().err
+    assert main(["train", "slip", str(labelled), "--out", str(tmp_path / "m.onnx"),
+                 "--augment", "-1", "-q"]) != 0
+    assert "--augment: must be in [0, 20]; got -1" in capsys.readouterr().err
+    assert main(["evaluate", "slip", str(labelled), "--augment", "1", "-q"]) != 0
+    assert "--augment: applies to --cv (training) only" in capsys.readouterr().err
 
 
 def _trained_on(model: Path) -> str:
@@ -206,3 +217,8 @@ def test_evaluate_slip_cv_trains_a_voting_committee_per_fold(labelled: Path, tmp
     # 3 objects of 2 experiments: each fold trains on the 4 experiments of the other two.
     assert seen == [(2, 1, 4)] * 3
     assert len(json.loads(out.read_text())["experiments"]) == 6
+    seen.clear()
+    # --augment 1: and on their rescaled copies, never on copies of the held-out object's.
+    code, _ = run("evaluate", "slip", str(labelled), "--cv", "3", "--seeds", "1", "--augment",
+                  "1", "-q", "--cache", str(tmp_path / "cache"))
+    assert code == 0 and seen == [(1, None, 8)] * 3

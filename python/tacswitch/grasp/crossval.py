@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tacswitch.grasp.augment import augmented_experiments
 from tacswitch.grasp.dataset import TrackedClip
 from tacswitch.grasp.detector import run_clip
 from tacswitch.grasp.evaluate import object_folds
@@ -39,22 +40,27 @@ def cross_validated_flags(clips: list[list[TrackedClip]], labels: list[bool],
                           extra: tuple[list[list[TrackedClip]], list[bool]] | None = None,
                           seeds: int = COMMITTEE, votes: int | None = None,
                           paired: list[list[TrackedClip]] | None = None,
-                          quiet: bool = True) -> dict[str, list[list[NDArray[np.bool_]]]]:
+                          augment: int = 0, quiet: bool = True
+                          ) -> dict[str, list[list[NDArray[np.bool_]]]]:
     """Flags of every experiment's videos from a scorer trained on ``clips`` of the other
     folds' objects (:func:`object_folds`): under key ``"train"`` for ``clips`` themselves and
     under each name of ``test_sets`` (the same experiments seen otherwise, e.g. markerless).
     ``extra`` (experiments, labels) joins every fold's training set (e.g. rendered grasps).
     ``paired``: another view of the same experiments, index for index (the marker tracks of
     markerless ``clips``); each fold also trains on the paired view of its training objects,
-    never of the held-out ones. Each fold's scorer is the recipe's committee
-    (:func:`~tacswitch.grasp.train.train_committee`: ``seeds`` scorers from seed ``seed``,
-    ``votes`` of them to flag)."""
+    never of the held-out ones. ``augment``: rescaled copies of each of ``clips``'
+    experiments (:func:`~tacswitch.grasp.augment.augmented_experiments`; each fold trains on
+    the copies of its training objects only; ``extra`` is not copied). Each fold's scorer
+    is the recipe's committee (:func:`~tacswitch.grasp.train.train_committee`: ``seeds``
+    scorers from seed ``seed``, ``votes`` of them to flag)."""
     from tacswitch.grasp.train import train_committee
 
     feats = [[c.features() for c in exp] for exp in clips]
     if paired is not None and len(paired) != len(clips):
         raise ValueError(f"paired: one entry per experiment ({len(clips)}); got {len(paired)}")
     paired_feats = [[c.features() for c in exp] for exp in paired] if paired else None
+    copies, owner = augmented_experiments(clips, augment)
+    copy_feats = [[c.features() for c in exp] for exp in copies]
     extra_feats = [[c.features() for c in exp] for exp in extra[0]] if extra else []
     extra_labels = list(extra[1]) if extra else []
     fold_of = object_folds(objects, folds)
@@ -70,6 +76,9 @@ def cross_validated_flags(clips: list[list[TrackedClip]], labels: list[bool],
         if paired_feats is not None:
             train_feats += [paired_feats[i] for i in train]
             train_labels += [labels[i] for i in train]
+        kept = set(train)
+        train_feats += [x for x, i in zip(copy_feats, owner, strict=True) if i in kept]
+        train_labels += [labels[i] for i in owner if i in kept]
         res = train_committee(train_feats + extra_feats, train_labels + extra_labels,
                               seed=seed, seeds=seeds, votes=votes, epochs=epochs)
         scorer = torch_scorer(res.net)

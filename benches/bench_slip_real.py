@@ -39,7 +39,7 @@ import sys
 import time
 from pathlib import Path
 
-from tacswitch.grasp.augment import COPIES, marker_training_set
+from tacswitch.grasp.augment import COPIES, marker_training_set, with_copies
 from tacswitch.grasp.crossval import clip_flags, cross_validated_flags
 from tacswitch.grasp.dataset import experiment_clips, read_labels
 from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
@@ -157,9 +157,11 @@ def main() -> int:
         # Simulated grasps of seeds never trained on nor validated on, scored by the scorer
         # trained on every real experiment and the rendered training grasps (as shipped).
         held, held_labels = simulated_clips(HELD_OUT_SIM, HELD_OUT_SIM_SEED)
-        every, every_labels = marker_training_set(clips, labels, args.simulated, args.augment)
-        res = train_committee([[c.features() for c in exp] for exp in every], every_labels,
-                              seeds=args.committee, votes=args.votes, epochs=args.epochs)
+        # The rendered grasps are those of ``extra`` (rendered once).
+        real, real_labels = with_copies(clips, labels, args.augment)
+        res = train_committee([[c.features() for c in exp] for exp in real + extra[0]],
+                              real_labels + extra[1], seeds=args.committee, votes=args.votes,
+                              epochs=args.epochs)
         scorer = torch_scorer(res.net)
         flags_sim = [[clip_flags(c, model=scorer, threshold=0.0, votes=res.votes)]
                      for c in held]

@@ -18,13 +18,14 @@ real GelSight Mini grasps, objects held out, committees of 8 at 4 votes (the ren
 training): one copy of each real grasp 0.874 / 0.810 against 0.820 / 0.789 (seeds 0-7 / 8-15),
 but the committee trained so flags all 24 held-out rendered holds; copying the rendered grasps
 too spares them and gives back the gain (0.826 / 0.781). The same trade as fewer rendered
-grasps (``docs/notes/2026-11-slip.md``).
+grasps (``docs/notes/2026-11-slip.md``). Markers only: not measured on markerless motion.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from tacswitch._checks import as_count, as_number
 from tacswitch.grasp.dataset import TrackedClip
 
 #: Rescaled copies of each real experiment in the shipped scorers' training sets (the default of
@@ -70,16 +71,13 @@ def augmented_experiments(clips: list[list[TrackedClip]], copies: int, *, seed: 
     """``copies`` rescaled copies of every experiment (:func:`rescaled_clip`, one draw of scale
     and speed per copy, shared by its videos) and, for each copy, the index of the experiment it
     came from (its label and object are that experiment's). Deterministic for a seed."""
-    if not isinstance(copies, (int, np.integer)) or copies < 0:
-        raise ValueError(f"copies: must be an integer >= 0; got {copies!r}")
-    for name, r in (("scale_range", scale_range), ("speed_range", speed_range)):
-        if not (isinstance(r, (int, float, np.floating, np.integer)) and np.isfinite(r)
-                and r >= 1):
-            raise ValueError(f"{name}: must be a finite number >= 1; got {r!r}")
+    copies = as_count(copies, "copies", 0, None)
+    scale_range = as_number(scale_range, "scale_range", minimum=1.0)
+    speed_range = as_number(speed_range, "speed_range", minimum=1.0)
     rng = np.random.RandomState(seed)
     out: list[list[TrackedClip]] = []
     owner: list[int] = []
-    for _ in range(int(copies)):
+    for _ in range(copies):
         for i, exp in enumerate(clips):
             s = float(np.exp(rng.uniform(-np.log(scale_range), np.log(scale_range))))
             v = float(np.exp(rng.uniform(-np.log(speed_range), np.log(speed_range))))

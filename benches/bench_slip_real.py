@@ -11,8 +11,9 @@ Rows:
 - the paper's displacement rule from the detected grasp start, and with the rigid criterion
   (what ``tacswitch slip --rule paper`` does), on every experiment (nothing is fitted);
 - the learned scorer, 5-fold cross-validation grouped by object: every experiment is scored by
-  a model that never saw its object. Each fold trains the recipe (``train_committee``: 8
-  scorers from consecutive seeds, a grasp flagged once 4 have fired in it); ``--seeds``
+  a model that never saw its object. Each fold trains the recipe (``train_committee``: 32
+  scorers from consecutive seeds, a grasp flagged once 13 have fired in it; 8 and 4 for the
+  markerless scorers); ``--seeds``
   repeats the whole protocol from other first seeds, ``--committee 1`` trains one scorer per
   fold, ``--votes`` sets the votes. Every fold's training set also holds the rendered grasps
   (``--simulated``) and ``--augment`` rescaled copies of each of its real experiments
@@ -29,7 +30,7 @@ Rows:
 ``slip_scorer_markerless.onnx``, trained on the markerless and the marker tracks).
 
     python benches/bench_slip_real.py [--data DIR] [--seeds 3] [--workers 2] [--markerless]
-        [--committee 8] [--votes 4] [--augment 0] [--simulated 24]
+        [--committee 32] [--votes 13] [--augment 0] [--simulated 24]
 """
 
 from __future__ import annotations
@@ -44,7 +45,12 @@ from tacswitch.grasp.crossval import clip_flags, cross_validated_flags
 from tacswitch.grasp.dataset import experiment_clips, read_labels
 from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
 from tacswitch.grasp.simulated import SIMULATED_PER_KIND, SIMULATED_SEED, simulated_clips
-from tacswitch.grasp.train import COMMITTEE, committee_votes, train_committee
+from tacswitch.grasp.train import (
+    COMMITTEE,
+    MARKERLESS_COMMITTEE,
+    committee_votes,
+    train_committee,
+)
 
 DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared/data/real/gsmini_slip_train"
 CACHE = Path(__file__).resolve().parents[1] / "bench-results" / "slip_real"
@@ -61,9 +67,9 @@ def main() -> int:
     ap.add_argument("--no-rules", action="store_true", help="skip the paper-rule rows")
     ap.add_argument("--no-marker-scorer", action="store_true",
                     help="--markerless: skip the marker scorer's cross-validation")
-    ap.add_argument("--committee", type=int, default=COMMITTEE,
-                    help="scorers per model, from consecutive seeds (default: %(default)s; "
-                         "1: one scorer)")
+    ap.add_argument("--committee", type=int, default=None,
+                    help=f"scorers per model, from consecutive seeds (default: {COMMITTEE}, "
+                         f"markerless scorers {MARKERLESS_COMMITTEE}; 1: one scorer)")
     ap.add_argument("--votes", type=int, default=None,
                     help="members that must fire in a grasp (default: the recipe's)")
     ap.add_argument("--simulated", type=int, default=SIMULATED_PER_KIND,
@@ -81,8 +87,8 @@ def main() -> int:
     clips = experiment_clips(exps, CACHE, workers=args.workers, progress=True)
     print(f"tracked {sum(len(c) for c in clips)} videos in {time.perf_counter() - t0:.0f} s",
           file=sys.stderr)
-    committee = (f"{args.committee} scorers, {committee_votes(args.committee, args.votes)} "
-                 "votes" if args.committee > 1 else "one scorer")
+    marker_seeds = args.committee or COMMITTEE
+    markerless_seeds = args.committee or MARKERLESS_COMMITTEE
     if args.export is not None:
         from tacswitch.grasp.train import export_scorer
 
@@ -94,7 +100,8 @@ def main() -> int:
         else:
             clips, labels = marker_training_set(clips, labels, args.simulated, args.augment)
         res = train_committee([[c.features() for c in exp] for exp in clips], labels,
-                              seeds=args.committee, votes=args.votes, epochs=args.epochs,
+                              seeds=markerless_seeds if args.markerless else marker_seeds,
+                              votes=args.votes, epochs=args.epochs,
                               log=lambda s: print(s, file=sys.stderr))
         motion = ("markers removed, MarkerlessTracker; and the marker tracks" if args.markerless
                   else "markers")
@@ -110,8 +117,8 @@ def main() -> int:
     if not args.no_rules:
         for name, opts in (("paper rule (displacement from the grasp start)", {}),
                            ("paper rule + rigid (auto)", {"rigid_threshold_px": "auto"})):
-            flags = [[clip_flags(c, rule="paper", **opts) for c in exp] for exp in clips]
-            print(format_scores(f"markers: {name}", score_experiments(labels, flags)),
+            rule_flags = [[clip_flags(c, rule="paper", **opts) for c in exp] for exp in clips]
+            print(format_scores(f"markers: {name}", score_experiments(labels, rule_flags)),
                   flush=True)
     extra = None
     if args.simulated:
@@ -124,30 +131,32 @@ def main() -> int:
     marker_scorer = not (args.markerless and args.no_marker_scorer)
     for seed in range(args.seeds):
         if marker_scorer:
-            flags = cross_validated_flags(clips, labels, objects, seed=seed * args.committee,
+            flags = cross_validated_flags(clips, labels, objects, seed=seed * marker_seeds,
                                           epochs=args.epochs,
                                           test_sets={"markerless": test} if test else None,
-                                          extra=extra, seeds=args.committee, votes=args.votes,
+                                          extra=extra, seeds=marker_seeds, votes=args.votes,
                                           augment=args.augment)
             with_sim = (f" + {args.augment} rescaled cop{'y' if args.augment == 1 else 'ies'}"
                         if args.augment else "")
             with_sim += f" + {len(extra[1])} rendered grasps" if extra else ""
-            print(format_scores(f"markers: learned{with_sim}, {committee}, objects held out "
-                                f"(5 folds, seed {seed * args.committee})",
+            print(format_scores(f"markers: learned{with_sim}, "
+                                f"{committee_name(marker_seeds, args.votes)}, objects held out "
+                                f"(5 folds, seed {seed * marker_seeds})",
                                 score_experiments(labels, flags["train"])), flush=True)
         if test is not None:
             if marker_scorer:
                 print(format_scores(f"markerless: the marker scorer, objects held out (seed "
                                     f"{seed})", score_experiments(labels, flags["markerless"])),
                       flush=True)
-            first = seed * args.committee
+            first = seed * markerless_seeds
+            committee = committee_name(markerless_seeds, args.votes)
             own = cross_validated_flags(test, labels, objects, seed=first, epochs=args.epochs,
-                                        seeds=args.committee, votes=args.votes)
+                                        seeds=markerless_seeds, votes=args.votes)
             print(format_scores(f"markerless: learned on markerless motion, {committee}, "
                                 f"objects held out (seed {first})",
                                 score_experiments(labels, own["train"])), flush=True)
             both = cross_validated_flags(test, labels, objects, seed=first, epochs=args.epochs,
-                                         seeds=args.committee, votes=args.votes, paired=clips)
+                                         seeds=markerless_seeds, votes=args.votes, paired=clips)
             print(format_scores(f"markerless: learned on markerless + marker motion, "
                                 f"{committee}, objects held out (seed {first})",
                                 score_experiments(labels, both["train"])), flush=True)
@@ -160,7 +169,7 @@ def main() -> int:
         # The rendered grasps are those of ``extra`` (rendered once).
         real, real_labels = with_copies(clips, labels, args.augment)
         res = train_committee([[c.features() for c in exp] for exp in real + extra[0]],
-                              real_labels + extra[1], seeds=args.committee, votes=args.votes,
+                              real_labels + extra[1], seeds=marker_seeds, votes=args.votes,
                               epochs=args.epochs)
         scorer = torch_scorer(res.net)
         flags_sim = [[clip_flags(c, model=scorer, threshold=0.0, votes=res.votes)]
@@ -171,6 +180,12 @@ def main() -> int:
         print(format_scores("SIMULATED held-out grasps: paper rule",
                             score_experiments(held_labels, paper_sim)))
     return 0
+
+
+def committee_name(seeds: int, votes: int | None) -> str:
+    """How a row names its scorer: the committee and its votes, or one scorer."""
+    return (f"{seeds} scorers, {committee_votes(seeds, votes)} votes" if seeds > 1
+            else "one scorer")
 
 
 #: Rendered grasps per kind and sensor scored as a second, simulated test set.

@@ -169,9 +169,11 @@ def test_learned_rule_options(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     rows_low, _ = run_slip(tmp_path, frames, "--score-threshold=-1e9")
     assert [r["slip"] == "1" for r in rows_low] == [r["score"] != "" for r in rows_low]
     # Every member of the committee has fired on each scored frame; unscored rows say nothing.
-    assert {r["votes"] for r in rows_low if r["score"] != ""} == {"8"}
+    from tacswitch.grasp.train import COMMITTEE
+
+    assert {r["votes"] for r in rows_low if r["score"] != ""} == {str(COMMITTEE)}
     assert {r["votes"] for r in rows_low if r["score"] == ""} == {""}
-    assert all(int(r["votes"]) <= 8 for r in rows if r["votes"] != "")
+    assert all(int(r["votes"]) <= COMMITTEE for r in rows if r["votes"] != "")
     capsys.readouterr()
     rec = str(tmp_path / "rec")
     log = str(tmp_path / "l.csv")

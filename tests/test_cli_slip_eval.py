@@ -185,6 +185,14 @@ def test_train_slip_markerless_also_learns_from_the_marker_tracks(labelled: Path
     assert code == 0 and model.is_file()
     assert "6 experiments (markerless and marker tracks)" in text
     assert "(markerless and marker tracks)" in _trained_on(model)
+    from tacswitch.grasp.detector import load_scorer
+    from tacswitch.grasp.train import MARKERLESS_COMMITTEE, default_votes
+
+    # The markerless recipe keeps its own committee size (the larger one was measured on
+    # marker tracks only), with the same vote rule.
+    scorer = load_scorer(model)
+    assert (scorer.committee, scorer.votes) == (MARKERLESS_COMMITTEE,
+                                                default_votes(MARKERLESS_COMMITTEE))
     names = sorted(p.name for p in cache.iterdir())
     assert sum("markerless-v2" in n for n in names) == 6
     assert sum("markers-v2" in n for n in names) == 6

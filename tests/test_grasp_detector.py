@@ -67,9 +67,12 @@ def test_shipped_scorers_load_and_score(name: str | None) -> None:
     scorer = load_scorer(name)
     x = np.zeros((3, N_FEATURES), np.float32)
     out = scorer(x)
-    # A committee: one logit per member and frame, and half the members must fire.
+    # A committee of the recipe's size: one logit per member and frame; 40 % must fire.
+    from tacswitch.grasp.train import default_votes, recipe_committee
+
     assert out.shape == (3, scorer.committee) and np.isfinite(out).all()
-    assert scorer.committee == 8 and scorer.votes == 4
+    assert scorer.committee == recipe_committee(markerless=name == "markerless")
+    assert scorer.votes == default_votes(scorer.committee)
     np.testing.assert_allclose(out, np.broadcast_to(out[0], out.shape), rtol=1e-5)  # per frame
     assert np.isfinite(scorer.threshold) and scorer.warmup >= 0
     assert scorer.path.name.startswith("slip_scorer")
@@ -185,6 +188,25 @@ def test_train_and_export_roundtrip(tmp_path) -> None:  # type: ignore[no-untype
 def _grid() -> np.ndarray:
     xs, ys = np.meshgrid(np.arange(20.0, 181.0, 20.0), np.arange(20.0, 141.0, 20.0))
     return np.stack([xs.ravel(), ys.ravel()], 1).astype(np.float32)
+
+
+def test_default_votes_are_forty_percent_of_the_committee_rounded_up() -> None:
+    from tacswitch.grasp.train import (
+        COMMITTEE,
+        MARKERLESS_COMMITTEE,
+        VOTES,
+        committee_votes,
+        default_votes,
+        recipe_committee,
+    )
+
+    assert [default_votes(k) for k in (1, 2, 3, 5, 8, 10, 16, 24, 32)] == \
+        [1, 1, 2, 2, 4, 4, 7, 10, 13]
+    assert all(default_votes(k) == int(np.ceil(0.4 * k - 1e-9)) for k in range(1, 101))
+    assert VOTES == default_votes(COMMITTEE) and committee_votes(COMMITTEE) == VOTES
+    assert recipe_committee() == COMMITTEE
+    assert recipe_committee(markerless=True) == MARKERLESS_COMMITTEE
+    assert committee_votes(8, 2) == 2
 
 
 def test_committee_trains_one_scorer_per_seed_and_exports_every_logit(tmp_path) -> None:  # type: ignore[no-untyped-def]

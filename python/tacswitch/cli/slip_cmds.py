@@ -76,25 +76,27 @@ def add_train_parser(what: argparse._SubParsersAction) -> None:
 
 
 def _committee_options(p: argparse.ArgumentParser, scope: str) -> None:
-    from tacswitch.grasp.train import COMMITTEE, VOTES
+    from tacswitch.grasp.train import COMMITTEE, MARKERLESS_COMMITTEE, VOTE_FRACTION
 
     p.add_argument("--seeds", type=int, default=None, metavar="N",
                    help=f"{scope}train a committee of N scorers (seeds --seed, --seed + 1, ...; "
-                        f"default: {COMMITTEE}; 1: one scorer): a grasp is flagged once --votes "
-                        "of them have fired in it, which decides more steadily on unseen "
-                        "objects than any one scorer (BENCHMARKS.md)")
+                        f"default: {COMMITTEE}, with --markerless {MARKERLESS_COMMITTEE}; 1: one "
+                        "scorer): a grasp is flagged once --votes of them have fired in it, "
+                        "which decides more steadily on unseen objects than any one scorer "
+                        "(BENCHMARKS.md)")
     p.add_argument("--votes", type=int, default=None, metavar="K",
-                   help=f"{scope}members that must fire in a grasp (default: {VOTES}, at most "
-                        "--seeds; fewer: more slips caught, more false alarms)")
+                   help=f"{scope}members that must fire in a grasp (default: "
+                        f"{VOTE_FRACTION:.0%} of --seeds, rounded up; fewer: more slips caught, "
+                        "more false alarms)")
 
 
 def _committee(args: argparse.Namespace) -> tuple[int, int | None]:
     """``--seeds`` and ``--votes``, checked (defaults: the recipe's)."""
-    from tacswitch.grasp.train import COMMITTEE
+    from tacswitch.grasp.train import recipe_committee
 
     if args.seeds is not None and not 1 <= args.seeds <= 100:
         raise UsageError(f"--seeds: must be in [1, 100]; got {args.seeds}")
-    seeds = COMMITTEE if args.seeds is None else int(args.seeds)
+    seeds = recipe_committee(args.markerless) if args.seeds is None else int(args.seeds)
     if args.votes is not None and not 1 <= args.votes <= seeds:
         raise UsageError(f"--votes: must be in [1, --seeds={seeds}]; got {args.votes}")
     return seeds, args.votes

@@ -86,8 +86,8 @@ def _committee_options(p: argparse.ArgumentParser, scope: str) -> None:
                         "(BENCHMARKS.md)")
     p.add_argument("--votes", type=int, default=None, metavar="K",
                    help=f"{scope}members that must fire in a grasp (default: "
-                        f"{VOTE_FRACTION:.0%} of --seeds, rounded up; fewer: more slips caught, "
-                        "more false alarms)")
+                        f"{round(VOTE_FRACTION * 100)} %% of --seeds, rounded up; fewer: more "
+                        "slips caught, more false alarms, earlier flags)")
 
 
 def _committee(args: argparse.Namespace) -> tuple[int, int | None]:

@@ -40,7 +40,7 @@ import sys
 import time
 from pathlib import Path
 
-from tacswitch.grasp.augment import COPIES, marker_training_set, with_copies
+from tacswitch.grasp.augment import COPIES, copies_phrase, marker_training_set, with_copies
 from tacswitch.grasp.crossval import clip_flags, cross_validated_flags
 from tacswitch.grasp.dataset import experiment_clips, read_labels
 from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
@@ -49,6 +49,7 @@ from tacswitch.grasp.train import (
     COMMITTEE,
     MARKERLESS_COMMITTEE,
     committee_votes,
+    recipe_committee,
     train_committee,
 )
 
@@ -87,8 +88,10 @@ def main() -> int:
     clips = experiment_clips(exps, CACHE, workers=args.workers, progress=True)
     print(f"tracked {sum(len(c) for c in clips)} videos in {time.perf_counter() - t0:.0f} s",
           file=sys.stderr)
-    marker_seeds = args.committee or COMMITTEE
-    markerless_seeds = args.committee or MARKERLESS_COMMITTEE
+    # --committee sets both; by default each path trains the recipe's committee.
+    marker_seeds, markerless_seeds = ((args.committee, args.committee)
+                                      if args.committee is not None
+                                      else (recipe_committee(), recipe_committee(True)))
     if args.export is not None:
         from tacswitch.grasp.train import export_scorer
 
@@ -136,8 +139,7 @@ def main() -> int:
                                           test_sets={"markerless": test} if test else None,
                                           extra=extra, seeds=marker_seeds, votes=args.votes,
                                           augment=args.augment)
-            with_sim = (f" + {args.augment} rescaled cop{'y' if args.augment == 1 else 'ies'}"
-                        if args.augment else "")
+            with_sim = f" + {copies_phrase(args.augment)}" if args.augment else ""
             with_sim += f" + {len(extra[1])} rendered grasps" if extra else ""
             print(format_scores(f"markers: learned{with_sim}, "
                                 f"{committee_name(marker_seeds, args.votes)}, objects held out "

@@ -249,7 +249,7 @@ def run_train(args: argparse.Namespace) -> int:
     n_sim = SIMULATED_PER_KIND if args.simulated is None else args.simulated
     exps, clips = _load(args)
     labelled = [e.slip for e in exps]
-    from tacswitch.grasp.augment import marker_training_set, with_copies
+    from tacswitch.grasp.augment import copies_phrase, marker_training_set, with_copies
 
     if args.markerless:
         train, labels = with_copies(clips, labelled, augment)
@@ -266,7 +266,7 @@ def run_train(args: argparse.Namespace) -> int:
     n_rendered = 0 if args.markerless else n_sim * len(KINDS) * len(SENSORS)
     views = "" if paired is None else " (markerless and marker tracks)"
     if augment:
-        views += f", {augment} rescaled cop{'y' if augment == 1 else 'ies'} of each"
+        views += f", {copies_phrase(augment)} of each"
     export_scorer(res, out, extra={"trained_on": f"{Path(args.data).name}: {len(exps)} "
                                                  f"experiments{views}, "
                                                  f"{sum(e.slip for e in exps)} slip; "

@@ -86,6 +86,11 @@ def augmented_experiments(clips: list[list[TrackedClip]], copies: int, *, seed: 
     return out, owner
 
 
+def copies_phrase(copies: int) -> str:
+    """How a report names ``copies`` rescaled copies: "1 rescaled copy", "2 rescaled copies"."""
+    return f"{copies} rescaled cop{'y' if copies == 1 else 'ies'}"
+
+
 def with_copies(experiments: list[list[TrackedClip]], labels: list[bool], copies: int, *,
                 seed: int = SEED) -> tuple[list[list[TrackedClip]], list[bool]]:
     """``experiments`` followed by ``copies`` rescaled copies of each

@@ -29,8 +29,10 @@ measured on marker tracks only).
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -52,10 +54,8 @@ COMMITTEE = 32
 #: Scorers of the shipped markerless committee (measured with 8; 32 was not measured there).
 MARKERLESS_COMMITTEE = 8
 #: Share of a committee's members that must have fired in a grasp before the detector flags slip
-#: (rounded up: 13 of 32, 4 of 8).
-VOTE_FRACTION = 0.4
-#: Votes of the shipped marker committee.
-VOTES = -(-2 * COMMITTEE // 5)
+#: (rounded up: 13 of 32, 4 of 8). A fraction, so rounding up is exact.
+VOTE_FRACTION = Fraction(2, 5)
 #: Experiments per optimisation step.
 BATCH = 8
 LEARNING_RATE = 2e-3
@@ -221,8 +221,12 @@ def fused_committee(committee: Any) -> Any:
 
 
 def default_votes(seeds: int) -> int:
-    """:data:`VOTE_FRACTION` of ``seeds`` members, rounded up (exact integer arithmetic)."""
-    return -(-2 * int(seeds) // 5)
+    """:data:`VOTE_FRACTION` of ``seeds`` members, rounded up."""
+    return math.ceil(VOTE_FRACTION * int(seeds))
+
+
+#: Votes of the shipped marker committee.
+VOTES = default_votes(COMMITTEE)
 
 
 def recipe_committee(markerless: bool = False) -> int:

@@ -16,7 +16,8 @@ Rows:
   markerless scorers); ``--seeds``
   repeats the whole protocol from other first seeds, ``--committee 1`` trains one scorer per
   fold, ``--votes`` sets the votes. Every fold's training set also holds the rendered grasps
-  (``--simulated``) and ``--augment`` rescaled copies of each of its real experiments
+  (``--simulated``; for half the members only: the others train on the real grasps alone) and
+  ``--augment`` rescaled copies of each of its real experiments
   (``tacswitch.grasp.augment``: displacements scaled and time resampled; none in the recipe);
 - ``--markerless``: the same on the markerless sensor each video would have been (markers
   removed, motion predicted by ``MarkerlessTracker``): the marker scorer, a scorer trained on
@@ -49,6 +50,7 @@ from tacswitch.grasp.train import (
     COMMITTEE,
     MARKERLESS_COMMITTEE,
     committee_votes,
+    real_only_members,
     recipe_committee,
     train_committee,
 )
@@ -100,12 +102,16 @@ def main() -> int:
             markerless = experiment_clips(exps, CACHE, markerless=True, workers=args.workers)
             clips = markerless + clips
             labels = labels + labels
+            rendered, rendered_labels = [], []
         else:
-            clips, labels = marker_training_set(clips, labels, args.simulated, args.augment)
+            clips, labels, rendered, rendered_labels = marker_training_set(
+                clips, labels, args.simulated, args.augment)
         res = train_committee([[c.features() for c in exp] for exp in clips], labels,
                               seeds=markerless_seeds if args.markerless else marker_seeds,
                               votes=args.votes, epochs=args.epochs,
-                              log=lambda s: print(s, file=sys.stderr))
+                              log=lambda s: print(s, file=sys.stderr),
+                              extra=([[c.features() for c in exp] for exp in rendered],
+                                     rendered_labels))
         motion = ("markers removed, MarkerlessTracker; and the marker tracks" if args.markerless
                   else "markers")
         export_scorer(res, args.export, extra={
@@ -140,7 +146,11 @@ def main() -> int:
                                           extra=extra, seeds=marker_seeds, votes=args.votes,
                                           augment=args.augment)
             with_sim = f" + {copies_phrase(args.augment)}" if args.augment else ""
-            with_sim += f" + {len(extra[1])} rendered grasps" if extra else ""
+            if extra:
+                alone = real_only_members(marker_seeds, True)
+                with_sim += (f" + {len(extra[1])} rendered grasps (not for {alone} members, "
+                             f"on the real grasps alone)" if alone
+                             else f" + {len(extra[1])} rendered grasps")
             print(format_scores(f"markers: learned{with_sim}, "
                                 f"{committee_name(marker_seeds, args.votes)}, objects held out "
                                 f"(5 folds, seed {seed * marker_seeds})",
@@ -170,9 +180,10 @@ def main() -> int:
         held, held_labels = simulated_clips(HELD_OUT_SIM, HELD_OUT_SIM_SEED)
         # The rendered grasps are those of ``extra`` (rendered once).
         real, real_labels = with_copies(clips, labels, args.augment)
-        res = train_committee([[c.features() for c in exp] for exp in real + extra[0]],
-                              real_labels + extra[1], seeds=marker_seeds, votes=args.votes,
-                              epochs=args.epochs)
+        res = train_committee([[c.features() for c in exp] for exp in real], real_labels,
+                              seeds=marker_seeds, votes=args.votes, epochs=args.epochs,
+                              extra=([[c.features() for c in exp] for exp in extra[0]],
+                                     extra[1]))
         scorer = torch_scorer(res.net)
         flags_sim = [[clip_flags(c, model=scorer, threshold=0.0, votes=res.votes)]
                      for c in held]

@@ -104,7 +104,9 @@ def test_with_copies_keeps_the_originals_first_and_their_labels() -> None:
     out, labels = with_copies(exps, [True, False, True], 2)
     assert out[:3] == exps and len(out) == 9
     assert labels == [True, False, True] * 3
-    real, real_labels = marker_training_set(exps, [True, False, True], 0, 1)
+    real, real_labels, rendered, rendered_labels = marker_training_set(
+        exps, [True, False, True], 0, 1)
     assert real[:3] == exps and real_labels == [True, False, True] * 2
+    assert rendered == [] and rendered_labels == []
     with pytest.raises(ValueError, match="labels"):
         with_copies(exps, [True], 1)

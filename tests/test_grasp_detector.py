@@ -244,6 +244,58 @@ def test_committee_trains_one_scorer_per_seed_and_exports_every_logit(tmp_path) 
             train_committee(feats, labels, epochs=1, **bad)  # type: ignore[arg-type]
 
 
+def test_committee_trains_its_real_only_members_without_the_extra_experiments(
+        tmp_path, monkeypatch: pytest.MonkeyPatch) -> None:  # type: ignore[no-untyped-def]
+    """With ``extra`` (rendered grasps), the first half of the members train on the real grasps
+    alone and the rest on both; the exported committee (each member's standardisation folded
+    into its first layer) scores as the torch one does."""
+    pytest.importorskip("torch")
+    from tacswitch.grasp import train
+
+    rng = np.random.default_rng(2)
+
+    def experiments(n: int, scale: float) -> tuple[list[list[np.ndarray]], list[bool]]:
+        feats, labels = [], []
+        for i in range(n):
+            video = rng.normal(0, scale, (20, N_FEATURES)).astype(np.float32)
+            if i % 2 == 0:
+                video[12:15, 4] += 3.0
+            feats.append([video])
+            labels.append(i % 2 == 0)
+        return feats, labels
+
+    real, real_labels = experiments(8, 0.1)
+    rendered, rendered_labels = experiments(6, 2.0)  # standardised differently
+    sizes: list[int] = []
+    original = train.train_scorer
+
+    def spy(features, labels, **kw):  # type: ignore[no-untyped-def]
+        sizes.append(len(labels))
+        return original(features, labels, **kw)
+
+    monkeypatch.setattr(train, "train_scorer", spy)
+    assert [train.real_only_members(k, True) for k in (1, 2, 5, 8, 32)] == [0, 1, 2, 4, 16]
+    assert train.real_only_members(32, False) == 0
+    res = train.train_committee(real, real_labels, seeds=5, epochs=3,
+                                extra=(rendered, rendered_labels))
+    assert sizes == [8, 8, 14, 14, 14] and res.n_experiments == 14
+    sizes.clear()
+    train.train_committee(real, real_labels, seeds=3, epochs=1, extra=(rendered, rendered_labels),
+                          real_only=0)
+    assert sizes == [14, 14, 14]
+    mean = [s.mean for s in res.net.scorers]
+    assert not all(bool((m == mean[0]).all()) for m in mean[1:])
+    x = np.concatenate([real[0][0], rendered[0][0]])
+    fused = train.frame_scores(train.fused_committee(res.net), x)
+    np.testing.assert_allclose(fused, train.frame_scores(res.net, x), rtol=1e-4, atol=1e-4)
+    path = tmp_path / "mixed.onnx"
+    train.export_scorer(res, path)
+    np.testing.assert_allclose(load_scorer(path)(x), train.frame_scores(res.net, x),
+                               rtol=1e-4, atol=1e-4)
+    with pytest.raises(ValueError, match="real_only"):
+        train.train_committee(real, real_labels, seeds=2, epochs=1, real_only=3)
+
+
 def test_committee_flags_a_grasp_once_enough_members_have_fired() -> None:
     """Each member that scores a frame above the threshold has fired for the rest of the
     contact; slip is flagged once ``votes`` have, on the frames where one fires, and a new

@@ -13,6 +13,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 from tacswitch.cli.options import UsageError
 
@@ -67,8 +68,9 @@ def add_train_parser(what: argparse._SubParsersAction) -> None:
     _committee_options(p, "")
     p.add_argument("--simulated", type=int, default=None, metavar="N",
                    help="add N rendered grasps per kind (slip / hold / vibration) and sensor "
-                        "(GelSight, GelSight Mini) to the training set: the textbook slip "
-                        "your recordings may lack (default: 24, as the shipped scorer; 0: none; "
+                        "(GelSight, GelSight Mini) to the training set of half the committee "
+                        "(the other half trains on your grasps alone): the textbook slip your "
+                        "recordings may lack (default: 24, as the shipped scorer; 0: none; "
                         "ignored with --markerless)")
     _marker_tracks_option(p, "")
     _augment_option(p, "")
@@ -251,18 +253,23 @@ def run_train(args: argparse.Namespace) -> int:
     labelled = [e.slip for e in exps]
     from tacswitch.grasp.augment import copies_phrase, marker_training_set, with_copies
 
+    rendered: list[list[Any]] = []
+    rendered_labels: list[bool] = []
     if args.markerless:
         train, labels = with_copies(clips, labelled, augment)
         paired = _paired_marker_clips(args, exps)
         if paired is not None:
             train, labels = train + paired, labels + labelled
     else:
-        train, labels = marker_training_set(clips, labelled, n_sim, augment)
+        train, labels, rendered, rendered_labels = marker_training_set(clips, labelled, n_sim,
+                                                                       augment)
         paired = None
     feats = [[c.features() for c in exp] for exp in train]
     log = None if args.quiet else (lambda s: print(s, file=sys.stderr))
     res = train_committee(feats, labels, seed=args.seed, seeds=seeds, votes=votes,
-                          epochs=epochs, log=log)
+                          epochs=epochs, log=log,
+                          extra=([[c.features() for c in exp] for exp in rendered],
+                                 rendered_labels))
     n_rendered = 0 if args.markerless else n_sim * len(KINDS) * len(SENSORS)
     views = "" if paired is None else " (markerless and marker tracks)"
     if augment:

@@ -102,15 +102,17 @@ def with_copies(experiments: list[list[TrackedClip]], labels: list[bool], copies
 
 
 def marker_training_set(clips: list[list[TrackedClip]], labels: list[bool], simulated: int,
-                        copies: int) -> tuple[list[list[TrackedClip]], list[bool]]:
+                        copies: int) -> tuple[list[list[TrackedClip]], list[bool],
+                                              list[list[TrackedClip]], list[bool]]:
     """The marker scorer's training set as the recipe builds it (what ``tacswitch train slip``
-    and ``benches/bench_slip_real.py --export`` train on): the real experiments and ``copies``
-    rescaled copies of each, then ``simulated`` rendered grasps per kind and sensor
-    (:func:`tacswitch.grasp.simulated.simulated_clips`)."""
+    and ``benches/bench_slip_real.py --export`` train on), in two parts: the real experiments
+    and ``copies`` rescaled copies of each, with their labels; then ``simulated`` rendered
+    grasps per kind and sensor (:func:`tacswitch.grasp.simulated.simulated_clips`; none for 0)
+    and theirs, which :func:`tacswitch.grasp.train.train_committee` takes as ``extra``."""
     from tacswitch.grasp.simulated import SIMULATED_SEED, simulated_clips
 
     real, real_labels = with_copies(clips, labels, copies)
     if not simulated:
-        return real, real_labels
+        return real, real_labels, [], []
     sim_clips, sim_labels = simulated_clips(simulated, SIMULATED_SEED)
-    return real + [[c] for c in sim_clips], real_labels + list(sim_labels)
+    return real, real_labels, [[c] for c in sim_clips], list(sim_labels)

@@ -45,7 +45,8 @@ def cross_validated_flags(clips: list[list[TrackedClip]], labels: list[bool],
     """Flags of every experiment's videos from a scorer trained on ``clips`` of the other
     folds' objects (:func:`object_folds`): under key ``"train"`` for ``clips`` themselves and
     under each name of ``test_sets`` (the same experiments seen otherwise, e.g. markerless).
-    ``extra`` (experiments, labels) joins every fold's training set (e.g. rendered grasps).
+    ``extra`` (experiments, labels) joins every fold's training set (e.g. rendered grasps), as
+    :func:`~tacswitch.grasp.train.train_committee` takes it (not for its real-only members).
     ``paired``: another view of the same experiments, index for index (the marker tracks of
     markerless ``clips``); each fold also trains on the paired view of its training objects,
     never of the held-out ones. ``augment``: rescaled copies of each of ``clips``'
@@ -79,8 +80,8 @@ def cross_validated_flags(clips: list[list[TrackedClip]], labels: list[bool],
         kept = set(train)
         train_feats += [x for x, i in zip(copy_feats, owner, strict=True) if i in kept]
         train_labels += [labels[i] for i in owner if i in kept]
-        res = train_committee(train_feats + extra_feats, train_labels + extra_labels,
-                              seed=seed, seeds=seeds, votes=votes, epochs=epochs)
+        res = train_committee(train_feats, train_labels, seed=seed, seeds=seeds, votes=votes,
+                              epochs=epochs, extra=(extra_feats, extra_labels))
         scorer = torch_scorer(res.net)
         for name, test in sets.items():
             for i, k in enumerate(fold_of):

@@ -12,8 +12,8 @@ Rows:
   (what ``tacswitch slip --rule paper`` does), on every experiment (nothing is fitted);
 - the learned scorer, 5-fold cross-validation grouped by object: every experiment is scored by
   a model that never saw its object. Each fold trains the recipe (``train_committee``: 32
-  scorers from consecutive seeds, a grasp flagged once 13 have fired in it; 8 and 4 for the
-  markerless scorers); ``--seeds``
+  scorers from consecutive seeds, a grasp flagged once 13 have fired in it, for the markerless
+  scorers too); ``--seeds``
   repeats the whole protocol from other first seeds, ``--committee 1`` trains one scorer per
   fold, ``--votes`` sets the votes. Every fold's training set also holds the rendered grasps
   (``--simulated``; for half the members only: the others train on the real grasps alone) and
@@ -71,8 +71,10 @@ def main() -> int:
     ap.add_argument("--no-marker-scorer", action="store_true",
                     help="--markerless: skip the marker scorer's cross-validation")
     ap.add_argument("--committee", type=int, default=None,
-                    help=f"scorers per model, from consecutive seeds (default: {COMMITTEE}, "
-                         f"markerless scorers {MARKERLESS_COMMITTEE}; 1: one scorer)")
+                    help=f"scorers per model, from consecutive seeds (default: {COMMITTEE}"
+                         + ("" if MARKERLESS_COMMITTEE == COMMITTEE
+                            else f", markerless scorers {MARKERLESS_COMMITTEE}")
+                         + "; 1: one scorer)")
     ap.add_argument("--votes", type=int, default=None,
                     help="members that must fire in a grasp (default: the recipe's)")
     ap.add_argument("--simulated", type=int, default=SIMULATED_PER_KIND,

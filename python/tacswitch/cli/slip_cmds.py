@@ -82,10 +82,12 @@ def _committee_options(p: argparse.ArgumentParser, scope: str) -> None:
 
     p.add_argument("--seeds", type=int, default=None, metavar="N",
                    help=f"{scope}train a committee of N scorers (seeds --seed, --seed + 1, ...; "
-                        f"default: {COMMITTEE}, with --markerless {MARKERLESS_COMMITTEE}; 1: one "
-                        "scorer): a grasp is flagged once --votes of them have fired in it, "
-                        "which decides more steadily on unseen objects than any one scorer "
-                        "(BENCHMARKS.md)")
+                        f"default: {COMMITTEE}"
+                        + ("" if MARKERLESS_COMMITTEE == COMMITTEE
+                           else f", with --markerless {MARKERLESS_COMMITTEE}")
+                        + "; 1: one scorer): a grasp is flagged once --votes of them have "
+                        "fired in it, which decides more steadily on unseen objects than any "
+                        "one scorer (BENCHMARKS.md)")
     p.add_argument("--votes", type=int, default=None, metavar="K",
                    help=f"{scope}members that must fire in a grasp (default: "
                         f"{round(VOTE_FRACTION * 100)} %% of --seeds, rounded up; fewer: more "

@@ -188,8 +188,8 @@ def test_train_slip_markerless_also_learns_from_the_marker_tracks(labelled: Path
     from tacswitch.grasp.detector import load_scorer
     from tacswitch.grasp.train import MARKERLESS_COMMITTEE, default_votes
 
-    # The markerless recipe keeps its own committee size (the larger one was measured on
-    # marker tracks only), with the same vote rule.
+    # The markerless recipe's own committee size (MARKERLESS_COMMITTEE), with the same vote
+    # rule.
     scorer = load_scorer(model)
     assert (scorer.committee, scorer.votes) == (MARKERLESS_COMMITTEE,
                                                 default_votes(MARKERLESS_COMMITTEE))

@@ -301,7 +301,7 @@ def train_committee(features: list[list[NDArray[np.float32]]], labels: list[bool
         results.append(train_scorer(feats, labs, epochs=epochs, seed=s, log=log))
     if seeds == 1:
         return results[0]
-    full = results[-1]  # the largest training set (with ``extra`` when given)
+    full = max(results, key=lambda r: r.n_experiments)  # with ``extra`` when any member saw it
     return SlipTrainResult(build_committee([r.net for r in results]), full.n_experiments,
                            full.n_slip, epochs, seed, committee=seeds, votes=v)
 

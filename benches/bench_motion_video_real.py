@@ -10,12 +10,18 @@ settings, chaining, anchoring); the last choice (the tracker's direct flow) also
 all-object rows of the frames with a new contact, so those rows are not held out. Nothing is
 fitted. The paper's own recipe:
 
-1. truth: :class:`tacswitch.MarkerTracker` on the frames *with* markers, from the first frame
-   (the no-contact frame: the gripper is open) on every frame; its reference centres are the
-   marker centres handed to the markerless methods. A tracker is not perfect on sudden slips
-   (markers smear and jump by more than half a pitch between two frames), so a clip is scored
-   only up to the first frame where a tracked marker moves more than :data:`MAX_STEP_PITCH` of
-   the pitch between consecutive frames, and only markers the tracker holds;
+1. truth: :class:`tacswitch.MarkerTracker` on the frames *with* markers, from the clip's first
+   settled frame (the no-contact frame: the gripper is open) on every frame; its reference
+   centres are the marker centres handed to the markerless methods. Settled: the camera's
+   first frames are skipped as ``tacswitch slip`` skips them
+   (:func:`tacswitch.tracking.settled_index`: 11 of the 29 clips start with under-exposed
+   frames or frames left in the camera's buffer, a deformed gel before a jump; from frame 0,
+   the truth of such a clip was cut at the jump and scored only the replayed frames, and every
+   method measured motion from a frame that was not the gel at rest). A tracker is not perfect
+   on sudden slips (markers smear and jump by more than half a pitch between two frames), so a
+   clip is scored only up to the first frame where a tracked marker moves more than
+   :data:`MAX_STEP_PITCH` of the pitch between consecutive frames, and only markers the
+   tracker holds;
 2. input: the markers removed, ``tacswitch.remove_markers(frame)`` (TELEA, the default mask);
 3. control (**ghost control**): a removal leaves faint traces that move with the gel, which flow
    can follow. The control removes the markers with the mask grown by :data:`CONTROL_DILATE_PX`
@@ -214,11 +220,14 @@ def run_clip(clip: tuple[str, str, int], names: list[str], stride: int, score_ev
     """Per input kind (``removed`` / ``control``) and method: predictions, truths, time;
     and whether the clip was cut short (see :data:`MAX_STEP_PITCH`)."""
     import tacswitch as ts
+    from tacswitch.tracking import REST_LOOK_AHEAD, rest_thumbnail, settled_index
 
     obj, exp, cam = clip
     path = DATA / obj / exp / f"camera_{cam}.avi"
     CACHE.mkdir(parents=True, exist_ok=True)
     raw = read_video(path)
+    start = settled_index([rest_thumbnail(f) for f in raw[:REST_LOOK_AHEAD]])
+    raw = raw[start:]
     c, tr_all, trusted = truth(raw)
     trusted = max(trusted, 1)
     fed_idx = list(range(0, trusted, stride))
@@ -237,7 +246,7 @@ def run_clip(clip: tuple[str, str, int], names: list[str], stride: int, score_ev
         new = np.array([is_new_contact(frames[i], frames[0]) for i in scored_pos], bool)
         for name in names:
             fn, sequential = table_[name]
-            key = hashlib.sha1(f"{tag}|{name}|{kind}|{stride}|{score_every}".encode())
+            key = hashlib.sha1(f"{tag}|{name}|{kind}|{stride}|{score_every}|{start}".encode())
             cache = CACHE / f"{clip_key(clip)}__{key.hexdigest()[:10]}.npz"
             if cache.exists() and not fresh:
                 z = np.load(cache)

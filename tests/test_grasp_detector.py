@@ -12,7 +12,7 @@ import tacswitch as ts
 from tacswitch import sim
 from tacswitch.grasp.detector import GraspSlipDetector, load_scorer, run_clip
 from tacswitch.grasp.evaluate import object_folds, score_experiments
-from tacswitch.grasp.features import N_FEATURES
+from tacswitch.grasp.features import N_BASE_FEATURES, N_FEATURES
 from tacswitch.grasp.phases import GRASP, NO_CONTACT, PRESSING, Step
 
 LEAD = 4
@@ -60,6 +60,23 @@ def test_scorer_runs_only_between_contact_onset_and_release(seed: int) -> None:
     assert rec.calls == sum(s.slip for s in states)
     released = max(i for i, p in enumerate(phases) if p != NO_CONTACT) + 1
     assert not any(s.slip for s in states[released:])
+
+
+@pytest.mark.parametrize("name", ["markers", "markerless"])
+def test_a_scorer_of_the_base_layout_reads_only_its_prefix(name: str) -> None:
+    """Scorers trained before the snap-back features take the first N_BASE_FEATURES values;
+    the values after them must not reach such a scorer, and must reach one of the full layout."""
+    scorer = load_scorer(name)
+    assert scorer.n_features in (N_BASE_FEATURES, N_FEATURES)
+    rng = np.random.default_rng(0)
+    x = rng.normal(0, 1, (4, N_FEATURES)).astype(np.float32)
+    y = x.copy()
+    y[:, N_BASE_FEATURES:] += 5.0
+    same = np.allclose(scorer(x), scorer(y))
+    assert same == (scorer.n_features == N_BASE_FEATURES)
+    z = x.copy()
+    z[:, :N_BASE_FEATURES] += 5.0
+    assert not np.allclose(scorer(x), scorer(z))
 
 
 @pytest.mark.parametrize("name", [None, "markers", "markerless"])

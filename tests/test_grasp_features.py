@@ -13,8 +13,10 @@ from hypothesis import strategies as st
 from tacswitch.grasp.features import (
     FEATURE_NAMES,
     LONG,
+    N_BASE_FEATURES,
     N_FEATURES,
     N_FRAME,
+    N_SNAP,
     WINDOW,
     FieldFeatures,
     sequence_features,
@@ -39,6 +41,30 @@ def _change(pts: np.ndarray, change: np.ndarray) -> list[float]:
     return [p90, float(np.median(length)), resid, resid / (p90 + 0.02)]
 
 
+def _snap(hist: deque) -> np.ndarray:
+    """The snap-back values of the newest frame of ``hist`` (module doc of the Rust core)."""
+    out = np.zeros(N_SNAP)
+    if len(hist) < 3:
+        return out
+    (m0, ok0), (m1, ok1), (m2, ok2) = list(hist)[-3:]
+    ok = ok0 & ok1 & ok2
+    if ok.sum() < 3:
+        return out
+    v1, v0 = m2[ok] - m1[ok], m1[ok] - m0[ok]
+    n1, n0 = np.linalg.norm(v1, axis=1), np.linalg.norm(v0, axis=1)
+    acc = np.percentile(np.linalg.norm(v1 - v0, axis=1), 90)
+    out[0] = acc
+    out[1] = acc / (np.percentile(n1, 90) + np.percentile(n0, 90) + 0.02)
+    out[2] = (v1 * v0).sum() / ((n1 * n0).sum() + 1e-4)
+    d = np.linalg.norm(m1[ok], axis=1)
+    big = d > 0.2
+    if big.sum() >= 3:
+        back = -(v1[big] * m1[ok][big]).sum(axis=1) / d[big]
+        out[3], out[4] = np.percentile(back, 90), np.median(back)
+        out[5] = np.median(back / d[big])
+    return out
+
+
 def reference_features(motions: np.ndarray, valids: np.ndarray, points: np.ndarray,
                        pitch: float) -> np.ndarray:
     """The module doc's definitions, written out in numpy (float64)."""
@@ -46,10 +72,12 @@ def reference_features(motions: np.ndarray, valids: np.ndarray, points: np.ndarr
     hist: deque = deque(maxlen=LONG + 1)
     medians: deque = deque(maxlen=LONG)
     frames = []
+    snaps = []
     for motion, valid in zip(motions, valids, strict=False):
         m = np.asarray(motion, np.float64) / pitch
         ok = valid & np.isfinite(m).all(axis=1)
         hist.append((m, ok))
+        snaps.append(_snap(hist))
         out = np.zeros(N_FRAME)
         out[14] = 1.0 - ok.mean()
         if ok.sum() < 6:
@@ -75,11 +103,13 @@ def reference_features(motions: np.ndarray, valids: np.ndarray, points: np.ndarr
                 out[16] = np.median(np.sqrt(((m[both] - old[both]) ** 2).sum(axis=1)))
         frames.append(out)
     f = np.array(frames)
+    sn = np.array(snaps)
     rows = []
     for t in range(len(f)):
         recent = f[max(0, t - WINDOW + 1):t + 1]
         long_change = f[t] - f[max(0, t - LONG)]
-        rows.append(np.concatenate([f[t], recent.max(0), recent.min(0), long_change]))
+        rows.append(np.concatenate([f[t], recent.max(0), recent.min(0), long_change, sn[t],
+                                    sn[max(0, t - WINDOW + 1):t + 1].max(0)]))
     return np.array(rows)
 
 
@@ -89,7 +119,8 @@ def grid(nx: int = 9, ny: int = 7, pitch: float = 30.0) -> np.ndarray:
 
 
 def test_names_and_sizes() -> None:
-    assert len(FEATURE_NAMES) == N_FEATURES == 4 * N_FRAME
+    assert len(FEATURE_NAMES) == len(set(FEATURE_NAMES)) == N_FEATURES
+    assert N_BASE_FEATURES == 4 * N_FRAME and N_FEATURES == N_BASE_FEATURES + 2 * N_SNAP
 
 
 def test_matches_numpy_on_a_random_walk_with_lost_markers() -> None:

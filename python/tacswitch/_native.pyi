@@ -7,8 +7,10 @@ from numpy.typing import NDArray
 
 __version__: str
 __all__ = [
+    "SLIP_N_BASE_FEATURES",
     "SLIP_N_FEATURES",
     "SLIP_N_FRAME",
+    "SLIP_N_SNAP",
     "SlipDetector",
     "SlipFeatures",
     "Tracker",
@@ -103,8 +105,10 @@ class SlipDetector:
     @property
     def first_slip(self) -> int | None: ...
 
+SLIP_N_BASE_FEATURES: int
 SLIP_N_FEATURES: int
 SLIP_N_FRAME: int
+SLIP_N_SNAP: int
 
 @final
 class SlipFeatures:

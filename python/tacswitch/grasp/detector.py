@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch._checks import as_motion, as_points, as_valid
-from tacswitch.grasp.features import N_FEATURES, FieldFeatures, marker_pitch
+from tacswitch.grasp.features import N_BASE_FEATURES, N_FEATURES, FieldFeatures, marker_pitch
 from tacswitch.grasp.phases import GRASP, PRESSING, GraspSegmenter, Step
 
 #: The shipped scorers (``python/tacswitch/models``): trained on tracked markers, and on the
@@ -69,13 +69,16 @@ class OnnxScorer:
         self.committee = int(json.loads(meta.get("tacswitch.committee", "1")))
         self.votes = int(json.loads(meta.get("tacswitch.votes", "1")))
         n = int(json.loads(meta.get("tacswitch.n_features", str(N_FEATURES))))
-        if n != N_FEATURES:
+        # A scorer trained before the snap-back features reads the vector's first values.
+        if n not in (N_FEATURES, N_BASE_FEATURES):
             raise ValueError(f"model: {str(path)!r} takes {n} features; this tacswitch "
                              f"computes {N_FEATURES} (retrain it with `tacswitch train slip`)")
+        self.n_features = n
 
     def __call__(self, features: NDArray[np.float32]) -> NDArray[np.float32]:
-        x = np.ascontiguousarray(features, np.float32).reshape(-1, N_FEATURES)
-        return self.session.run(None, {"features": x})[0]  # type: ignore[no-any-return]
+        x = np.asarray(features, np.float32).reshape(-1, N_FEATURES)[:, :self.n_features]
+        return self.session.run(  # type: ignore[no-any-return]
+            None, {"features": np.ascontiguousarray(x)})[0]
 
 
 def load_scorer(path: str | os.PathLike[str] | None = None) -> OnnxScorer:

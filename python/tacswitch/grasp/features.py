@@ -18,8 +18,15 @@ Per frame (the motion ``m`` of each marker since the first frame):
   median change over the last second.
 
 The vector of a frame is those values, their largest and smallest over the last :data:`WINDOW`
-frames and their change over the last :data:`LONG` frames. Computed in the Rust core
-(``rust/core/src/slip_features.rs``, a few microseconds a frame).
+frames and their change over the last :data:`LONG` frames; then how abruptly the field changes
+(:data:`SNAP_FEATURES`: a shaken grasp reverses smoothly over several frames, shear released by
+a slip snaps back within one or two): the 90th-percentile acceleration (second difference of
+each marker's motion), that over the last two velocities' 90th percentiles, the cosine between
+the last two velocities (-1: a reversal), and the motion back towards rest of the displaced
+markers (90th percentile, median, and median share of the displacement), with their largest
+value over the last :data:`WINDOW` frames. A scorer trained before the snap-back values
+(:data:`N_BASE_FEATURES` inputs) reads the vector's first :data:`N_BASE_FEATURES` values.
+Computed in the Rust core (``rust/core/src/slip_features.rs``, a few microseconds a frame).
 """
 
 from __future__ import annotations
@@ -44,12 +51,20 @@ FRAME_FEATURES = (
     "lost", "relaxation", "long_change",
 )
 N_FRAME = len(FRAME_FEATURES)
-#: Length of a frame's feature vector: the per-frame values, window max, window min, change.
-N_FEATURES = 4 * N_FRAME
+#: Names of the per-frame snap-back values, in order.
+SNAP_FEATURES = ("snap_accel_p90", "snap_abruptness", "snap_reversal", "snap_back_p90",
+                 "snap_back_median", "snap_back_share")
+N_SNAP = len(SNAP_FEATURES)
+#: Length of the vector before the snap-back values: the per-frame values, window max, window
+#: min, change (the layout of scorers trained before them).
+N_BASE_FEATURES = 4 * N_FRAME
+#: Length of a frame's feature vector: the base vector, the snap-back values and their window max.
+N_FEATURES = N_BASE_FEATURES + 2 * N_SNAP
 #: Names of the whole vector, in order.
-FEATURE_NAMES = tuple(f"{n}{s}" for s in ("", "_wmax", "_wmin", "_change")
-                      for n in FRAME_FEATURES)
-assert N_FEATURES == _native.SLIP_N_FEATURES and N_FRAME == _native.SLIP_N_FRAME
+FEATURE_NAMES = (*(f"{n}{s}" for s in ("", "_wmax", "_wmin", "_change") for n in FRAME_FEATURES),
+                 *SNAP_FEATURES, *(f"{n}_wmax" for n in SNAP_FEATURES))
+assert (N_FEATURES == _native.SLIP_N_FEATURES and N_FRAME == _native.SLIP_N_FRAME
+        and N_SNAP == _native.SLIP_N_SNAP and N_BASE_FEATURES == _native.SLIP_N_BASE_FEATURES)
 
 
 #: Marker pitch (px) assumed when the reference has fewer than two distinct markers.

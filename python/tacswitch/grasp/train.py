@@ -340,7 +340,7 @@ def export_scorer(result: SlipTrainResult, path: str | os.PathLike[str],
     import torch
 
     from tacswitch._io import write_onnx
-    from tacswitch.grasp.features import FRAME_FEATURES, LONG, WINDOW
+    from tacswitch.grasp.features import FRAME_FEATURES, LONG, SNAP_FEATURES, WINDOW
 
     with tempfile.TemporaryDirectory() as tmpdir:
         tmp = Path(tmpdir) / "slip.onnx"
@@ -352,7 +352,8 @@ def export_scorer(result: SlipTrainResult, path: str | os.PathLike[str],
         meta = {"tacswitch.kind": "slip"}
         info: dict[str, object] = {
             "threshold": float(threshold), "warmup": WARMUP, "window": WINDOW, "long": LONG,
-            "frame_features": list(FRAME_FEATURES), "n_features": N_FEATURES,
+            "frame_features": list(FRAME_FEATURES), "snap_features": list(SNAP_FEATURES),
+            "n_features": N_FEATURES,
             "experiments": result.n_experiments, "slip_experiments": result.n_slip,
             "epochs": result.epochs, "seed": result.seed, "committee": result.committee,
             "votes": result.votes,

@@ -12,7 +12,10 @@
 //! 14 the share of markers lost; 15 relaxation: the largest median `|m|` of the last [`LONG`]
 //! frames minus the current one; 16 the median change over the last [`LONG`] frames.
 //! The vector is those 17 values, their maximum and minimum over the last [`WINDOW`] frames, and
-//! their change since [`LONG`] frames ago (the oldest kept while fewer have been seen).
+//! their change since [`LONG`] frames ago (the oldest kept while fewer have been seen); then
+//! [`N_SNAP`] values of how abruptly the field changes ([`SlipFeatures::snap_values`]: a shaken
+//! grasp reverses smoothly over several frames, stored shear released by a slip snaps back within
+//! one or two) and their maximum over the last [`WINDOW`] frames.
 //! Percentiles interpolate linearly between order statistics (numpy's default).
 
 use std::collections::VecDeque;
@@ -21,8 +24,13 @@ use crate::error::{CoreError, Result};
 
 /// Per-frame features.
 pub const N_FRAME: usize = 17;
+/// Per-frame snap-back values ([`SlipFeatures::snap_values`]).
+pub const N_SNAP: usize = 6;
+/// Length of the feature vector before the snap-back values were added (a scorer trained on it
+/// reads this prefix of the vector).
+pub const N_BASE_FEATURES: usize = 4 * N_FRAME;
 /// Length of the feature vector of a frame.
-pub const N_FEATURES: usize = 4 * N_FRAME;
+pub const N_FEATURES: usize = N_BASE_FEATURES + 2 * N_SNAP;
 /// Frames of the window maximum and minimum.
 pub const WINDOW: usize = 8;
 /// Frames of the long-term change and the relaxation.
@@ -31,6 +39,12 @@ pub const LONG: usize = 25;
 pub const MIN_MARKERS: usize = 6;
 /// Added to a change's 90th-percentile length (pitches) before dividing by it.
 pub const INCOHERENCE_FLOOR: f64 = 0.02;
+/// Snap-back values need this many markers valid in the last three frames; with fewer they are 0.
+pub const SNAP_MIN_MARKERS: usize = 3;
+/// Markers displaced at least this far (pitches) count in the motion back towards rest.
+pub const SNAP_MIN_DISPLACEMENT: f64 = 0.2;
+/// Added to the reversal cosine's denominator (pitches squared) so a still field reads 0.
+const REVERSAL_FLOOR: f64 = 1e-4;
 
 /// Linear-interpolation percentile (`q` in 0..=100) of `v`, which it sorts; 0 when empty.
 fn percentile(v: &mut [f64], q: f64) -> f64 {
@@ -113,6 +127,7 @@ pub struct SlipFeatures {
     medians: VecDeque<f64>,
     recent: VecDeque<[f64; N_FRAME]>,
     long: VecDeque<[f64; N_FRAME]>,
+    recent_snap: VecDeque<[f64; N_SNAP]>,
     // Scratch buffers reused every frame.
     sel_p: Vec<[f64; 2]>,
     sel_v: Vec<[f64; 2]>,
@@ -145,6 +160,7 @@ impl SlipFeatures {
             medians: VecDeque::with_capacity(LONG),
             recent: VecDeque::with_capacity(WINDOW),
             long: VecDeque::with_capacity(LONG + 1),
+            recent_snap: VecDeque::with_capacity(WINDOW),
             sel_p: Vec::new(),
             sel_v: Vec::new(),
             lens: Vec::new(),
@@ -168,6 +184,7 @@ impl SlipFeatures {
         self.medians.clear();
         self.recent.clear();
         self.long.clear();
+        self.recent_snap.clear();
     }
 
     /// Change statistics (p90, median, affine residual, incoherence) between now and `lag`
@@ -280,6 +297,73 @@ impl SlipFeatures {
         out
     }
 
+    /// The [`N_SNAP`] snap-back values of the newest frame, in pitches, over the markers valid in
+    /// it and the two frames before (zeros with fewer than [`SNAP_MIN_MARKERS`] or before the
+    /// third frame), with `v1` / `v0` the last two one-frame changes and `a = v1 - v0`:
+    /// 0 the 90th-percentile `|a|`; 1 that over the sum of the 90th-percentile `|v1|` and `|v0|`
+    /// plus [`INCOHERENCE_FLOOR`] (abruptness); 2 `sum(v1 . v0) / sum(|v1| |v0|)` (-1: the field
+    /// reverses); 3-5 over the markers displaced at least [`SNAP_MIN_DISPLACEMENT`] a frame ago,
+    /// the motion back towards rest `-(v1 . m) / |m|`: its 90th percentile, its median, and the
+    /// median of it over `|m|` (the share of the displacement released in one frame).
+    fn snap_values(&mut self) -> [f64; N_SNAP] {
+        let n_hist = self.hist.len();
+        if n_hist < 3 {
+            return [0.0; N_SNAP];
+        }
+        let (m2, ok2) = &self.hist[n_hist - 1];
+        let (m1, ok1) = &self.hist[n_hist - 2];
+        let (m0, ok0) = &self.hist[n_hist - 3];
+        // sel_v: v1; sel_p: v0 (reused buffers); lens / scratch: lengths.
+        self.sel_v.clear();
+        self.sel_p.clear();
+        let mut prev: Vec<[f64; 2]> = Vec::new();
+        for i in 0..m2.len() {
+            if ok2[i] && ok1[i] && ok0[i] {
+                self.sel_v.push([m2[i][0] - m1[i][0], m2[i][1] - m1[i][1]]);
+                self.sel_p.push([m1[i][0] - m0[i][0], m1[i][1] - m0[i][1]]);
+                prev.push(m1[i]);
+            }
+        }
+        if self.sel_v.len() < SNAP_MIN_MARKERS {
+            return [0.0; N_SNAP];
+        }
+        let norm = |v: &[f64; 2]| (v[0] * v[0] + v[1] * v[1]).sqrt();
+        let (mut dot, mut mag) = (0.0, 0.0);
+        self.lens.clear();
+        for (v1, v0) in self.sel_v.iter().zip(&self.sel_p) {
+            self.lens.push(norm(&[v1[0] - v0[0], v1[1] - v0[1]]));
+            dot += v1[0] * v0[0] + v1[1] * v0[1];
+            mag += norm(v1) * norm(v0);
+        }
+        let p_acc = percentile(&mut self.lens, 90.0);
+        self.lens.clear();
+        self.lens.extend(self.sel_v.iter().map(norm));
+        let p_v1 = percentile(&mut self.lens, 90.0);
+        self.lens.clear();
+        self.lens.extend(self.sel_p.iter().map(norm));
+        let p_v0 = percentile(&mut self.lens, 90.0);
+        let mut out = [0.0; N_SNAP];
+        out[0] = p_acc;
+        out[1] = p_acc / (p_v1 + p_v0 + INCOHERENCE_FLOOR);
+        out[2] = dot / (mag + REVERSAL_FLOOR);
+        self.lens.clear();
+        self.scratch.clear();
+        for (v1, m) in self.sel_v.iter().zip(&prev) {
+            let d = norm(m);
+            if d > SNAP_MIN_DISPLACEMENT {
+                let back = -(v1[0] * m[0] + v1[1] * m[1]) / d;
+                self.lens.push(back);
+                self.scratch.push(back / d);
+            }
+        }
+        if self.lens.len() >= SNAP_MIN_MARKERS {
+            out[3] = percentile(&mut self.lens, 90.0);
+            out[4] = percentile(&mut self.lens, 50.0);
+            out[5] = percentile(&mut self.scratch, 50.0);
+        }
+        out
+    }
+
     /// Feeds one frame's motion since the first frame (`N x 2` px, NaN = lost) and validity;
     /// returns its [`N_FEATURES`] features.
     pub fn update(&mut self, motion: &[[f32; 2]], valid: &[bool]) -> Result<[f32; N_FEATURES]> {
@@ -300,6 +384,11 @@ impl SlipFeatures {
             ));
         }
         let f = self.frame_values(motion, valid);
+        let snap = self.snap_values();
+        if self.recent_snap.len() == WINDOW {
+            self.recent_snap.pop_front();
+        }
+        self.recent_snap.push_back(snap);
         if self.recent.len() == WINDOW {
             self.recent.pop_front();
         }
@@ -321,6 +410,14 @@ impl SlipFeatures {
             out[N_FRAME + j] = hi as f32;
             out[2 * N_FRAME + j] = lo as f32;
             out[3 * N_FRAME + j] = (f[j] - oldest[j]) as f32;
+        }
+        for (j, &v) in snap.iter().enumerate() {
+            let hi = self
+                .recent_snap
+                .iter()
+                .fold(f64::MIN, |acc, r| acc.max(r[j]));
+            out[N_BASE_FEATURES + j] = v as f32;
+            out[N_BASE_FEATURES + N_SNAP + j] = hi as f32;
         }
         Ok(out)
     }
@@ -418,5 +515,57 @@ mod tests {
         let out = f.update(&m, &vec![true; pts.len()]).unwrap();
         assert!((out[14] - 1.0 / 63.0).abs() < 1e-5);
         assert!(out.iter().all(|v| v.is_finite()));
+    }
+
+    #[test]
+    fn snap_back_reads_a_reversal_and_not_a_steady_drift() {
+        let pts = grid();
+        let valid = vec![true; pts.len()];
+        let base = N_BASE_FEATURES;
+        // Steady drift: no acceleration, the velocity keeps its direction.
+        let mut f = SlipFeatures::new(&pts, 30.0).unwrap();
+        let mut out = [0.0f32; N_FEATURES];
+        for t in 0..4 {
+            out = f
+                .update(&vec![[3.0 * t as f32, 0.0]; pts.len()], &valid)
+                .unwrap();
+        }
+        assert!(out[base].abs() < 1e-6, "acceleration {}", out[base]);
+        assert!(
+            (out[base + 2] - 1.0).abs() < 1e-3,
+            "reversal {}",
+            out[base + 2]
+        );
+        assert!(out[base + 3] < 0.0, "a drift moves away from rest");
+        // Loaded, then released in one frame: the field reverses and moves back towards rest.
+        let mut f = SlipFeatures::new(&pts, 30.0).unwrap();
+        for m in [0.0f32, 6.0, 12.0] {
+            out = f.update(&vec![[m, 0.0]; pts.len()], &valid).unwrap();
+        }
+        let snap = f.update(&vec![[3.0, 0.0]; pts.len()], &valid).unwrap();
+        assert!(
+            (snap[base] - 15.0 / 30.0).abs() < 1e-5,
+            "acceleration {}",
+            snap[base]
+        );
+        assert!(
+            (snap[base + 2] + 1.0).abs() < 1e-3,
+            "reversal {}",
+            snap[base + 2]
+        );
+        assert!(
+            (snap[base + 3] - 9.0 / 30.0).abs() < 1e-5,
+            "back p90 {}",
+            snap[base + 3]
+        );
+        assert!(
+            (snap[base + 5] - 0.75).abs() < 1e-5,
+            "share released {}",
+            snap[base + 5]
+        );
+        // The window maximum keeps the snap for the next frames.
+        let later = f.update(&vec![[3.0, 0.0]; pts.len()], &valid).unwrap();
+        assert!((later[base + N_SNAP] - 15.0 / 30.0).abs() < 1e-5);
+        assert!(out.iter().chain(&later).all(|v| v.is_finite()));
     }
 }

@@ -2,7 +2,9 @@
 
 use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
-use tacswitch_core::slip_features::{SlipFeatures as CoreFeatures, N_FEATURES, N_FRAME};
+use tacswitch_core::slip_features::{
+    SlipFeatures as CoreFeatures, N_BASE_FEATURES, N_FEATURES, N_FRAME, N_SNAP,
+};
 
 use crate::arrays::{bools, points_f32};
 use crate::errors::to_py;
@@ -51,5 +53,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<SlipFeatures>()?;
     m.add("SLIP_N_FEATURES", N_FEATURES)?;
     m.add("SLIP_N_FRAME", N_FRAME)?;
+    m.add("SLIP_N_SNAP", N_SNAP)?;
+    m.add("SLIP_N_BASE_FEATURES", N_BASE_FEATURES)?;
     Ok(())
 }

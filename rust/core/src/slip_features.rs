@@ -527,7 +527,7 @@ mod tests {
         let mut out = [0.0f32; N_FEATURES];
         for t in 0..4 {
             out = f
-                .update(&vec![[3.0 * t as f32, 0.0]; pts.len()], &valid)
+                .update(&vec![[4.0 * t as f32, 0.0]; pts.len()], &valid)
                 .unwrap();
         }
         assert!(out[base].abs() < 1e-6, "acceleration {}", out[base]);

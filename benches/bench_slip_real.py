@@ -43,13 +43,12 @@ from pathlib import Path
 
 from tacswitch.grasp.augment import COPIES, copies_phrase, marker_training_set, with_copies
 from tacswitch.grasp.crossval import clip_flags, cross_validated_flags
-from tacswitch.grasp.dataset import experiment_clips, read_labels
+from tacswitch.grasp.dataset import clip_features, experiment_clips, read_labels
 from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
 from tacswitch.grasp.simulated import SIMULATED_PER_KIND, SIMULATED_SEED, simulated_clips
 from tacswitch.grasp.train import (
-    COMMITTEE,
-    MARKERLESS_COMMITTEE,
     committee_votes,
+    default_committee_text,
     real_only_members,
     recipe_committee,
     train_committee,
@@ -71,10 +70,8 @@ def main() -> int:
     ap.add_argument("--no-marker-scorer", action="store_true",
                     help="--markerless: skip the marker scorer's cross-validation")
     ap.add_argument("--committee", type=int, default=None,
-                    help=f"scorers per model, from consecutive seeds (default: {COMMITTEE}"
-                         + ("" if MARKERLESS_COMMITTEE == COMMITTEE
-                            else f", markerless scorers {MARKERLESS_COMMITTEE}")
-                         + "; 1: one scorer)")
+                    help="scorers per model, from consecutive seeds (default: "
+                         f"{default_committee_text('markerless scorers')}; 1: one scorer)")
     ap.add_argument("--votes", type=int, default=None,
                     help="members that must fire in a grasp (default: the recipe's)")
     ap.add_argument("--simulated", type=int, default=SIMULATED_PER_KIND,
@@ -108,12 +105,11 @@ def main() -> int:
         else:
             clips, labels, rendered, rendered_labels = marker_training_set(
                 clips, labels, args.simulated, args.augment)
-        res = train_committee([[c.features() for c in exp] for exp in clips], labels,
+        res = train_committee(clip_features(clips), labels,
                               seeds=markerless_seeds if args.markerless else marker_seeds,
                               votes=args.votes, epochs=args.epochs,
                               log=lambda s: print(s, file=sys.stderr),
-                              extra=([[c.features() for c in exp] for exp in rendered],
-                                     rendered_labels))
+                              extra=(clip_features(rendered), rendered_labels))
         motion = ("markers removed, MarkerlessTracker; and the marker tracks" if args.markerless
                   else "markers")
         export_scorer(res, args.export, extra={
@@ -182,10 +178,9 @@ def main() -> int:
         held, held_labels = simulated_clips(HELD_OUT_SIM, HELD_OUT_SIM_SEED)
         # The rendered grasps are those of ``extra`` (rendered once).
         real, real_labels = with_copies(clips, labels, args.augment)
-        res = train_committee([[c.features() for c in exp] for exp in real], real_labels,
+        res = train_committee(clip_features(real), real_labels,
                               seeds=marker_seeds, votes=args.votes, epochs=args.epochs,
-                              extra=([[c.features() for c in exp] for exp in extra[0]],
-                                     extra[1]))
+                              extra=(clip_features(extra[0]), extra[1]))
         scorer = torch_scorer(res.net)
         flags_sim = [[clip_flags(c, model=scorer, threshold=0.0, votes=res.votes)]
                      for c in held]

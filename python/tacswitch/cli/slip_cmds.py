@@ -78,14 +78,12 @@ def add_train_parser(what: argparse._SubParsersAction) -> None:
 
 
 def _committee_options(p: argparse.ArgumentParser, scope: str) -> None:
-    from tacswitch.grasp.train import COMMITTEE, MARKERLESS_COMMITTEE, VOTE_FRACTION
+    from tacswitch.grasp.train import VOTE_FRACTION, default_committee_text
 
     p.add_argument("--seeds", type=int, default=None, metavar="N",
                    help=f"{scope}train a committee of N scorers (seeds --seed, --seed + 1, ...; "
-                        f"default: {COMMITTEE}"
-                        + ("" if MARKERLESS_COMMITTEE == COMMITTEE
-                           else f", with --markerless {MARKERLESS_COMMITTEE}")
-                        + "; 1: one scorer): a grasp is flagged once --votes of them have "
+                        f"default: {default_committee_text('with --markerless')}; 1: one "
+                        "scorer): a grasp is flagged once --votes of them have "
                         "fired in it, which decides more steadily on unseen objects than any "
                         "one scorer (BENCHMARKS.md)")
     p.add_argument("--votes", type=int, default=None, metavar="K",
@@ -254,6 +252,7 @@ def run_train(args: argparse.Namespace) -> int:
     exps, clips = _load(args)
     labelled = [e.slip for e in exps]
     from tacswitch.grasp.augment import copies_phrase, marker_training_set, with_copies
+    from tacswitch.grasp.dataset import clip_features
 
     rendered: list[list[Any]] = []
     rendered_labels: list[bool] = []
@@ -266,12 +265,11 @@ def run_train(args: argparse.Namespace) -> int:
         train, labels, rendered, rendered_labels = marker_training_set(clips, labelled, n_sim,
                                                                        augment)
         paired = None
-    feats = [[c.features() for c in exp] for exp in train]
+    feats = clip_features(train)
     log = None if args.quiet else (lambda s: print(s, file=sys.stderr))
     res = train_committee(feats, labels, seed=args.seed, seeds=seeds, votes=votes,
                           epochs=epochs, log=log,
-                          extra=([[c.features() for c in exp] for exp in rendered],
-                                 rendered_labels))
+                          extra=(clip_features(rendered), rendered_labels))
     n_rendered = 0 if args.markerless else n_sim * len(KINDS) * len(SENSORS)
     views = "" if paired is None else " (markerless and marker tracks)"
     if augment:

@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch.grasp.augment import augmented_experiments
-from tacswitch.grasp.dataset import TrackedClip
+from tacswitch.grasp.dataset import TrackedClip, clip_features
 from tacswitch.grasp.detector import run_clip
 from tacswitch.grasp.evaluate import object_folds
 from tacswitch.grasp.train import COMMITTEE
@@ -56,13 +56,13 @@ def cross_validated_flags(clips: list[list[TrackedClip]], labels: list[bool],
     scorers from seed ``seed``, ``votes`` of them to flag)."""
     from tacswitch.grasp.train import train_committee
 
-    feats = [[c.features() for c in exp] for exp in clips]
+    feats = clip_features(clips)
     if paired is not None and len(paired) != len(clips):
         raise ValueError(f"paired: one entry per experiment ({len(clips)}); got {len(paired)}")
-    paired_feats = [[c.features() for c in exp] for exp in paired] if paired else None
+    paired_feats = clip_features(paired) if paired else None
     copies, owner = augmented_experiments(clips, augment)
-    copy_feats = [[c.features() for c in exp] for exp in copies]
-    extra_feats = [[c.features() for c in exp] for exp in extra[0]] if extra else []
+    copy_feats = clip_features(copies)
+    extra_feats = clip_features(extra[0]) if extra else []
     extra_labels = list(extra[1]) if extra else []
     fold_of = object_folds(objects, folds)
     sets = {"train": clips, **(test_sets or {})}

@@ -109,6 +109,12 @@ class TrackedClip:
         return sequence_features(self.motion, self.valid, self.points, self.pitch)
 
 
+
+def clip_features(experiments: list[list[TrackedClip]]) -> list[list[NDArray[np.float32]]]:
+    """Every video's features (:meth:`TrackedClip.features`), experiment by experiment: the
+    training input of :func:`tacswitch.grasp.train.train_committee`."""
+    return [[c.features() for c in exp] for exp in experiments]
+
 def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
                ) -> TrackedClip:
     """Tracks markers through ``frames``. With markers the reference is the rest frame

@@ -247,6 +247,13 @@ def recipe_committee(markerless: bool = False) -> int:
     return MARKERLESS_COMMITTEE if markerless else COMMITTEE
 
 
+def default_committee_text(markerless_label: str) -> str:
+    """The recipe's committee size for help texts: ``"32"``, or ``"32, <label> 8"`` while the
+    markerless recipe differs (``markerless_label`` names it, e.g. ``"with --markerless"``)."""
+    return f"{COMMITTEE}" + ("" if MARKERLESS_COMMITTEE == COMMITTEE
+                             else f", {markerless_label} {MARKERLESS_COMMITTEE}")
+
+
 def committee_votes(seeds: int, votes: int | None = None) -> int:
     """The votes of a committee of ``seeds`` scorers: ``votes``, checked, or
     :func:`default_votes`."""

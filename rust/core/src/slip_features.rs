@@ -131,6 +131,7 @@ pub struct SlipFeatures {
     // Scratch buffers reused every frame.
     sel_p: Vec<[f64; 2]>,
     sel_v: Vec<[f64; 2]>,
+    sel_m: Vec<[f64; 2]>,
     lens: Vec<f64>,
     scratch: Vec<f64>,
 }
@@ -163,6 +164,7 @@ impl SlipFeatures {
             recent_snap: VecDeque::with_capacity(WINDOW),
             sel_p: Vec::new(),
             sel_v: Vec::new(),
+            sel_m: Vec::new(),
             lens: Vec::new(),
             scratch: Vec::new(),
         })
@@ -313,15 +315,15 @@ impl SlipFeatures {
         let (m2, ok2) = &self.hist[n_hist - 1];
         let (m1, ok1) = &self.hist[n_hist - 2];
         let (m0, ok0) = &self.hist[n_hist - 3];
-        // sel_v: v1; sel_p: v0 (reused buffers); lens / scratch: lengths.
+        // Reused buffers: sel_v = v1, sel_p = v0, sel_m = the displacement a frame ago.
         self.sel_v.clear();
         self.sel_p.clear();
-        let mut prev: Vec<[f64; 2]> = Vec::new();
+        self.sel_m.clear();
         for i in 0..m2.len() {
             if ok2[i] && ok1[i] && ok0[i] {
                 self.sel_v.push([m2[i][0] - m1[i][0], m2[i][1] - m1[i][1]]);
                 self.sel_p.push([m1[i][0] - m0[i][0], m1[i][1] - m0[i][1]]);
-                prev.push(m1[i]);
+                self.sel_m.push(m1[i]);
             }
         }
         if self.sel_v.len() < SNAP_MIN_MARKERS {
@@ -348,7 +350,7 @@ impl SlipFeatures {
         out[2] = dot / (mag + REVERSAL_FLOOR);
         self.lens.clear();
         self.scratch.clear();
-        for (v1, m) in self.sel_v.iter().zip(&prev) {
+        for (v1, m) in self.sel_v.iter().zip(&self.sel_m) {
             let d = norm(m);
             if d > SNAP_MIN_DISPLACEMENT {
                 let back = -(v1[0] * m[0] + v1[1] * m[1]) / d;

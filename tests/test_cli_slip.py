@@ -190,3 +190,32 @@ def test_learned_rule_options(tmp_path: Path, capsys: pytest.CaptureFixture[str]
         assert main(["slip", rec, "--log", log, "-q", *extra]) == 2
         err = capsys.readouterr().err
         assert msg in err and err.count("\n") == 1, err
+
+
+def test_frame_rate_of_the_source(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    frames, _, _ = recording("hold", 4, release=True)
+    # A video file states its rate; at 50 frames/s the motion is resampled to the scorer's 25.
+    video = tmp_path / "fast.avi"
+    out = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 50.0,
+                          (frames[0].shape[1], frames[0].shape[0]))
+    for f in frames:
+        out.write(f)
+    out.release()
+    rows, text = _rows(video, tmp_path / "v.csv")
+    assert len(rows) == len(frames)
+    assert "50 frames/s resampled to the scorer's 25" in text
+    # --fps overrides the file; a folder of images has no rate of its own.
+    _, text = _rows(video, tmp_path / "v.csv", "--fps", "25")
+    assert "(learned rule)" in text
+    _, text = run_slip(tmp_path, frames, "--fps", "100")
+    assert "100 frames/s resampled" in text
+    _, text = run_slip(tmp_path, frames, "--fps", "12.5")  # slower: read frame by frame
+    assert "(learned rule)" in text
+    capsys.readouterr()
+    rec, log = str(tmp_path / "rec"), str(tmp_path / "l.csv")
+    for extra, msg in ((["--fps", "0"], "--fps: must be a frame rate"),
+                       (["--fps", "nan"], "--fps: must be a frame rate"),
+                       (["--rule", "paper", "--fps", "30"], "--fps: applies to --rule learned")):
+        assert main(["slip", rec, "--log", log, "-q", *extra]) == 2
+        err = capsys.readouterr().err
+        assert msg in err and err.count("\n") == 1, err

@@ -195,6 +195,7 @@ def test_train_and_export_roundtrip(tmp_path) -> None:  # type: ignore[no-untype
     export_scorer(res, path, threshold=0.25)
     onnx = load_scorer(path)
     assert onnx.threshold == 0.25
+    assert onnx.fps == 25.0  # the time base its features were computed at
     x = feats[0][0]
     np.testing.assert_allclose(onnx(x), frame_scores(res.net, x), rtol=1e-4, atol=1e-4)
     assert torch is not None

@@ -7,6 +7,7 @@ import csv
 import os
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -69,6 +70,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--start", type=int, default=None, metavar="FRAME",
                    help="the grasp starts at this frame (0-based; default: detected from the "
                         "contact onset)")
+    p.add_argument("--fps", type=float, default=None, metavar="HZ",
+                   help="--rule learned: the source's frame rate, frames/s (default: what a "
+                        "video file states; a camera, folder or bag is taken to be at the "
+                        "scorer's rate, 25). A source faster than 31.25 frames/s is resampled "
+                        "to 25, where the scorer's cues (velocities, frame windows) were "
+                        "learned; a slower one is read frame by frame. The log keeps one row "
+                        "per source frame")
     p.add_argument("--max-frames", type=int, default=None, help="stop after this many frames")
     p.add_argument("--smooth-frames", type=int, default=None, metavar="N",
                    help="the slip rule sees the mean motion of the last N frames of the grasp "
@@ -164,6 +172,12 @@ def _check(args: argparse.Namespace) -> None:
         raise UsageError(f"--smooth-frames: must be in [1, 1000]; got {args.smooth_frames}")
     if args.threshold_px is not None and not args.threshold_px > 0:
         raise UsageError(f"--threshold-px: must be > 0; got {args.threshold_px}")
+    if args.fps is not None:
+        from tacswitch.grasp.timebase import MAX_FPS
+
+        if not 0 < args.fps <= MAX_FPS:  # NaN fails too
+            raise UsageError(f"--fps: must be a frame rate in (0, {MAX_FPS:g}] frames/s; "
+                             f"got {args.fps}")
     if args.markerless:
         from tacswitch.cli.options import device_option
 
@@ -183,7 +197,7 @@ def _check(args: argparse.Namespace) -> None:
     if args.rule == "paper":
         for flag, value in (("--slip-model", args.slip_model),
                             ("--score-threshold", args.score_threshold),
-                            ("--votes", args.votes)):
+                            ("--votes", args.votes), ("--fps", args.fps)):
             if value is not None:
                 raise UsageError(f"{flag}: applies to --rule learned only")
     if args.score_threshold is not None and not np.isfinite(args.score_threshold):
@@ -208,8 +222,8 @@ def run(args: argparse.Namespace) -> int:
     bag = bag_source(args.source, args)
     if args.markerless and bag is None:
         _warn_inter_frame_codec(args.source)
-    rule: _PaperLoop | _LearnedLoop = (_LearnedLoop(args) if args.rule == "learned"
-                                       else _PaperLoop(args))
+    rule: _PaperLoop | _LearnedLoop = (_LearnedLoop(args, _source_fps(args, bag))
+                                       if args.rule == "learned" else _PaperLoop(args))
     show = args.show  # _check refused it where no window can open
     n = skipped = slips = 0
     starts: list[int] = []
@@ -279,6 +293,22 @@ def run(args: argparse.Namespace) -> int:
     return status
 
 
+def _source_fps(args: argparse.Namespace, bag: Any) -> float | None:
+    """The source's frame rate: ``--fps``, else what a video file states, else None (the
+    scorer's rate is assumed)."""
+    from tacswitch.cli.sources import VIDEO_SUFFIXES, stated_fps
+
+    if args.fps is not None:
+        return float(args.fps)
+    path = Path(args.source)
+    if bag is None and path.suffix.lower() in VIDEO_SUFFIXES and path.is_file():
+        try:
+            return stated_fps(path)
+        except ValueError:
+            return None  # the decode error comes where the frames are read
+    return None
+
+
 def _first_tracker(frame: np.ndarray, args: argparse.Namespace, markerless: type) -> Any:
     """The marker tracker (or its markerless stand-in) from the rest frame (one with markers:
     :func:`tacswitch.cli.rest_frame.choose_rest_frame`)."""
@@ -344,12 +374,12 @@ class _LearnedLoop:
     """The learned rule (default): every frame's field since the first frame goes to
     :class:`tacswitch.GraspSlipDetector`, which follows the grasp phases itself."""
 
-    label = " (learned rule)"
-
-    def __init__(self, args: argparse.Namespace) -> None:
+    def __init__(self, args: argparse.Namespace, fps: float | None = None) -> None:
         from tacswitch.cli.options import input_file
 
         self.args = args
+        self.fps = fps
+        self.label = " (learned rule)"
         self.model = (str(input_file(args.slip_model, "--slip-model")) if args.slip_model
                       else "markerless" if args.markerless else "markers")
         if args.votes is not None:
@@ -383,9 +413,13 @@ class _LearnedLoop:
             self.detector = GraspSlipDetector(
                 self.tracker.reference, image_width=frame.shape[1], model=self.model,
                 threshold=self.args.score_threshold, votes=self.args.votes,
-                start=_start_after(self.args, offset))
+                start=_start_after(self.args, offset), fps=self.fps)
         except (ValueError, FileNotFoundError) as exc:
             raise ValueError(str(exc).replace("model:", "--slip-model:", 1)) from None
+        tb = self.detector.timebase
+        if tb is not None:
+            self.label = (f" (learned rule; {self.fps:g} frames/s resampled to the scorer's "
+                          f"{self.detector.model_fps:g})")
 
     def step(self, frame: np.ndarray, n: int, t: float) -> tuple[list, bool, bool, Any]:
         st = self.detector.update(*self.tracker.update(frame))

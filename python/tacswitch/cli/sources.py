@@ -153,6 +153,13 @@ def video_info(path: str | Path, name: str = "source") -> tuple[float, int | Non
     return (fps if np.isfinite(fps) and fps > 0 else 0.0), (count if count > 0 else None)
 
 
+def stated_fps(path: str | Path, name: str = "source") -> float | None:
+    """The frame rate a video file states (frames/s); None when it states none or an
+    implausible one (outside 1-1000 frames/s: some containers store a time base there)."""
+    fps = video_info(path, name)[0]
+    return fps if 1.0 <= fps <= 1000.0 else None
+
+
 #: FOURCCs (lower case) of codecs that predict frames from earlier ones (H.264, HEVC, MPEG-1 /
 #: 2 / 4 part 2, H.263, WMV, Theora, VP8 / VP9, AV1): their decoded gel texture drifts and
 #: refreshes from frame to frame.

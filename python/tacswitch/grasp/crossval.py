@@ -18,10 +18,11 @@ from tacswitch.grasp.train import COMMITTEE
 
 def clip_flags(clip: TrackedClip, **options: Any) -> NDArray[np.bool_]:
     """Per-frame slip flags of one tracked clip through :class:`GraspSlipDetector` (options:
-    its keyword arguments), frame by frame as the online loop runs; none for a clip whose
-    first frame showed no marker."""
+    its keyword arguments), frame by frame as the online loop runs, at the clip's frame rate;
+    none for a clip whose first frame showed no marker."""
     if len(clip.points) == 0:
         return np.zeros(len(clip.motion), bool)
+    options.setdefault("fps", clip.fps)
     states = run_clip(clip.motion, clip.valid, clip.points, image_width=clip.width, **options)
     return np.array([s.slip for s in states], bool)
 

@@ -19,13 +19,14 @@ import itertools
 import os
 import sys
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tacswitch.grasp.features import marker_pitch, sequence_features
+from tacswitch.grasp.timebase import needs_resampling, resample_field
 from tacswitch.markers import extract_markers
 from tacswitch.motion.sequence import MarkerlessTracker
 from tacswitch.removal import remove_markers
@@ -95,18 +96,26 @@ def read_video(path: str | os.PathLike[str]) -> Iterator[NDArray[np.uint8]]:
 @dataclass
 class TrackedClip:
     """A clip's tracked marker field: ``motion`` ``T x N x 2`` px since the first frame,
-    ``valid`` ``T x N``, reference ``points`` ``N x 2``, marker ``pitch`` px and frame
-    ``width`` px."""
+    ``valid`` ``T x N``, reference ``points`` ``N x 2``, marker ``pitch`` px, frame
+    ``width`` px and the video's frame rate ``fps`` (frames/s; None: not known, taken to be
+    the detector's time base, :data:`~tacswitch.grasp.timebase.TRAINED_FPS`)."""
 
     motion: NDArray[np.float32]
     valid: NDArray[np.bool_]
     points: NDArray[np.float32]
     pitch: float
     width: int
+    fps: float | None = None
 
     def features(self) -> NDArray[np.float32]:
-        """``T x N_FEATURES`` online features (:func:`sequence_features`)."""
-        return sequence_features(self.motion, self.valid, self.points, self.pitch)
+        """``T' x N_FEATURES`` online features (:func:`sequence_features`) on the detector's
+        time base: a clip at another frame rate is resampled first
+        (:func:`~tacswitch.grasp.timebase.resample_field`), as the detector does online."""
+        motion, valid = self.motion, self.valid
+        if needs_resampling(self.fps):
+            assert self.fps is not None
+            motion, valid = resample_field(motion, valid, self.fps)
+        return sequence_features(motion, valid, self.points, self.pitch)
 
 
 
@@ -164,7 +173,9 @@ def cached_clip(video: Path, cache: Path | None, *, markerless: bool = False) ->
     """The :class:`TrackedClip` of one video, from ``cache`` when there (written atomically,
     so an interrupted run resumes where it stopped)."""
     from tacswitch._io import atomic_open
+    from tacswitch.cli.sources import stated_fps
 
+    fps = stated_fps(video, "video")  # not cached: read from the file, which must exist
     target = None
     if cache is not None:
         # "-v2": the rest frame after the camera settles (2026-11-28); a cache of the
@@ -175,8 +186,8 @@ def cached_clip(video: Path, cache: Path | None, *, markerless: bool = False) ->
         if target.is_file():
             with np.load(target) as z:
                 return TrackedClip(z["motion"], z["valid"], z["points"], float(z["pitch"]),
-                                   int(z["width"]))
-    clip = track_clip(read_video(video), markerless=markerless)
+                                   int(z["width"]), fps)
+    clip = replace(track_clip(read_video(video), markerless=markerless), fps=fps)
     if target is not None:
         target.parent.mkdir(parents=True, exist_ok=True)
         with atomic_open(target, "wb") as fh:

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 from tacswitch._checks import as_motion, as_points, as_valid
 from tacswitch.grasp.features import N_BASE_FEATURES, N_FEATURES, FieldFeatures, marker_pitch
 from tacswitch.grasp.phases import GRASP, PRESSING, GraspSegmenter, Step
+from tacswitch.grasp.timebase import TRAINED_FPS, TimeBase, check_fps, needs_resampling
 
 #: The shipped scorers (``python/tacswitch/models``): trained on tracked markers, and on the
 #: motion ``MarkerlessTracker`` predicts once the markers are removed from the same videos.
@@ -68,6 +69,8 @@ class OnnxScorer:
         self.warmup = int(json.loads(meta.get("tacswitch.warmup", "3")))
         self.committee = int(json.loads(meta.get("tacswitch.committee", "1")))
         self.votes = int(json.loads(meta.get("tacswitch.votes", "1")))
+        # The frame rate its features were computed at (files before this key: 25 frames/s).
+        self.fps = float(json.loads(meta.get("tacswitch.fps", str(TRAINED_FPS))))
         n = int(json.loads(meta.get("tacswitch.n_features", str(N_FEATURES))))
         # A scorer trained before the snap-back features reads the vector's first values.
         if n not in (N_FEATURES, N_BASE_FEATURES):
@@ -156,6 +159,11 @@ class GraspSlipDetector:
         rigid_only: the paper rule with the rigid criterion alone.
         smooth_frames: the paper rule on the mean motion of the last frames (markerless input).
         start: an explicit grasp start (frame index) instead of the detected one.
+        fps: the stream's frame rate, frames/s (default: taken to be the scorer's, 25 for the
+            shipped ones). A stream faster than 1.25x that is resampled to the scorer's rate
+            (:class:`tacswitch.grasp.timebase.TimeBase`), so velocities and the phases' frame
+            counts mean what they meant in training; states stay one per fed frame. A slower
+            one is read frame by frame (:func:`~tacswitch.grasp.timebase.needs_resampling`).
     """
 
     def __init__(self, points: Any, *, image_width: int | None = None, rule: str = "learned",
@@ -163,11 +171,13 @@ class GraspSlipDetector:
                  threshold: float | None = None, votes: int | None = None,
                  threshold_px: float | None = None,
                  rigid_threshold_px: float | str | None = None, rigid_only: bool = False,
-                 smooth_frames: int = 1, start: int | None = None) -> None:
+                 smooth_frames: int = 1, start: int | None = None,
+                 fps: float | None = None) -> None:
         from tacswitch.slip import SlipDetector, scaled_threshold
 
         if rule not in RULES:
             raise ValueError(f"rule: one of {RULES}; got {rule!r}")
+        self.fps = check_fps(fps)
         self.points = as_points(points, "points")
         if image_width is None:
             xs = self.points[:, 0]
@@ -179,8 +189,8 @@ class GraspSlipDetector:
         if threshold_px is not None and not threshold_px > 0:
             raise ValueError(f"threshold_px: must be > 0; got {threshold_px!r}")
         epsilon = float(threshold_px) if threshold_px else scaled_threshold(self.image_width)
-        self.segmenter = GraspSegmenter(epsilon, start=start)
         self.frame = -1
+        self.tick = -1
         self.first_slip: int | None = None
         self._paper: SlipDetector | None = None
         self._features: FieldFeatures | None = None
@@ -190,6 +200,8 @@ class GraspSlipDetector:
         self.votes = 1
         self._committee: int | None = None
         self._fired: NDArray[np.bool_] | None = None
+        #: The time base's rate (frames/s): the scorer's; the paper rule's phases, 25.
+        self.model_fps = TRAINED_FPS
         if rule == "paper":
             if votes is not None:
                 raise ValueError("votes: applies to rule='learned' only")
@@ -209,6 +221,7 @@ class GraspSlipDetector:
                 self._scorer = onnx
                 self.threshold, self.warmup = onnx.threshold, onnx.warmup
                 self.votes, self._committee = onnx.votes, onnx.committee
+                self.model_fps = onnx.fps
             if threshold is not None:
                 if not np.isfinite(threshold):
                     raise ValueError(f"threshold: must be finite; got {threshold!r}")
@@ -218,6 +231,13 @@ class GraspSlipDetector:
                     raise TypeError(f"votes: expected an int; got {type(votes).__name__}")
                 self.votes = int(votes)
             check_votes(self.votes, self._committee)
+        self.timebase = (TimeBase(self.fps, self.model_fps)
+                         if self.fps is not None and needs_resampling(self.fps, self.model_fps)
+                         else None)
+        if start is not None and self.timebase is not None:
+            start = round(start * self.timebase.ratio)
+        self.segmenter = GraspSegmenter(epsilon, start=start)
+        self._last: GraspSlipState | None = None
 
     def update(self, motion: Any, valid: Any = None) -> GraspSlipState:
         """Feeds the next frame's motion (``N x 2`` px since the first frame; NaN = lost) and
@@ -229,6 +249,37 @@ class GraspSlipDetector:
         v: NDArray[np.bool_] = (np.asarray(~np.isnan(m).any(axis=1)) if valid is None
                                 else as_valid(valid, len(m)))
         self.frame += 1
+        if self.timebase is None:
+            state = self._tick(m, v)
+        else:
+            state = self._merge([self._tick(tm, tv)
+                                 for _, tm, tv in self.timebase.push(m, v)], int(v.sum()))
+        if state.slip and self.first_slip is None:
+            self.first_slip = self.frame
+        return state
+
+    def _merge(self, ticks: list[GraspSlipState], n_valid: int) -> GraspSlipState:
+        """One fed frame's state from the time base's ticks since the previous one: the
+        last tick's phase and votes, slip if any tick flagged (then that tick's score), frame
+        numbers in fed frames. No tick (a stream faster than the time base): the last tick's
+        state holds, as the detector has seen nothing new."""
+        assert self.timebase is not None
+        tb = self.timebase
+        if ticks:
+            flagged = [t for t in ticks if t.slip]
+            base = flagged[-1] if flagged else ticks[-1]
+            self._last = replace(base, phase=ticks[-1].phase, grasp=ticks[-1].grasp,
+                                 grasp_start=ticks[-1].grasp_start, votes=ticks[-1].votes)
+            state = self._last
+        else:
+            assert self._last is not None  # frame 0 is always a tick
+            state = self._last
+        start = None if state.grasp_start is None else tb.frame_of(state.grasp_start)
+        return replace(state, frame=self.frame, grasp_start=start, n_valid=n_valid)
+
+    def _tick(self, m: NDArray[np.float32], v: NDArray[np.bool_]) -> GraspSlipState:
+        """One step of the time base (a fed frame at the scorer's rate)."""
+        self.tick += 1
         step = self.segmenter.update(m, v)
         if self._paper is not None:
             return self._paper_step(step, m, v)
@@ -239,7 +290,7 @@ class GraspSlipDetector:
         if not contact:
             self._fired = None  # released: the next contact starts with no votes
         slip = False
-        if contact and self.frame >= self.warmup:
+        if contact and self.tick >= self.warmup:
             # The scene decides: the scorer runs only while a contact is on the gel.
             logits = np.asarray(self._scorer(feats[None, :]), np.float64).reshape(-1)
             if self._fired is None:
@@ -249,10 +300,8 @@ class GraspSlipDetector:
             self._fired |= above
             score = float(logits.mean())
             slip = bool(above.any()) and int(self._fired.sum()) >= self.votes
-        if slip and self.first_slip is None:
-            self.first_slip = self.frame
         fired = 0 if self._fired is None else int(self._fired.sum())
-        return GraspSlipState(self.frame, step.phase, step.grasp, step.start, slip, score,
+        return GraspSlipState(self.tick, step.phase, step.grasp, step.start, slip, score,
                               "learned" if slip else None, float("nan"), -1, float("nan"),
                               int(v.sum()), fired)
 
@@ -262,13 +311,11 @@ class GraspSlipDetector:
         if step.starts:
             self._paper.reset()
         if step.phase != GRASP:
-            return GraspSlipState(self.frame, step.phase, step.grasp, step.start, False,
+            return GraspSlipState(self.tick, step.phase, step.grasp, step.start, False,
                                   float("nan"), None, float("nan"), -1, float("nan"),
                                   int(v.sum()))
         st = self._paper.update(m, v)
-        if st.slip and self.first_slip is None:
-            self.first_slip = self.frame
-        return GraspSlipState(self.frame, step.phase, step.grasp, step.start, st.slip,
+        return GraspSlipState(self.tick, step.phase, step.grasp, step.start, st.slip,
                               float("nan"), st.criterion, st.max_displacement, st.marker,
                               st.rigid_residual, int(v.sum()))
 

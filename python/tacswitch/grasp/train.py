@@ -348,6 +348,7 @@ def export_scorer(result: SlipTrainResult, path: str | os.PathLike[str],
 
     from tacswitch._io import write_onnx
     from tacswitch.grasp.features import FRAME_FEATURES, LONG, SNAP_FEATURES, WINDOW
+    from tacswitch.grasp.timebase import TRAINED_FPS
 
     with tempfile.TemporaryDirectory() as tmpdir:
         tmp = Path(tmpdir) / "slip.onnx"
@@ -363,7 +364,7 @@ def export_scorer(result: SlipTrainResult, path: str | os.PathLike[str],
             "n_features": N_FEATURES,
             "experiments": result.n_experiments, "slip_experiments": result.n_slip,
             "epochs": result.epochs, "seed": result.seed, "committee": result.committee,
-            "votes": result.votes,
+            "votes": result.votes, "fps": TRAINED_FPS,
         }
         info.update(extra or {})
         write_onnx(tmp, path, meta, info)

@@ -46,6 +46,7 @@ PARAMETERS: dict[str, Any] = {
     "look_ahead": 30,
     "rule": "learned",
     "score_threshold": math.nan,
+    "fps": math.nan,
     "threshold_px": math.nan,
     "outputs": ["markerless", "motion", "slip"],
     "device": "auto",
@@ -58,7 +59,7 @@ def processor_params(values: dict[str, Any]) -> dict[str, Any]:
     """The processor's keyword parameters from the node's parameter values (NaN thresholds:
     None; the subscription's own parameters left out)."""
     out = {k: v for k, v in values.items() if k not in ("image_topic", "image_type")}
-    for k in ("score_threshold", "threshold_px"):
+    for k in ("score_threshold", "fps", "threshold_px"):
         v = out.get(k)
         if isinstance(v, float) and math.isnan(v):
             out[k] = None

@@ -78,6 +78,7 @@ from tacswitch.bags import (
     decode_image,
     header_stamp_ns,
 )
+from tacswitch.grasp.timebase import MAX_FPS
 from tacswitch.tracking import (
     REST_LOOK_AHEAD,
     REST_USABLE_FRACTION,
@@ -121,6 +122,8 @@ class ProcessorConfig:
         rule: the slip rule, ``"learned"`` or ``"paper"``.
         score_threshold: learned rule: logit above which a committee member fires (None: the
             model's).
+        fps: learned rule: the camera's frame rate, frames/s (None: the scorer's; above
+            1.25x that rate the motion is resampled to it, :class:`tacswitch.GraspSlipDetector`).
         threshold_px: paper rule: displacement threshold, px (None: 3.25 px at 640 wide,
             scaled to the frame width).
         outputs: which results to publish, a subset of ``("markerless", "motion", "slip")``.
@@ -135,6 +138,7 @@ class ProcessorConfig:
     look_ahead: int = LOOK_AHEAD
     rule: str = "learned"
     score_threshold: float | None = None
+    fps: float | None = None
     threshold_px: float | None = None
     outputs: tuple[str, ...] = OUTPUTS
     device: str = "auto"
@@ -165,6 +169,12 @@ class ProcessorConfig:
             if not _real(self.score_threshold) or not math.isfinite(self.score_threshold):
                 raise ValueError(f"score_threshold: must be a finite number; "
                                  f"got {self.score_threshold!r}")
+        if self.fps is not None:
+            if self.rule != "learned":
+                raise ValueError("fps: applies to rule 'learned' only")
+            if not _real(self.fps) or not 0 < self.fps <= MAX_FPS:
+                raise ValueError(f"fps: must be a frame rate in (0, {MAX_FPS:g}] frames/s; "
+                                 f"got {self.fps!r}")
         if self.threshold_px is not None:
             if self.rule != "paper":
                 raise ValueError("threshold_px: applies to rule 'paper' only")
@@ -477,7 +487,8 @@ class TactileProcessor:
                                             else "markerless")
                 self.detector = GraspSlipDetector(self.points, image_width=frame.shape[1],
                                                      model=model,
-                                                     threshold=cfg.score_threshold)
+                                                     threshold=cfg.score_threshold,
+                                                     fps=cfg.fps)
             else:
                 smooth = 1 if cfg.motion == "markers" else MARKERLESS_SMOOTH_FRAMES
                 self.detector = GraspSlipDetector(self.points, image_width=frame.shape[1],

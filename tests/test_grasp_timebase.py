@@ -144,3 +144,20 @@ def test_a_bad_frame_rate_is_refused_naming_fps(fps: object) -> None:
     pts = np.array([[10.0, 10.0], [40.0, 10.0]], np.float32)
     with pytest.raises((ValueError, TypeError), match="fps"):
         GraspSlipDetector(pts, model=velocity_scorer(0.1), fps=fps)  # type: ignore[arg-type]
+
+
+def test_a_faster_training_clip_is_featured_on_the_time_base() -> None:
+    from tacswitch.grasp.crossval import clip_flags
+    from tacswitch.grasp.dataset import TrackedClip
+
+    motion, valid, pts = slipping_field()
+    fast_m, fast_v = twice_as_fast(motion, valid)
+    at_25 = TrackedClip(motion, valid, pts, 30.0, 320)
+    fast = TrackedClip(fast_m, fast_v, pts, 30.0, 320, fps=50.0)
+    # What a scorer trains on is what the detector reads online: the 25 frames/s field.
+    np.testing.assert_allclose(fast.features(), at_25.features(), atol=1e-5)
+    assert TrackedClip(fast_m, fast_v, pts, 30.0, 320).features().shape[0] == len(fast_m)
+    # And evaluation runs the detector at the clip's rate.
+    opts = {"model": velocity_scorer(0.07), "threshold": 0.0, "votes": 1}
+    flags = clip_flags(fast, **opts)
+    assert len(flags) == len(fast_m) and flags.argmax() == 2 * clip_flags(at_25, **opts).argmax()

@@ -161,3 +161,15 @@ def test_a_faster_training_clip_is_featured_on_the_time_base() -> None:
     opts = {"model": velocity_scorer(0.07), "threshold": 0.0, "votes": 1}
     flags = clip_flags(fast, **opts)
     assert len(flags) == len(fast_m) and flags.argmax() == 2 * clip_flags(at_25, **opts).argmax()
+
+
+def test_the_frame_rate_from_time_stamps() -> None:
+    from tacswitch.grasp.timebase import fps_from_stamps
+
+    t0, dt = 1_700_000_000_000_000_000, 16_666_667  # 60 frames/s
+    stamps = [t0 + i * dt for i in range(20)]
+    assert fps_from_stamps(stamps) == pytest.approx(1e9 / dt, rel=1e-9)
+    # Dropped frames and repeated stamps do not move it; too few intervals give None.
+    gappy = stamps[:5] + stamps[8:] + [stamps[-1]] * 3
+    assert fps_from_stamps(gappy) == pytest.approx(1e9 / dt, rel=1e-9)
+    assert fps_from_stamps(stamps[:5]) is None and fps_from_stamps([t0] * 10) is None

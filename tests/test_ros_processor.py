@@ -349,3 +349,27 @@ def test_entry_point_and_launch_file_are_declared() -> None:
     text = LAUNCH_FILE.read_text()
     for name in PARAMETERS:
         assert f'("{name}"' in text, name
+
+
+@pytest.mark.parametrize(("dt_ns", "fps", "resampled"), [
+    (10_000_000, None, 100.0),   # 100 frames/s from the stamps: resampled to the scorer's 25
+    (DT, None, None),            # 30 frames/s: read frame by frame
+    (10_000_000, 25.0, None),    # the parameter wins over the stamps
+])
+def test_the_learned_slip_reads_the_frame_rate_from_the_stamps(
+        dt_ns: int, fps: float | None, resampled: float | None) -> None:
+    t = store().types
+    msgs = [message(f, 0, "bgr8") for f in grasp("hold")[:12]]
+    for i, m in enumerate(msgs):
+        ns = T0 + i * dt_ns
+        m.header.stamp = t["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
+    p = TactileProcessor(outputs=["slip"], fps=fps)
+    assert len(by_name(process_all(p, msgs), "slip")) == len(msgs)
+    tb = p.detector.timebase
+    assert (tb is None) == (resampled is None)
+    if resampled is not None:
+        assert p.detector.fps == pytest.approx(resampled)
+    with pytest.raises(ValueError, match="fps: applies to rule 'learned'"):
+        TactileProcessor(outputs=["slip"], rule="paper", fps=60.0)
+    with pytest.raises(ValueError, match="fps: must be a frame rate"):
+        TactileProcessor(outputs=["slip"], fps=0.0)

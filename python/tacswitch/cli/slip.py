@@ -72,10 +72,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "contact onset)")
     p.add_argument("--fps", type=float, default=None, metavar="HZ",
                    help="--rule learned: the source's frame rate, frames/s (default: what a "
-                        "video file states; a camera, folder or bag is taken to be at the "
-                        "scorer's rate, 25). A source faster than 31.25 frames/s is resampled "
-                        "to 25, where the scorer's cues (velocities, frame windows) were "
-                        "learned; a slower one is read frame by frame. The log keeps one row "
+                        "video file states, or a bag's header stamps; a camera or folder is "
+                        "taken to be at the scorer's rate, 25). A source faster than 31.25 "
+                        "frames/s is resampled to 25, where the scorer's cues (velocities, "
+                        "frame windows) were learned; a slower one is read frame by frame. "
+                        "The log keeps one row "
                         "per source frame")
     p.add_argument("--max-frames", type=int, default=None, help="stop after this many frames")
     p.add_argument("--smooth-frames", type=int, default=None, metavar="N",
@@ -222,7 +223,7 @@ def run(args: argparse.Namespace) -> int:
     bag = bag_source(args.source, args)
     if args.markerless and bag is None:
         _warn_inter_frame_codec(args.source)
-    rule: _PaperLoop | _LearnedLoop = (_LearnedLoop(args, _source_fps(args, bag))
+    rule: _PaperLoop | _LearnedLoop = (_LearnedLoop(args, _source_fps(args, bag), bag)
                                        if args.rule == "learned" else _PaperLoop(args))
     show = args.show  # _check refused it where no window can open
     n = skipped = slips = 0
@@ -295,7 +296,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _source_fps(args: argparse.Namespace, bag: Any) -> float | None:
     """The source's frame rate: ``--fps``, else what a video file states, else None (the
-    scorer's rate is assumed)."""
+    scorer's rate is assumed; a bag's is read from its stamps once the rest frame is
+    chosen: :meth:`_LearnedLoop.begin`)."""
     from tacswitch.cli.sources import VIDEO_SUFFIXES, stated_fps
 
     if args.fps is not None:
@@ -374,11 +376,13 @@ class _LearnedLoop:
     """The learned rule (default): every frame's field since the first frame goes to
     :class:`tacswitch.GraspSlipDetector`, which follows the grasp phases itself."""
 
-    def __init__(self, args: argparse.Namespace, fps: float | None = None) -> None:
+    def __init__(self, args: argparse.Namespace, fps: float | None = None,
+                 bag: Any = None) -> None:
         from tacswitch.cli.options import input_file
 
         self.args = args
         self.fps = fps
+        self.bag = bag
         self.label = " (learned rule)"
         self.model = (str(input_file(args.slip_model, "--slip-model")) if args.slip_model
                       else "markerless" if args.markerless else "markers")
@@ -409,6 +413,11 @@ class _LearnedLoop:
 
         self.offset = offset
         self.tracker = _first_tracker(frame, self.args, MarkerlessSequence)
+        if self.fps is None and self.bag is not None:
+            from tacswitch.grasp.timebase import fps_from_stamps
+
+            # The header stamps of the frames read so far (up to the rest frame's look-ahead).
+            self.fps = fps_from_stamps([f.stamp_ns for f in self.bag.frames])
         try:
             self.detector = GraspSlipDetector(
                 self.tracker.reference, image_width=frame.shape[1], model=self.model,

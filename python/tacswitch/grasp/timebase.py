@@ -25,6 +25,7 @@ slips. So a slower stream is read as it comes.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -51,6 +52,18 @@ def check_fps(fps: float | None, name: str = "fps") -> float | None:
     if not v > 0:
         raise ValueError(f"{name}: must be a frame rate > 0 frames/s; got {fps!r}")
     return v
+
+
+def fps_from_stamps(stamps_ns: Sequence[int]) -> float | None:
+    """A stream's frame rate (frames/s) from its frames' time stamps (ns): one over the median of
+    the positive intervals, which dropped frames and repeated stamps do not move; None with
+    fewer than 5 such intervals or an implausible rate (outside (0, :data:`MAX_FPS`])."""
+    gaps = np.diff(np.asarray(stamps_ns, np.int64))  # exact: ns stamps exceed float precision
+    gaps = gaps[gaps > 0]
+    if len(gaps) < 5:
+        return None
+    fps = 1e9 / float(np.median(gaps))
+    return fps if 0 < fps <= MAX_FPS else None
 
 
 def needs_resampling(fps: float | None, target: float = TRAINED_FPS) -> bool:

@@ -78,7 +78,7 @@ from tacswitch.bags import (
     decode_image,
     header_stamp_ns,
 )
-from tacswitch.grasp.timebase import MAX_FPS
+from tacswitch.grasp.timebase import MAX_FPS, fps_from_stamps
 from tacswitch.tracking import (
     REST_LOOK_AHEAD,
     REST_USABLE_FRACTION,
@@ -122,8 +122,9 @@ class ProcessorConfig:
         rule: the slip rule, ``"learned"`` or ``"paper"``.
         score_threshold: learned rule: logit above which a committee member fires (None: the
             model's).
-        fps: learned rule: the camera's frame rate, frames/s (None: the scorer's; above
-            1.25x that rate the motion is resampled to it, :class:`tacswitch.GraspSlipDetector`).
+        fps: learned rule: the camera's frame rate, frames/s (None: the rate the header stamps
+            showed before the reference, else the scorer's; above 1.25x the scorer's rate the
+            motion is resampled to it, :class:`tacswitch.GraspSlipDetector`).
         threshold_px: paper rule: displacement threshold, px (None: 3.25 px at 640 wide,
             scaled to the frame width).
         outputs: which results to publish, a subset of ``("markerless", "motion", "slip")``.
@@ -391,6 +392,14 @@ class TactileProcessor:
             self._choose()
         return self._builder.take()
 
+    def stamp_fps(self) -> float | None:
+        """The stream's frame rate (frames/s) from the header stamps' typical interval so far;
+        None before 5 intervals (dropped frames do not count)."""
+        gaps = self._stats.intervals
+        if len(gaps) < 5:
+            return None
+        return fps_from_stamps(np.cumsum([0, *gaps]).tolist())
+
     def _check_time(self, stamp: int) -> None:
         s = self._stats
         last, self._last_stamp = self._last_stamp, stamp
@@ -485,10 +494,11 @@ class TactileProcessor:
             if cfg.rule == "learned":
                 model = self.slip_model or ("markers" if cfg.motion == "markers"
                                             else "markerless")
+                # Unset: the rate the header stamps have shown so far (None: the scorer's).
+                fps = cfg.fps if cfg.fps is not None else self.stamp_fps()
                 self.detector = GraspSlipDetector(self.points, image_width=frame.shape[1],
                                                      model=model,
-                                                     threshold=cfg.score_threshold,
-                                                     fps=cfg.fps)
+                                                     threshold=cfg.score_threshold, fps=fps)
             else:
                 smooth = 1 if cfg.motion == "markers" else MARKERLESS_SMOOTH_FRAMES
                 self.detector = GraspSlipDetector(self.points, image_width=frame.shape[1],

@@ -24,7 +24,7 @@ ARGUMENTS = [
     ("look_ahead", "30", int, "reference:=first: frames held to choose it"),
     ("rule", "learned", str, "slip rule: learned or paper"),
     ("score_threshold", ".nan", float, "learned rule: logit threshold (.nan: the model's)"),
-    ("fps", ".nan", float, "learned rule: camera frames/s (.nan: the scorer's, 25)"),
+    ("fps", ".nan", float, "learned rule: camera frames/s (.nan: from the stamps)"),
     ("threshold_px", ".nan", float, "paper rule: displacement threshold, px (.nan: default)"),
     ("outputs", "[markerless, motion, slip]", list, "results to publish"),
     ("device", "auto", str, "auto, cpu or cuda (tacdiff, hybrid)"),

@@ -59,8 +59,9 @@ SECTIONS: tuple[Section, ...] = (
             quick=(("bench_tracker_scaling.py", "--quick"),)),
     Section("slip-real", "## Slip on real GelSight Mini grasps (learned grasp slip detector)",
             (("bench_slip_real.py",), ("bench_slip_real.py", "--markerless"),
-             ("bench_slip_rates.py",)),
-            needs=REAL_SLIP + "; torch (the train extra) for the learned rows"),
+             ("bench_slip_rates.py",), ("bench_slip_codecs.py",)),
+            needs=REAL_SLIP + "; torch and PyAV (the train extra) for the learned rows and "
+                              "the H.264 re-encoding"),
     Section("slip-speed", "## Slip loop speed",
             (("bench_slip.py",), ("bench_slip_loop.py", "--rounds", "7")),
             quick=(("bench_slip.py", "--quick"),), needs=REAL_SLIP + " for the real-video rows"),

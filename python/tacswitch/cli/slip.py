@@ -76,8 +76,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "taken to be at the scorer's rate, 25). A source faster than 31.25 "
                         "frames/s is resampled to 25, where the scorer's cues (velocities, "
                         "frame windows) were learned; a slower one is read frame by frame. "
-                        "The log keeps one row "
-                        "per source frame")
+                        "The log keeps one row per source frame")
     p.add_argument("--max-frames", type=int, default=None, help="stop after this many frames")
     p.add_argument("--smooth-frames", type=int, default=None, metavar="N",
                    help="the slip rule sees the mean motion of the last N frames of the grasp "

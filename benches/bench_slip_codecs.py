@@ -23,8 +23,10 @@ from tacswitch.grasp.crossval import clip_flags
 from tacswitch.grasp.dataset import (
     TrackedClip,
     experiment_clips,
+    load_clip,
     read_labels,
     read_video,
+    save_clip,
     track_clip,
 )
 from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
@@ -35,26 +37,20 @@ CODECS = {"jpeg50": "JPEG quality 50, every frame", "h264-23": "H.264 CRF 23 (x2
 
 def reencoded_clip(job: tuple[Path, str]) -> TrackedClip:
     """The tracked clip of ``video`` re-encoded with ``codec`` (cached under the bench cache)."""
-    from tacswitch._io import atomic_open
     from tacswitch.sim.capture import h264_roundtrip, jpeg_roundtrip
 
     video, codec = job
     name = f"{video.parent.parent.name}__{video.parent.name}__{video.stem}__{codec}.npz"
     key = CACHE / "codecs" / name
     if key.is_file():
-        with np.load(key) as z:
-            return TrackedClip(z["motion"], z["valid"], z["points"], float(z["pitch"]),
-                               int(z["width"]))
+        return load_clip(key)
     frames = list(read_video(video))
     if codec.startswith("jpeg"):
         frames = [jpeg_roundtrip(f, int(codec[4:])) for f in frames]
     else:
         frames = list(h264_roundtrip(np.stack(frames), int(codec.split("-")[1])))
     clip = track_clip(iter(frames))
-    key.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_open(key, "wb") as fh:
-        np.savez_compressed(fh, motion=clip.motion, valid=clip.valid, points=clip.points,
-                            pitch=clip.pitch, width=clip.width)
+    save_clip(key, clip)
     return clip
 
 

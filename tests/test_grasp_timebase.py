@@ -173,3 +173,15 @@ def test_the_frame_rate_from_time_stamps() -> None:
     gappy = stamps[:5] + stamps[8:] + [stamps[-1]] * 3
     assert fps_from_stamps(gappy) == pytest.approx(1e9 / dt, rel=1e-9)
     assert fps_from_stamps(stamps[:5]) is None and fps_from_stamps([t0] * 10) is None
+
+
+def test_a_saved_clip_keeps_its_frame_rate(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from tacswitch.grasp.dataset import TrackedClip, load_clip, save_clip
+
+    motion, valid, pts = slipping_field()
+    for fps in (50.0, None):
+        save_clip(tmp_path / "c.npz", TrackedClip(motion, valid, pts, 30.0, 320, fps=fps))
+        back = load_clip(tmp_path / "c.npz")
+        assert back.fps == fps and back.width == 320 and back.pitch == 30.0
+        np.testing.assert_array_equal(back.motion, motion)
+        np.testing.assert_array_equal(back.valid, valid)

@@ -118,11 +118,11 @@ class TrackedClip:
         return sequence_features(motion, valid, self.points, self.pitch)
 
 
-
 def clip_features(experiments: list[list[TrackedClip]]) -> list[list[NDArray[np.float32]]]:
     """Every video's features (:meth:`TrackedClip.features`), experiment by experiment: the
     training input of :func:`tacswitch.grasp.train.train_committee`."""
     return [[c.features() for c in exp] for exp in experiments]
+
 
 def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
                ) -> TrackedClip:
@@ -169,13 +169,37 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
     return TrackedClip(np.stack(motions), np.stack(valids), points, marker_pitch(points), width)
 
 
-def cached_clip(video: Path, cache: Path | None, *, markerless: bool = False) -> TrackedClip:
-    """The :class:`TrackedClip` of one video, from ``cache`` when there (written atomically,
-    so an interrupted run resumes where it stopped)."""
+def save_clip(path: Path, clip: TrackedClip) -> None:
+    """Writes ``clip`` to ``path`` (``.npz``) atomically, so an interrupted run leaves no
+    partial file."""
     from tacswitch._io import atomic_open
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_open(path, "wb") as fh:
+        np.savez_compressed(fh, motion=clip.motion, valid=clip.valid, points=clip.points,
+                            pitch=clip.pitch, width=clip.width,
+                            fps=np.nan if clip.fps is None else clip.fps)
+
+
+def load_clip(path: Path, video: Path | None = None) -> TrackedClip:
+    """The clip :func:`save_clip` wrote; a file written before the frame rate was stored takes
+    ``video``'s stated rate (None without ``video``)."""
     from tacswitch.cli.sources import stated_fps
 
-    fps = stated_fps(video, "video")  # not cached: read from the file, which must exist
+    with np.load(path) as z:
+        if "fps" in z.files:
+            fps = None if np.isnan(z["fps"]) else float(z["fps"])
+        else:
+            fps = None if video is None else stated_fps(video, "video")
+        return TrackedClip(z["motion"], z["valid"], z["points"], float(z["pitch"]),
+                           int(z["width"]), fps)
+
+
+def cached_clip(video: Path, cache: Path | None, *, markerless: bool = False) -> TrackedClip:
+    """The :class:`TrackedClip` of one video (with the frame rate the file states), from
+    ``cache`` when there (:func:`save_clip`: an interrupted run resumes where it stopped)."""
+    from tacswitch.cli.sources import stated_fps
+
     target = None
     if cache is not None:
         # "-v2": the rest frame after the camera settles (2026-11-28); a cache of the
@@ -184,15 +208,11 @@ def cached_clip(video: Path, cache: Path | None, *, markerless: bool = False) ->
         key = f"{video.parent.parent.name}__{video.parent.name}__{video.stem}__{tag}.npz"
         target = cache / key
         if target.is_file():
-            with np.load(target) as z:
-                return TrackedClip(z["motion"], z["valid"], z["points"], float(z["pitch"]),
-                                   int(z["width"]), fps)
-    clip = replace(track_clip(read_video(video), markerless=markerless), fps=fps)
+            return load_clip(target, video)
+    clip = replace(track_clip(read_video(video), markerless=markerless),
+                   fps=stated_fps(video, "video"))
     if target is not None:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_open(target, "wb") as fh:
-            np.savez_compressed(fh, motion=clip.motion, valid=clip.valid, points=clip.points,
-                                pitch=clip.pitch, width=clip.width)
+        save_clip(target, clip)
     return clip
 
 

@@ -55,10 +55,18 @@ def check_fps(fps: float | None, name: str = "fps") -> float | None:
 
 
 def fps_from_stamps(stamps_ns: Sequence[int]) -> float | None:
-    """A stream's frame rate (frames/s) from its frames' time stamps (ns): one over the median of
-    the positive intervals, which dropped frames and repeated stamps do not move; None with
-    fewer than 5 such intervals or an implausible rate (outside (0, :data:`MAX_FPS`])."""
-    gaps = np.diff(np.asarray(stamps_ns, np.int64))  # exact: ns stamps exceed float precision
+    """A stream's frame rate (frames/s) from its frames' time stamps (ns):
+    :func:`fps_from_intervals` of their differences."""
+    # Differences in integers: ns stamps exceed a float's precision.
+    stamps: NDArray[np.int64] = np.asarray(stamps_ns, np.int64)
+    return fps_from_intervals(np.diff(stamps))
+
+
+def fps_from_intervals(intervals_ns: Sequence[int] | NDArray[np.int64]) -> float | None:
+    """A stream's frame rate (frames/s) from its frame intervals (ns): one over the median of
+    the positive ones, which dropped frames and repeated stamps do not move; None with fewer
+    than 5 such intervals or an implausible rate (outside (0, :data:`MAX_FPS`])."""
+    gaps = np.asarray(intervals_ns, np.int64)
     gaps = gaps[gaps > 0]
     if len(gaps) < 5:
         return None

@@ -78,7 +78,7 @@ from tacswitch.bags import (
     decode_image,
     header_stamp_ns,
 )
-from tacswitch.grasp.timebase import MAX_FPS, fps_from_stamps
+from tacswitch.grasp.timebase import MAX_FPS, fps_from_intervals
 from tacswitch.tracking import (
     REST_LOOK_AHEAD,
     REST_USABLE_FRACTION,
@@ -395,10 +395,7 @@ class TactileProcessor:
     def stamp_fps(self) -> float | None:
         """The stream's frame rate (frames/s) from the header stamps' typical interval so far;
         None before 5 intervals (dropped frames do not count)."""
-        gaps = self._stats.intervals
-        if len(gaps) < 5:
-            return None
-        return fps_from_stamps(np.cumsum([0, *gaps]).tolist())
+        return fps_from_intervals(self._stats.intervals)
 
     def _check_time(self, stamp: int) -> None:
         s = self._stats

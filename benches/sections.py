@@ -59,7 +59,8 @@ SECTIONS: tuple[Section, ...] = (
             quick=(("bench_tracker_scaling.py", "--quick"),)),
     Section("slip-real", "## Slip on real GelSight Mini grasps (learned grasp slip detector)",
             (("bench_slip_real.py",), ("bench_slip_real.py", "--markerless"),
-             ("bench_slip_rates.py",), ("bench_slip_codecs.py",)),
+             ("bench_slip_rates.py",), ("bench_slip_codecs.py",),
+             ("bench_slip_incontact.py",)),
             needs=REAL_SLIP + "; torch and PyAV (the train extra) for the learned rows and "
                               "the H.264 re-encoding"),
     Section("slip-speed", "## Slip loop speed",

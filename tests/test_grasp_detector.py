@@ -62,6 +62,27 @@ def test_scorer_runs_only_between_contact_onset_and_release(seed: int) -> None:
     assert not any(s.slip for s in states[released:])
 
 
+@pytest.mark.parametrize("seed", [4, 7])
+def test_a_recording_that_starts_in_contact_is_scored_from_its_first_frame_with_start_0(
+        seed: int) -> None:
+    # Tracked from a frame of the hold: the gel is loaded at frame 0. Its release moves the
+    # markers back to rest, which the detected phases read as a press; start=0 scores the grasp
+    # from the first frame on (the advice of docs/slip.md, measured in bench_slip_incontact.py).
+    seq = sim.grasp_sequence("gelsight_mini", "hold", n_frames=24, seed=seed)
+    frames = list(seq.frames[seq.grasp_start:]) + [seq.reference] * 4
+    motion, valid, pts = tracked(frames)
+    width = frames[0].shape[1]
+    detected = run_clip(motion, valid, pts, image_width=width, model=Recorder(), threshold=0.0)
+    assert detected[0].phase == NO_CONTACT  # no onset to see: the loaded frame reads as rest
+    rec = Recorder()
+    given_start = run_clip(motion, valid, pts, image_width=width, model=rec, threshold=0.0,
+                           start=0)
+    assert [s.phase for s in given_start] == [GRASP] * len(frames)
+    assert all(s.grasp_start == 0 for s in given_start)
+    assert rec.calls == len(frames) - 3  # every frame after the scorer's warm-up
+    assert [s.slip for s in given_start] == [s.frame >= 3 for s in given_start]
+
+
 @pytest.mark.parametrize("name", ["markers", "markerless"])
 def test_a_scorer_of_the_base_layout_reads_only_its_prefix(name: str) -> None:
     """Scorers trained before the snap-back features take the first N_BASE_FEATURES values;

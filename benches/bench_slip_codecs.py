@@ -1,12 +1,17 @@
-"""The shipped slip scorer on the real grasps re-encoded with other codecs (needs PyAV for H.264).
+"""The shipped slip scorer on the real grasps re-encoded with other codecs (needs PyAV for H.264)
+or filmed under other light.
 
 The real GelSight Mini grasps of ``bench_slip_real.py`` (MPEG-4 part 2, as recorded) are decoded,
 re-encoded frame by frame (JPEG) or as one stream (x264, ``tacswitch.sim.capture``), decoded
-again, tracked as ``tacswitch slip`` tracks them, and scored by the shipped marker committee. The
-committee was trained on these experiments as recorded, so the rows measure what a codec does
-to the same decisions, not accuracy on new objects.
+again, tracked as ``tacswitch slip`` tracks them, and scored by the shipped marker committee.
+``--light``: the decoded frames under a changing light instead (:data:`LIGHTS`: the exposure
+drifting down by 30 % over the clip, the white balance drifting by 15 % a channel, a light that
+flickers by 6 % from frame to frame). The committee was trained on these experiments as
+recorded, so the rows measure what a codec or the light does to the same decisions, not
+accuracy on new objects.
 
     python benches/bench_slip_codecs.py [--data DIR] [--codecs jpeg50 h264-23 h264-30]
+        [--light exposure-drift white-balance flicker]
 """
 
 from __future__ import annotations
@@ -17,26 +22,46 @@ from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
-from bench_slip_real import CACHE, DEFAULT_DATA
+from bench_slip_real import CACHE, DEFAULT_DATA, shipped_committee_as_recorded
 
 from tacswitch.grasp.crossval import clip_flags
 from tacswitch.grasp.dataset import (
     TrackedClip,
-    experiment_clips,
     load_clip,
-    read_labels,
     read_video,
     save_clip,
     track_clip,
 )
-from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
+from tacswitch.grasp.evaluate import format_scores, score_experiments
 
 CODECS = {"jpeg50": "JPEG quality 50, every frame", "h264-23": "H.264 CRF 23 (x264's default)",
           "h264-30": "H.264 CRF 30 (small files)"}
 
 
+LIGHTS = {"exposure-drift": "exposure drifting down by 30 % over the clip",
+          "white-balance": "white balance drifting (blue -15 %, red +15 % over the clip)",
+          "flicker": "light flickering by 6 % from frame to frame"}
+
+
+def under_light(frames: list[np.ndarray], light: str) -> list[np.ndarray]:
+    """``frames`` (BGR uint8) as a camera under ``light`` (:data:`LIGHTS`) records them: a gain
+    per frame (and per channel for the white balance), rounded and clipped to uint8."""
+    n = max(len(frames) - 1, 1)
+    out = []
+    for t, f in enumerate(frames):
+        if light == "exposure-drift":
+            gain = np.full(3, 1.0 - 0.3 * t / n, np.float32)
+        elif light == "white-balance":
+            gain = np.array([1.0 - 0.15 * t / n, 1.0, 1.0 + 0.15 * t / n], np.float32)
+        else:  # flicker: mains light beating with the shutter, 0.37 cycles a frame
+            gain = np.full(3, 1.0 + 0.06 * np.sin(2 * np.pi * 0.37 * t), np.float32)
+        out.append(np.clip(np.rint(f.astype(np.float32) * gain), 0, 255).astype(np.uint8))
+    return out
+
+
 def reencoded_clip(job: tuple[Path, str]) -> TrackedClip:
-    """The tracked clip of ``video`` re-encoded with ``codec`` (cached under the bench cache)."""
+    """The tracked clip of ``video`` re-encoded with ``codec``, or filmed under a light of
+    :data:`LIGHTS` (cached under the bench cache)."""
     from tacswitch.sim.capture import h264_roundtrip, jpeg_roundtrip
 
     video, codec = job
@@ -45,7 +70,9 @@ def reencoded_clip(job: tuple[Path, str]) -> TrackedClip:
     if key.is_file():
         return load_clip(key)
     frames = list(read_video(video))
-    if codec.startswith("jpeg"):
+    if codec in LIGHTS:
+        frames = under_light(frames, codec)
+    elif codec.startswith("jpeg"):
         frames = [jpeg_roundtrip(f, int(codec[4:])) for f in frames]
     else:
         frames = list(h264_roundtrip(np.stack(frames), int(codec.split("-")[1])))
@@ -57,20 +84,13 @@ def reencoded_clip(job: tuple[Path, str]) -> TrackedClip:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
-    ap.add_argument("--codecs", nargs="+", choices=sorted(CODECS), default=list(CODECS))
+    ap.add_argument("--codecs", nargs="*", choices=sorted(CODECS), default=list(CODECS))
+    ap.add_argument("--light", nargs="*", choices=sorted(LIGHTS), default=list(LIGHTS))
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args()
-    exps = read_labels(a.data)
-    labels = [e.slip for e in exps]
-    clips = experiment_clips(exps, CACHE, workers=a.workers)
-    print(f"REAL GelSight Mini grasps (MPEG-4 as recorded): {len(exps)} experiments, "
-          f"{len({e.object for e in exps})} objects, {sum(labels)} slip; the shipped marker "
-          "committee (trained on them as recorded); an experiment is slip when any frame of "
-          "either finger is flagged.\n")
-    print(TABLE_HEADER)
-    flags = [[clip_flags(c, model="markers") for c in exp] for exp in clips]
-    print(format_scores("as recorded (MPEG-4)", score_experiments(labels, flags)), flush=True)
-    for codec in a.codecs:
+    exps, labels, clips, _ = shipped_committee_as_recorded(
+        a.data, a.workers, "MPEG-4 as recorded", "as recorded (MPEG-4)")
+    for codec in [*a.codecs, *a.light]:
         jobs = [(v, codec) for e in exps for v in e.videos]
         with get_context("spawn").Pool(a.workers) as pool:
             flat = pool.map(reencoded_clip, jobs, chunksize=4)
@@ -78,8 +98,8 @@ def main() -> int:
         # Frame rate as recorded: the re-encoding keeps every frame.
         recoded = [[replace(next(it), fps=c.fps) for c in exp] for exp in clips]
         flags = [[clip_flags(c, model="markers") for c in exp] for exp in recoded]
-        print(format_scores(f"re-encoded: {CODECS[codec]}", score_experiments(labels, flags)),
-              flush=True)
+        name = f"light: {LIGHTS[codec]}" if codec in LIGHTS else f"re-encoded: {CODECS[codec]}"
+        print(format_scores(name, score_experiments(labels, flags)), flush=True)
     return 0
 
 

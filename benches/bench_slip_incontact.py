@@ -25,12 +25,12 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from bench_slip_real import CACHE, DEFAULT_DATA
+from bench_slip_real import DEFAULT_DATA, shipped_committee_as_recorded
 
 from tacswitch.grasp.crossval import clip_flags
-from tacswitch.grasp.dataset import TrackedClip, experiment_clips, read_labels
+from tacswitch.grasp.dataset import TrackedClip
 from tacswitch.grasp.detector import run_clip
-from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
+from tacswitch.grasp.evaluate import format_scores, score_experiments
 from tacswitch.grasp.phases import GRASP
 
 
@@ -65,17 +65,8 @@ def main() -> int:
     ap.add_argument("--offsets", type=int, nargs="+", default=[10, 40])
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args()
-    exps = read_labels(a.data)
-    clips = experiment_clips(exps, CACHE, workers=a.workers, progress=True)
-    labels = [e.slip for e in exps]
-    print(f"REAL GelSight Mini grasps: {len(exps)} experiments, "
-          f"{len({e.object for e in exps})} objects, {sum(labels)} slip; the shipped marker "
-          "committee (trained on them); an experiment is slip when any frame of either finger "
-          "is flagged.\n")
-    print(TABLE_HEADER)
-    recorded = [[clip_flags(c, model="markers") for c in exp] for exp in clips]
-    print(format_scores("as recorded (from the rest frame)", score_experiments(labels, recorded)),
-          flush=True)
+    _, labels, clips, recorded = shipped_committee_as_recorded(
+        a.data, a.workers, "recorded from before the contact", "as recorded (from the rest frame)")
     starts = [[grasp_start(c) for c in exp] for exp in clips]
     notes = []
     for off in a.offsets:

@@ -28,12 +28,12 @@ import argparse
 from dataclasses import replace
 from pathlib import Path
 
-from bench_slip_real import CACHE, DEFAULT_DATA
+from bench_slip_real import DEFAULT_DATA, shipped_committee_as_recorded
 
 from tacswitch.grasp.augment import rescaled_clip
 from tacswitch.grasp.crossval import clip_flags
-from tacswitch.grasp.dataset import TrackedClip, experiment_clips, read_labels
-from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
+from tacswitch.grasp.dataset import TrackedClip
+from tacswitch.grasp.evaluate import format_scores, score_experiments
 from tacswitch.grasp.timebase import TRAINED_FPS, needs_resampling, resample_field
 
 
@@ -57,17 +57,8 @@ def main() -> int:
                     default=[25 / 3, 12.5, 50 / 3, 30.0, 50.0, 60.0])
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args()
-    exps = read_labels(a.data)
-    clips = experiment_clips(exps, CACHE, workers=a.workers, progress=True)
-    labels = [e.slip for e in exps]
-    print(f"REAL GelSight Mini grasps (recorded at 25 frames/s): {len(exps)} experiments, "
-          f"{len({e.object for e in exps})} objects, {sum(labels)} slip; the shipped marker "
-          "committee (trained on them); an experiment is slip when any frame of either finger "
-          "is flagged.\n")
-    print(TABLE_HEADER)
-    flags = [[clip_flags(c, model="markers") for c in exp] for exp in clips]
-    print(format_scores("25 frames/s, as recorded", score_experiments(labels, flags)),
-          flush=True)
+    _, labels, clips, _ = shipped_committee_as_recorded(
+        a.data, a.workers, "recorded at 25 frames/s", "25 frames/s, as recorded")
     for fps in a.rates:
         played = [[at_rate(c, fps) for c in exp] for exp in clips]
         kind = "real frames" if fps < TRAINED_FPS else "interpolated"

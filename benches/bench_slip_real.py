@@ -41,9 +41,18 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+from numpy.typing import NDArray
+
 from tacswitch.grasp.augment import COPIES, copies_phrase, marker_training_set, with_copies
 from tacswitch.grasp.crossval import clip_flags, cross_validated_flags
-from tacswitch.grasp.dataset import clip_features, experiment_clips, read_labels
+from tacswitch.grasp.dataset import (
+    Experiment,
+    TrackedClip,
+    clip_features,
+    experiment_clips,
+    read_labels,
+)
 from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
 from tacswitch.grasp.simulated import SIMULATED_PER_KIND, SIMULATED_SEED, simulated_clips
 from tacswitch.grasp.train import (
@@ -56,6 +65,30 @@ from tacswitch.grasp.train import (
 
 DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared/data/real/gsmini_slip_train"
 CACHE = Path(__file__).resolve().parents[1] / "bench-results" / "slip_real"
+
+
+Flags = list[list[NDArray[np.bool_]]]
+
+
+def shipped_committee_as_recorded(data: Path, workers: int, recorded: str, first_row: str
+                                  ) -> tuple[list[Experiment], list[bool],
+                                             list[list[TrackedClip]], Flags]:
+    """The preamble of the benches that vary the real grasps (rate, codec, light, start): the
+    experiments, labels and tracked clips (cached), the table header, and the shipped marker
+    committee's row on the grasps ``recorded`` (how they were recorded), named ``first_row``.
+    The committee was trained on these grasps: the rows after it measure what a change does to
+    the same decisions, not accuracy on new objects."""
+    exps = read_labels(data)
+    labels = [e.slip for e in exps]
+    clips = experiment_clips(exps, CACHE, workers=workers, progress=True)
+    print(f"REAL GelSight Mini grasps ({recorded}): {len(exps)} experiments, "
+          f"{len({e.object for e in exps})} objects, {sum(labels)} slip; the shipped marker "
+          "committee (trained on them as recorded); an experiment is slip when any frame of "
+          "either finger is flagged.\n")
+    print(TABLE_HEADER)
+    flags = [[clip_flags(c, model="markers") for c in exp] for exp in clips]
+    print(format_scores(first_row, score_experiments(labels, flags)), flush=True)
+    return exps, labels, clips, flags
 
 
 def main() -> int:

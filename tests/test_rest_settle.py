@@ -67,6 +67,24 @@ def test_stale_frames_ended_by_a_jump_are_passed_over(jump: int, seed: int) -> N
     assert settled_index(thumbs) == jump
 
 
+@settings(max_examples=30, deadline=None)
+@given(jump=st.integers(1, REST_STALE_FRAMES), seed=st.integers(0, 1000))
+def test_stale_frames_are_passed_over_under_a_flickering_light(jump: int, seed: int) -> None:
+    # Every other frame 4.5 % brighter (below the exposure step): each frame's brightness changes
+    # by about 6 grey levels, which hides the jump from a test of the image as it is, but not
+    # from the test of its content.
+    rng = np.random.default_rng(seed)
+    stale, now = _scene(seed), _scene(seed + 1)
+    scenes = [stale] * jump + [now] * 20
+    thumbs = [_noisy(x * (1.045 if k % 2 else 1.0), rng) for k, x in enumerate(scenes)]
+    assert settled_index(thumbs) == jump
+    # A stronger flicker (every other frame 20 % brighter) changes the brightness by more than
+    # the exposure step to the last frame: a light, not a settling exposure, so the rest frame
+    # is still the first after the jump, not the last frame looked at.
+    thumbs = [_noisy(x * (1.1 if k % 2 else 0.9), rng) for k, x in enumerate(scenes)]
+    assert settled_index(thumbs) == jump
+
+
 def test_a_change_building_over_frames_is_not_a_jump() -> None:
     # A press: the image changes over six frames, not in one.
     rng = np.random.default_rng(0)

@@ -63,25 +63,51 @@ def rest_thumbnail(frame: Any) -> NDArray[np.float32]:
                       np.float32)
 
 
+def _content_change(a: NDArray[np.float32], mean_a: float, b: NDArray[np.float32],
+                    mean_b: float) -> float:
+    """Mean absolute grey-level change between two thumbnails once each is scaled to their
+    common mean grey (a pure gain change reads 0)."""
+    if min(mean_a, mean_b) <= 1.0:  # a black frame: no gain to take out
+        return float(np.mean(np.abs(b - a)))
+    common = 0.5 * (mean_a + mean_b)
+    return float(np.mean(np.abs(b * (common / mean_b) - a * (common / mean_a))))
+
+
+def _isolated_jump(change: Sequence[float], j: int) -> bool:
+    """Frame ``j``'s change is a jump: above :data:`REST_JUMP_GREY` and
+    :data:`REST_JUMP_ISOLATION` times each neighbouring frame's."""
+    around = [change[k] for k in (j - 1, j + 1) if 1 <= k < len(change)]
+    return bool(around) and change[j] > REST_JUMP_GREY and change[j] > (
+        REST_JUMP_ISOLATION * max(around))
+
+
 def settled_index(thumbs: Sequence[NDArray[np.float32]]) -> int:
     """Index of the first frame of a stream's start that shows the gel as it is now (see
     :data:`REST_STALE_FRAMES`): after the last isolated jump among the first
-    :data:`REST_STALE_FRAMES` frames, and past the frames whose exposure is still changing by
-    more than :data:`REST_EXPOSURE_STEP` a frame. ``thumbs``: :func:`rest_thumbnail` of the
+    :data:`REST_STALE_FRAMES` frames (of the image, or of its content with the brightness
+    taken out), and past the frames whose exposure is still changing by more than
+    :data:`REST_EXPOSURE_STEP` a frame (unless it changes that much to the last frame: a
+    flickering light). ``thumbs``: :func:`rest_thumbnail` of the
     first frames, in order. 0 for a stream that starts settled (or has one frame)."""
     n = len(thumbs)
-    change = [0.0] + [float(np.mean(np.abs(thumbs[j] - thumbs[j - 1]))) for j in range(1, n)]
+    means = [float(np.mean(t)) for t in thumbs]
+    # Jumps of the image as it is, and of its content alone (each thumbnail scaled to the pair's
+    # mean grey): under a flickering light every frame changes in brightness, which hides the
+    # one isolated jump from the first test but not from the second.
+    raw = [0.0] + [float(np.mean(np.abs(thumbs[j] - thumbs[j - 1]))) for j in range(1, n)]
+    content = [0.0] + [_content_change(thumbs[j - 1], means[j - 1], thumbs[j], means[j])
+                       for j in range(1, n)]
     start = 0
     for j in range(1, min(n, REST_STALE_FRAMES + 1)):
-        around = [change[k] for k in (j - 1, j + 1) if 1 <= k < n]
-        if (change[j] > REST_JUMP_GREY and around
-                and change[j] > REST_JUMP_ISOLATION * max(around)):
+        if _isolated_jump(raw, j) or _isolated_jump(content, j):
             start = j
-    means = [float(np.mean(t)) for t in thumbs]
-    while start < n - 1 and abs(means[start] - means[start + 1]) > (
-            REST_EXPOSURE_STEP * max(means[start + 1], 1.0)):
-        start += 1
-    return start
+    settled = start
+    while settled < n - 1 and abs(means[settled] - means[settled + 1]) > (
+            REST_EXPOSURE_STEP * max(means[settled + 1], 1.0)):
+        settled += 1
+    # Brightness that keeps changing to the end of the frames looked at is a flickering light,
+    # not an exposure settling: the frames are not skipped for it.
+    return start if settled == n - 1 and n > 2 else settled
 
 
 def usable_rest_frame(counts: Sequence[int], fraction: float = REST_USABLE_FRACTION,

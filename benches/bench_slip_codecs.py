@@ -1,17 +1,17 @@
 """The shipped slip scorer on the real grasps re-encoded with other codecs (needs PyAV for H.264)
-or filmed under other light.
+or captured otherwise (light, optics, sensor noise).
 
 The real GelSight Mini grasps of ``bench_slip_real.py`` (MPEG-4 part 2, as recorded) are decoded,
 re-encoded frame by frame (JPEG) or as one stream (x264, ``tacswitch.sim.capture``), decoded
 again, tracked as ``tacswitch slip`` tracks them, and scored by the shipped marker committee.
-``--light``: the decoded frames under a changing light instead (:data:`LIGHTS`: the exposure
+``--capture``: the decoded frames captured otherwise instead (:data:`CAPTURE`: the exposure
 drifting down by 30 % over the clip, the white balance drifting by 15 % a channel, a light that
-flickers by 6 % from frame to frame). The committee was trained on these experiments as
-recorded, so the rows measure what a codec or the light does to the same decisions, not
-accuracy on new objects.
+flickers by 6 % from frame to frame, an optical blur of 1.5 px, sensor noise of 4 grey levels).
+The committee was trained on these experiments as recorded, so the rows measure what a codec or
+the capture does to the same decisions, not accuracy on new objects.
 
     python benches/bench_slip_codecs.py [--data DIR] [--codecs jpeg50 h264-23 h264-30]
-        [--light exposure-drift white-balance flicker]
+        [--capture exposure-drift white-balance flicker blur noise]
 """
 
 from __future__ import annotations
@@ -38,30 +38,40 @@ CODECS = {"jpeg50": "JPEG quality 50, every frame", "h264-23": "H.264 CRF 23 (x2
           "h264-30": "H.264 CRF 30 (small files)"}
 
 
-LIGHTS = {"exposure-drift": "exposure drifting down by 30 % over the clip",
-          "white-balance": "white balance drifting (blue -15 %, red +15 % over the clip)",
-          "flicker": "light flickering by 6 % from frame to frame"}
+CAPTURE = {"exposure-drift": "exposure drifting down by 30 % over the clip",
+           "white-balance": "white balance drifting (blue -15 %, red +15 % over the clip)",
+           "flicker": "light flickering by 6 % from frame to frame",
+           "blur": "optical blur (Gaussian, sigma 1.5 px)",
+           "noise": "sensor noise (Gaussian, sigma 4 grey levels, every pixel and channel)"}
 
 
-def under_light(frames: list[np.ndarray], light: str) -> list[np.ndarray]:
-    """``frames`` (BGR uint8) as a camera under ``light`` (:data:`LIGHTS`) records them: a gain
-    per frame (and per channel for the white balance), rounded and clipped to uint8."""
+def captured(frames: list[np.ndarray], how: str) -> list[np.ndarray]:
+    """``frames`` (BGR uint8) as another capture (:data:`CAPTURE`) records them: a gain per
+    frame (and per channel for the white balance), a blur, or noise (seeded by the frame
+    number), rounded and clipped to uint8."""
+    import cv2
+
     n = max(len(frames) - 1, 1)
     out = []
     for t, f in enumerate(frames):
-        if light == "exposure-drift":
-            gain = np.full(3, 1.0 - 0.3 * t / n, np.float32)
-        elif light == "white-balance":
-            gain = np.array([1.0 - 0.15 * t / n, 1.0, 1.0 + 0.15 * t / n], np.float32)
-        else:  # flicker: mains light beating with the shutter, 0.37 cycles a frame
-            gain = np.full(3, 1.0 + 0.06 * np.sin(2 * np.pi * 0.37 * t), np.float32)
-        out.append(np.clip(np.rint(f.astype(np.float32) * gain), 0, 255).astype(np.uint8))
+        x = f.astype(np.float32)
+        if how == "exposure-drift":
+            x *= np.float32(1.0 - 0.3 * t / n)
+        elif how == "white-balance":
+            x *= np.array([1.0 - 0.15 * t / n, 1.0, 1.0 + 0.15 * t / n], np.float32)
+        elif how == "flicker":  # mains light beating with the shutter, 0.37 cycles a frame
+            x *= np.float32(1.0 + 0.06 * np.sin(2 * np.pi * 0.37 * t))
+        elif how == "blur":
+            x = cv2.GaussianBlur(x, (0, 0), 1.5)
+        else:
+            x += np.random.default_rng(t).normal(0.0, 4.0, x.shape).astype(np.float32)
+        out.append(np.clip(np.rint(x), 0, 255).astype(np.uint8))
     return out
 
 
 def reencoded_clip(job: tuple[Path, str]) -> TrackedClip:
-    """The tracked clip of ``video`` re-encoded with ``codec``, or filmed under a light of
-    :data:`LIGHTS` (cached under the bench cache)."""
+    """The tracked clip of ``video`` re-encoded with ``codec``, or captured as one of
+    :data:`CAPTURE` (cached under the bench cache)."""
     from tacswitch.sim.capture import h264_roundtrip, jpeg_roundtrip
 
     video, codec = job
@@ -70,8 +80,8 @@ def reencoded_clip(job: tuple[Path, str]) -> TrackedClip:
     if key.is_file():
         return load_clip(key)
     frames = list(read_video(video))
-    if codec in LIGHTS:
-        frames = under_light(frames, codec)
+    if codec in CAPTURE:
+        frames = captured(frames, codec)
     elif codec.startswith("jpeg"):
         frames = [jpeg_roundtrip(f, int(codec[4:])) for f in frames]
     else:
@@ -85,12 +95,12 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
     ap.add_argument("--codecs", nargs="*", choices=sorted(CODECS), default=list(CODECS))
-    ap.add_argument("--light", nargs="*", choices=sorted(LIGHTS), default=list(LIGHTS))
+    ap.add_argument("--capture", nargs="*", choices=sorted(CAPTURE), default=list(CAPTURE))
     ap.add_argument("--workers", type=int, default=2)
     a = ap.parse_args()
     exps, labels, clips, _ = shipped_committee_as_recorded(
         a.data, a.workers, "MPEG-4 as recorded", "as recorded (MPEG-4)")
-    for codec in [*a.codecs, *a.light]:
+    for codec in [*a.codecs, *a.capture]:
         jobs = [(v, codec) for e in exps for v in e.videos]
         with get_context("spawn").Pool(a.workers) as pool:
             flat = pool.map(reencoded_clip, jobs, chunksize=4)
@@ -98,7 +108,8 @@ def main() -> int:
         # Frame rate as recorded: the re-encoding keeps every frame.
         recoded = [[replace(next(it), fps=c.fps) for c in exp] for exp in clips]
         flags = [[clip_flags(c, model="markers") for c in exp] for exp in recoded]
-        name = f"light: {LIGHTS[codec]}" if codec in LIGHTS else f"re-encoded: {CODECS[codec]}"
+        name = (f"captured: {CAPTURE[codec]}" if codec in CAPTURE
+                else f"re-encoded: {CODECS[codec]}")
         print(format_scores(name, score_experiments(labels, flags)), flush=True)
     return 0
 

@@ -63,8 +63,10 @@ def captured(frames: list[np.ndarray], how: str) -> list[np.ndarray]:
             x *= np.float32(1.0 + 0.06 * np.sin(2 * np.pi * 0.37 * t))
         elif how == "blur":
             x = cv2.GaussianBlur(x, (0, 0), 1.5)
-        else:
+        elif how == "noise":
             x += np.random.default_rng(t).normal(0.0, 4.0, x.shape).astype(np.float32)
+        else:
+            raise ValueError(f"how: one of {sorted(CAPTURE)}; got {how!r}")
         out.append(np.clip(np.rint(x), 0, 255).astype(np.uint8))
     return out
 

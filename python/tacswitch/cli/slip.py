@@ -173,11 +173,12 @@ def _check(args: argparse.Namespace) -> None:
     if args.threshold_px is not None and not args.threshold_px > 0:
         raise UsageError(f"--threshold-px: must be > 0; got {args.threshold_px}")
     if args.fps is not None:
-        from tacswitch.grasp.timebase import MAX_FPS
+        from tacswitch.grasp.timebase import check_fps
 
-        if not 0 < args.fps <= MAX_FPS:  # NaN fails too
-            raise UsageError(f"--fps: must be a frame rate in (0, {MAX_FPS:g}] frames/s; "
-                             f"got {args.fps}")
+        try:
+            check_fps(args.fps, "--fps")
+        except ValueError as exc:
+            raise UsageError(str(exc)) from None
     if args.markerless:
         from tacswitch.cli.options import device_option
 

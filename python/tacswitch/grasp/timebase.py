@@ -45,12 +45,17 @@ MAX_FPS = 10_000.0
 
 def check_fps(fps: float | None, name: str = "fps") -> float | None:
     """``fps`` as a float (None stays None: the stream is taken to be at the time base);
-    ``ValueError`` naming ``name`` unless it is a finite rate in (0, :data:`MAX_FPS`]."""
+    ``TypeError`` for a non-number, ``ValueError`` unless it is a rate in
+    (0, :data:`MAX_FPS`], both naming ``name``."""
     if fps is None:
         return None
-    v = as_number(fps, name, maximum=MAX_FPS)
+    try:
+        v = as_number(fps, name, maximum=MAX_FPS)
+    except ValueError:
+        v = math.nan  # not finite, or too large: the message below says the range
     if not v > 0:
-        raise ValueError(f"{name}: must be a frame rate > 0 frames/s; got {fps!r}")
+        raise ValueError(f"{name}: must be a frame rate in (0, {MAX_FPS:g}] frames/s; "
+                         f"got {fps!r}")
     return v
 
 

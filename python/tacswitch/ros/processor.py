@@ -78,7 +78,7 @@ from tacswitch.bags import (
     decode_image,
     header_stamp_ns,
 )
-from tacswitch.grasp.timebase import MAX_FPS, fps_from_intervals
+from tacswitch.grasp.timebase import check_fps, fps_from_intervals
 from tacswitch.tracking import (
     REST_LOOK_AHEAD,
     REST_USABLE_FRACTION,
@@ -173,9 +173,10 @@ class ProcessorConfig:
         if self.fps is not None:
             if self.rule != "learned":
                 raise ValueError("fps: applies to rule 'learned' only")
-            if not _real(self.fps) or not 0 < self.fps <= MAX_FPS:
-                raise ValueError(f"fps: must be a frame rate in (0, {MAX_FPS:g}] frames/s; "
-                                 f"got {self.fps!r}")
+            try:
+                check_fps(self.fps)
+            except TypeError as exc:  # the config's errors are all ValueErrors
+                raise ValueError(str(exc)) from None
         if self.threshold_px is not None:
             if self.rule != "paper":
                 raise ValueError("threshold_px: applies to rule 'paper' only")

@@ -98,6 +98,9 @@ def main() -> int:
     ap.add_argument("--epochs", type=int, default=None)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--markerless", action="store_true")
+    ap.add_argument("--no-still-filter", action="store_true",
+                    help="marker scorers read the tracks as tracked (before 2026-11-29: no "
+                         "still-marker hysteresis)")
     ap.add_argument("--export", type=Path, default=None)
     ap.add_argument("--no-rules", action="store_true", help="skip the paper-rule rows")
     ap.add_argument("--no-marker-scorer", action="store_true",
@@ -138,16 +141,18 @@ def main() -> int:
         else:
             clips, labels, rendered, rendered_labels = marker_training_set(
                 clips, labels, args.simulated, args.augment)
-        res = train_committee(clip_features(clips), labels,
+        still = not args.markerless and not args.no_still_filter
+        res = train_committee(clip_features(clips, still), labels,
                               seeds=markerless_seeds if args.markerless else marker_seeds,
                               votes=args.votes, epochs=args.epochs,
                               log=lambda s: print(s, file=sys.stderr),
-                              extra=(clip_features(rendered), rendered_labels))
+                              extra=(clip_features(rendered, still), rendered_labels))
         motion = ("markers removed, MarkerlessTracker; and the marker tracks" if args.markerless
                   else "markers")
         export_scorer(res, args.export, extra={
             "trained_on": f"{args.data.name}: {len(exps)} experiments, "
-                          f"{len(set(objects))} objects (real GelSight Mini, {motion})"})
+                          f"{len(set(objects))} objects (real GelSight Mini, {motion})"},
+                      still_filter=still)
         print(f"wrote {args.export}")
         return 0
     print(f"REAL GelSight Mini grasps: {len(exps)} experiments, {len(set(objects))} objects, "
@@ -169,13 +174,15 @@ def main() -> int:
         test = experiment_clips(exps, CACHE, markerless=True, workers=args.workers,
                                 progress=True)
     marker_scorer = not (args.markerless and args.no_marker_scorer)
+    # The marker scorers read the tracks through the still-marker hysteresis (as shipped).
+    still = not args.no_still_filter
     for seed in range(args.seeds):
         if marker_scorer:
             flags = cross_validated_flags(clips, labels, objects, seed=seed * marker_seeds,
                                           epochs=args.epochs,
                                           test_sets={"markerless": test} if test else None,
                                           extra=extra, seeds=marker_seeds, votes=args.votes,
-                                          augment=args.augment)
+                                          augment=args.augment, still_filter=still)
             with_sim = f" + {copies_phrase(args.augment)}" if args.augment else ""
             if extra:
                 alone = real_only_members(marker_seeds, True)
@@ -211,12 +218,12 @@ def main() -> int:
         held, held_labels = simulated_clips(HELD_OUT_SIM, HELD_OUT_SIM_SEED)
         # The rendered grasps are those of ``extra`` (rendered once).
         real, real_labels = with_copies(clips, labels, args.augment)
-        res = train_committee(clip_features(real), real_labels,
+        res = train_committee(clip_features(real, still), real_labels,
                               seeds=marker_seeds, votes=args.votes, epochs=args.epochs,
-                              extra=(clip_features(extra[0]), extra[1]))
+                              extra=(clip_features(extra[0], still), extra[1]))
         scorer = torch_scorer(res.net)
-        flags_sim = [[clip_flags(c, model=scorer, threshold=0.0, votes=res.votes)]
-                     for c in held]
+        flags_sim = [[clip_flags(c, model=scorer, threshold=0.0, votes=res.votes,
+                                 still_filter=still)] for c in held]
         paper_sim = [[clip_flags(c, rule="paper")] for c in held]
         print(format_scores(f"SIMULATED held-out grasps ({len(held)}: slip / hold / vibration, "
                             "GelSight + Mini): learned", score_experiments(held_labels, flags_sim)))

@@ -217,6 +217,10 @@ def test_train_and_export_roundtrip(tmp_path) -> None:  # type: ignore[no-untype
     onnx = load_scorer(path)
     assert onnx.threshold == 0.25
     assert onnx.fps == 25.0  # the time base its features were computed at
+    assert onnx.still_filter is False
+    filtered = tmp_path / "slip_still.onnx"
+    export_scorer(res, filtered, still_filter=True)
+    assert load_scorer(filtered).still_filter is True
     x = feats[0][0]
     np.testing.assert_allclose(onnx(x), frame_scores(res.net, x), rtol=1e-4, atol=1e-4)
     assert torch is not None
@@ -411,7 +415,7 @@ class _Tagged:
     def __init__(self, tag: float) -> None:
         self.tag = tag
 
-    def features(self) -> np.ndarray:
+    def features(self, still_filter: bool = False) -> np.ndarray:
         return np.full((1, 1), self.tag, np.float32)
 
 

@@ -194,7 +194,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
         flags = cross_validated_flags(clips, labels, [e.object for e in exps], folds=args.cv,
                                       seeds=seeds, votes=votes,
                                       paired=_paired_marker_clips(args, exps),
-                                      augment=augment, quiet=args.quiet)["train"]
+                                      augment=augment, still_filter=not args.markerless,
+                                      quiet=args.quiet)["train"]
         name = f"learned, {args.cv} folds grouped by object"
     elif args.rule == "paper":
         opts = {} if rigid is None else {"rigid_threshold_px": rigid}
@@ -265,11 +266,14 @@ def run_train(args: argparse.Namespace) -> int:
         train, labels, rendered, rendered_labels = marker_training_set(clips, labelled, n_sim,
                                                                        augment)
         paired = None
-    feats = clip_features(train)
+    # Tracked markers are read through the still-marker hysteresis (a noisy camera's still
+    # markers stay still, as in the shipped scorer's recordings); predicted motion is not.
+    still = not args.markerless
+    feats = clip_features(train, still)
     log = None if args.quiet else (lambda s: print(s, file=sys.stderr))
     res = train_committee(feats, labels, seed=args.seed, seeds=seeds, votes=votes,
                           epochs=epochs, log=log,
-                          extra=(clip_features(rendered), rendered_labels))
+                          extra=(clip_features(rendered, still), rendered_labels))
     n_rendered = 0 if args.markerless else n_sim * len(KINDS) * len(SENSORS)
     views = "" if paired is None else " (markerless and marker tracks)"
     if augment:
@@ -277,7 +281,8 @@ def run_train(args: argparse.Namespace) -> int:
     export_scorer(res, out, extra={"trained_on": f"{Path(args.data).name}: {len(exps)} "
                                                  f"experiments{views}, "
                                                  f"{sum(e.slip for e in exps)} slip; "
-                                                 f"{n_rendered} rendered"})
+                                                 f"{n_rendered} rendered"},
+                  still_filter=still)
     if not args.quiet:
         kept = (f", {res.committee} scorers, {res.votes} votes" if res.committee > 1
                 else ", one scorer")

@@ -41,7 +41,7 @@ def cross_validated_flags(clips: list[list[TrackedClip]], labels: list[bool],
                           extra: tuple[list[list[TrackedClip]], list[bool]] | None = None,
                           seeds: int = COMMITTEE, votes: int | None = None,
                           paired: list[list[TrackedClip]] | None = None,
-                          augment: int = 0, quiet: bool = True
+                          augment: int = 0, still_filter: bool = False, quiet: bool = True
                           ) -> dict[str, list[list[NDArray[np.bool_]]]]:
     """Flags of every experiment's videos from a scorer trained on ``clips`` of the other
     folds' objects (:func:`object_folds`): under key ``"train"`` for ``clips`` themselves and
@@ -54,16 +54,18 @@ def cross_validated_flags(clips: list[list[TrackedClip]], labels: list[bool],
     experiments (:func:`~tacswitch.grasp.augment.augmented_experiments`; each fold trains on
     the copies of its training objects only; ``extra`` is not copied). Each fold's scorer
     is the recipe's committee (:func:`~tacswitch.grasp.train.train_committee`: ``seeds``
-    scorers from seed ``seed``, ``votes`` of them to flag)."""
+    scorers from seed ``seed``, ``votes`` of them to flag). ``still_filter``: features read
+    through the still-marker hysteresis in training and scoring (a marker scorer's recipe,
+    :class:`~tacswitch.grasp.features.FieldFeatures`)."""
     from tacswitch.grasp.train import train_committee
 
-    feats = clip_features(clips)
+    feats = clip_features(clips, still_filter)
     if paired is not None and len(paired) != len(clips):
         raise ValueError(f"paired: one entry per experiment ({len(clips)}); got {len(paired)}")
-    paired_feats = clip_features(paired) if paired else None
+    paired_feats = clip_features(paired, still_filter) if paired else None
     copies, owner = augmented_experiments(clips, augment)
-    copy_feats = clip_features(copies)
-    extra_feats = clip_features(extra[0]) if extra else []
+    copy_feats = clip_features(copies, still_filter)
+    extra_feats = clip_features(extra[0], still_filter) if extra else []
     extra_labels = list(extra[1]) if extra else []
     fold_of = object_folds(objects, folds)
     sets = {"train": clips, **(test_sets or {})}
@@ -88,5 +90,6 @@ def cross_validated_flags(clips: list[list[TrackedClip]], labels: list[bool],
             for i, k in enumerate(fold_of):
                 if k == f:
                     out[name][i] = [clip_flags(c, model=scorer, threshold=0.0,
-                                               votes=res.votes) for c in test[i]]
+                                               votes=res.votes, still_filter=still_filter)
+                                    for c in test[i]]
     return out

@@ -107,21 +107,25 @@ class TrackedClip:
     width: int
     fps: float | None = None
 
-    def features(self) -> NDArray[np.float32]:
+    def features(self, still_filter: bool = False) -> NDArray[np.float32]:
         """``T' x N_FEATURES`` online features (:func:`sequence_features`) on the detector's
         time base: a clip at another frame rate is resampled first
-        (:func:`~tacswitch.grasp.timebase.resample_field`), as the detector does online."""
+        (:func:`~tacswitch.grasp.timebase.resample_field`), as the detector does online.
+        ``still_filter``: read through the still-marker hysteresis
+        (:class:`~tacswitch.grasp.features.FieldFeatures`; tracked markers)."""
         motion, valid = self.motion, self.valid
         if needs_resampling(self.fps):
             assert self.fps is not None
             motion, valid = resample_field(motion, valid, self.fps)
-        return sequence_features(motion, valid, self.points, self.pitch)
+        return sequence_features(motion, valid, self.points, self.pitch,
+                                 still_filter=still_filter)
 
 
-def clip_features(experiments: list[list[TrackedClip]]) -> list[list[NDArray[np.float32]]]:
+def clip_features(experiments: list[list[TrackedClip]], still_filter: bool = False
+                  ) -> list[list[NDArray[np.float32]]]:
     """Every video's features (:meth:`TrackedClip.features`), experiment by experiment: the
     training input of :func:`tacswitch.grasp.train.train_committee`."""
-    return [[c.features() for c in exp] for exp in experiments]
+    return [[c.features(still_filter) for c in exp] for exp in experiments]
 
 
 def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False

@@ -69,6 +69,9 @@ class OnnxScorer:
         self.warmup = int(json.loads(meta.get("tacswitch.warmup", "3")))
         self.committee = int(json.loads(meta.get("tacswitch.committee", "1")))
         self.votes = int(json.loads(meta.get("tacswitch.votes", "1")))
+        # Whether its features read tracked markers through the still-marker hysteresis
+        # (:class:`~tacswitch.grasp.features.FieldFeatures`; files before this key: no).
+        self.still_filter = bool(json.loads(meta.get("tacswitch.still_filter", "false")))
         # The frame rate its features were computed at (files before this key: 25 frames/s).
         self.fps = float(json.loads(meta.get("tacswitch.fps", str(TRAINED_FPS))))
         n = int(json.loads(meta.get("tacswitch.n_features", str(N_FEATURES))))
@@ -164,6 +167,10 @@ class GraspSlipDetector:
             (:class:`tacswitch.grasp.timebase.TimeBase`), so velocities and the phases' frame
             counts mean what they meant in training; states stay one per fed frame. A slower
             one is read frame by frame (:func:`~tacswitch.grasp.timebase.needs_resampling`).
+        still_filter: the learned rule reads the motion through the still-marker hysteresis
+            (:class:`~tacswitch.grasp.features.FieldFeatures`: still markers stay exactly still
+            under camera noise). Default: as the ONNX scorer was trained (on for the shipped
+            marker scorer, off for the markerless one); off for a callable.
     """
 
     def __init__(self, points: Any, *, image_width: int | None = None, rule: str = "learned",
@@ -172,7 +179,7 @@ class GraspSlipDetector:
                  threshold_px: float | None = None,
                  rigid_threshold_px: float | str | None = None, rigid_only: bool = False,
                  smooth_frames: int = 1, start: int | None = None,
-                 fps: float | None = None) -> None:
+                 fps: float | None = None, still_filter: bool | None = None) -> None:
         from tacswitch.slip import SlipDetector, scaled_threshold
 
         if rule not in RULES:
@@ -202,9 +209,12 @@ class GraspSlipDetector:
         self._fired: NDArray[np.bool_] | None = None
         #: The time base's rate (frames/s): the scorer's; the paper rule's phases, 25.
         self.model_fps = TRAINED_FPS
+        self.still_filter = False
         if rule == "paper":
             if votes is not None:
                 raise ValueError("votes: applies to rule='learned' only")
+            if still_filter is not None:
+                raise ValueError("still_filter: applies to rule='learned' only")
             self._paper = SlipDetector(epsilon, rigid_threshold_px=rigid_threshold_px,
                                        use_displacement=not rigid_only, points=self.points,
                                        image_width=self.image_width,
@@ -213,7 +223,6 @@ class GraspSlipDetector:
             if rigid_threshold_px is not None or rigid_only:
                 raise ValueError("rigid_threshold_px: applies to rule='paper' only")
             self.pitch = marker_pitch(self.points)
-            self._features = FieldFeatures(self.points, self.pitch)
             if callable(model) and not isinstance(model, (str, os.PathLike)):
                 self._scorer = model
             else:
@@ -222,6 +231,13 @@ class GraspSlipDetector:
                 self.threshold, self.warmup = onnx.threshold, onnx.warmup
                 self.votes, self._committee = onnx.votes, onnx.committee
                 self.model_fps = onnx.fps
+                self.still_filter = onnx.still_filter
+            if still_filter is not None:
+                if not isinstance(still_filter, (bool, np.bool_)):
+                    raise TypeError("still_filter: expected a bool; got "
+                                    f"{type(still_filter).__name__}")
+                self.still_filter = bool(still_filter)
+            self._features = FieldFeatures(self.points, self.pitch, self.still_filter)
             if threshold is not None:
                 if not np.isfinite(threshold):
                     raise ValueError(f"threshold: must be finite; got {threshold!r}")

@@ -27,6 +27,14 @@ markers (90th percentile, median, and median share of the displacement), with th
 value over the last :data:`WINDOW` frames. A scorer trained before the snap-back values
 (:data:`N_BASE_FEATURES` inputs) reads the vector's first :data:`N_BASE_FEATURES` values.
 Computed in the Rust core (``rust/core/src/slip_features.rs``, a few microseconds a frame).
+
+``still_filter=True`` reads the motion through a hysteresis that holds still markers exactly
+still under camera noise (``rust/core/src/still_filter.rs``): a marker's motion is reported
+unchanged until its tracked motion is more than ``h`` pitches from the value reported last, with
+``h`` 8 times the stream's own frame-to-frame jitter floor (at most 0.01 pitch). In the MPEG-4
+recordings the scorers learned from, a still marker is tracked at exactly the same place frame
+after frame, so there ``h`` is 0 and nothing changes; sensor noise of a few grey levels moves
+still markers by about 0.001 pitch a frame, which the scorers would read as a different gel.
 """
 
 from __future__ import annotations
@@ -86,15 +94,19 @@ class FieldFeatures:
     Args:
         points: ``N x 2`` reference marker centres ``(x, y)``, pixels.
         pitch: marker pitch, pixels (the unit of every length feature).
+        still_filter: read the motion through the still-marker hysteresis (module docstring):
+            tracked markers; not motion predicted on a markerless sensor, whose still gel
+            was never exactly still in training.
     """
 
-    def __init__(self, points: Any, pitch: float) -> None:
+    def __init__(self, points: Any, pitch: float, still_filter: bool = False) -> None:
         pts = as_points(points, "points")
         if not (isinstance(pitch, (int, float, np.floating, np.integer))
                 and np.isfinite(pitch) and pitch > 0):
             raise ValueError(f"pitch: must be a finite number > 0; got {pitch!r}")
-        self._native = _native.SlipFeatures(pts, float(pitch))
+        self._native = _native.SlipFeatures(pts, float(pitch), bool(still_filter))
         self.n_markers = len(pts)
+        self.still_filter = bool(still_filter)
 
     def update(self, motion: Any, valid: Any = None) -> NDArray[np.float32]:
         """Features of the next frame: ``motion`` ``N x 2`` px since the first frame (NaN rows
@@ -108,10 +120,11 @@ class FieldFeatures:
         self._native.reset()
 
 
-def sequence_features(motions: Any, valids: Any, points: Any, pitch: float
-                      ) -> NDArray[np.float32]:
+def sequence_features(motions: Any, valids: Any, points: Any, pitch: float, *,
+                      still_filter: bool = False) -> NDArray[np.float32]:
     """``T x N_FEATURES`` features of a tracked sequence (``T x N x 2`` motions since the first
-    frame, ``T x N`` valid), frame by frame as the online detector computes them."""
-    ff = FieldFeatures(points, pitch)
+    frame, ``T x N`` valid), frame by frame as the online detector computes them
+    (``still_filter``: :class:`FieldFeatures`)."""
+    ff = FieldFeatures(points, pitch, still_filter)
     rows = [ff.update(m, v) for m, v in zip(motions, valids, strict=False)]
     return np.stack(rows) if rows else np.zeros((0, N_FEATURES), np.float32)

@@ -337,10 +337,12 @@ def frame_scores(net: Any, features: NDArray[np.float32]) -> NDArray[np.float32]
 
 
 def export_scorer(result: SlipTrainResult, path: str | os.PathLike[str],
-                  threshold: float = 0.0, extra: dict[str, object] | None = None) -> None:
+                  threshold: float = 0.0, extra: dict[str, object] | None = None, *,
+                  still_filter: bool = False) -> None:
     """Writes the scorer as ONNX (input ``features`` ``B x N_FEATURES`` float32, output
     ``logit`` ``B``, or ``B x K`` for a committee of ``K``) with its decision threshold, votes
-    and training summary as metadata."""
+    and training summary as metadata; ``still_filter``: its features were read through the
+    still-marker hysteresis (the detector then reads them so too)."""
     import tempfile
     from pathlib import Path
 
@@ -364,7 +366,7 @@ def export_scorer(result: SlipTrainResult, path: str | os.PathLike[str],
             "n_features": N_FEATURES,
             "experiments": result.n_experiments, "slip_experiments": result.n_slip,
             "epochs": result.epochs, "seed": result.seed, "committee": result.committee,
-            "votes": result.votes, "fps": TRAINED_FPS,
+            "votes": result.votes, "fps": TRAINED_FPS, "still_filter": bool(still_filter),
         }
         info.update(extra or {})
         write_onnx(tmp, path, meta, info)

@@ -19,6 +19,7 @@ pub mod merge;
 mod simd;
 pub mod slip;
 pub mod slip_features;
+pub mod still_filter;
 pub mod telea;
 pub mod tracker;
 

@@ -21,6 +21,7 @@
 use std::collections::VecDeque;
 
 use crate::error::{CoreError, Result};
+use crate::still_filter::StillFilter;
 
 /// Per-frame features.
 pub const N_FRAME: usize = 17;
@@ -134,6 +135,8 @@ pub struct SlipFeatures {
     sel_m: Vec<[f64; 2]>,
     lens: Vec<f64>,
     scratch: Vec<f64>,
+    // Holds still markers still under camera noise (`with_still_filter`).
+    still: Option<StillFilter>,
 }
 
 impl SlipFeatures {
@@ -167,7 +170,20 @@ impl SlipFeatures {
             sel_m: Vec::new(),
             lens: Vec::new(),
             scratch: Vec::new(),
+            still: None,
         })
+    }
+
+    /// The same extractor reading the motion through a [`StillFilter`] (tracked markers from a
+    /// camera whose noise moves still markers; the shipped marker scorer reads it this way).
+    pub fn with_still_filter(mut self) -> Self {
+        self.still = Some(StillFilter::new(self.pitch));
+        self
+    }
+
+    /// Whether the motion is read through a [`StillFilter`].
+    pub fn still_filter(&self) -> bool {
+        self.still.is_some()
     }
 
     /// Number of markers.
@@ -187,6 +203,9 @@ impl SlipFeatures {
         self.recent.clear();
         self.long.clear();
         self.recent_snap.clear();
+        if let Some(f) = self.still.as_mut() {
+            f.reset();
+        }
     }
 
     /// Change statistics (p90, median, affine residual, incoherence) between now and `lag`
@@ -385,6 +404,14 @@ impl SlipFeatures {
                 format!("expected {} flags; got {}", motion.len(), valid.len()),
             ));
         }
+        let held;
+        let motion = match self.still.as_mut() {
+            Some(f) => {
+                held = f.update(motion).to_vec();
+                &held[..]
+            }
+            None => motion,
+        };
         let f = self.frame_values(motion, valid);
         let snap = self.snap_values();
         if self.recent_snap.len() == WINDOW {
@@ -445,6 +472,31 @@ mod tests {
         assert!((percentile(&mut v, 90.0) - 3.7).abs() < 1e-12);
         assert!((percentile(&mut v, 50.0) - 2.5).abs() < 1e-12);
         assert_eq!(percentile(&mut [], 50.0), 0.0);
+    }
+
+    #[test]
+    fn the_still_filter_leaves_a_stream_without_jitter_unchanged() {
+        let pts = grid();
+        let mut plain = SlipFeatures::new(&pts, 30.0).unwrap();
+        let mut still = SlipFeatures::new(&pts, 30.0).unwrap().with_still_filter();
+        assert!(still.still_filter() && !plain.still_filter());
+        let valid = vec![true; pts.len()];
+        for t in 0..30 {
+            // Half the markers exactly still, half sliding: no frame-to-frame jitter.
+            let m: Vec<[f32; 2]> = (0..pts.len())
+                .map(|i| {
+                    if i % 2 == 0 {
+                        [0.0, 0.0]
+                    } else {
+                        [0.2 * t as f32, 0.0]
+                    }
+                })
+                .collect();
+            assert_eq!(
+                plain.update(&m, &valid).unwrap(),
+                still.update(&m, &valid).unwrap()
+            );
+        }
     }
 
     #[test]

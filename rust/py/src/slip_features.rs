@@ -18,11 +18,23 @@ pub struct SlipFeatures {
 #[pymethods]
 impl SlipFeatures {
     #[new]
-    fn new(points: PyReadonlyArray2<'_, f32>, pitch: f32) -> PyResult<Self> {
+    #[pyo3(signature = (points, pitch, still_filter = false))]
+    fn new(points: PyReadonlyArray2<'_, f32>, pitch: f32, still_filter: bool) -> PyResult<Self> {
         let pts = points_f32(&points, "points")?;
+        let inner = CoreFeatures::new(&pts, pitch).map_err(to_py)?;
         Ok(Self {
-            inner: CoreFeatures::new(&pts, pitch).map_err(to_py)?,
+            inner: if still_filter {
+                inner.with_still_filter()
+            } else {
+                inner
+            },
         })
+    }
+
+    /// Whether the motion is read through the still-marker filter.
+    #[getter]
+    fn still_filter(&self) -> bool {
+        self.inner.still_filter()
     }
 
     /// Feeds one motion field (`N x 2` float32 px since the first frame) and its validity;

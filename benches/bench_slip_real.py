@@ -70,14 +70,16 @@ CACHE = Path(__file__).resolve().parents[1] / "bench-results" / "slip_real"
 Flags = list[list[NDArray[np.bool_]]]
 
 
-def shipped_committee_as_recorded(data: Path, workers: int, recorded: str, first_row: str
+def shipped_committee_as_recorded(data: Path, workers: int, recorded: str, first_row: str, *,
+                                  still_filter: bool | None = None
                                   ) -> tuple[list[Experiment], list[bool],
                                              list[list[TrackedClip]], Flags]:
     """The preamble of the benches that vary the real grasps (rate, codec, light, start): the
     experiments, labels and tracked clips (cached), the table header, and the shipped marker
     committee's row on the grasps ``recorded`` (how they were recorded), named ``first_row``.
     The committee was trained on these grasps: the rows after it measure what a change does to
-    the same decisions, not accuracy on new objects."""
+    the same decisions, not accuracy on new objects. ``still_filter``: the detector's option
+    (None: as the committee's metadata says)."""
     exps = read_labels(data)
     labels = [e.slip for e in exps]
     clips = experiment_clips(exps, CACHE, workers=workers, progress=True)
@@ -86,7 +88,8 @@ def shipped_committee_as_recorded(data: Path, workers: int, recorded: str, first
           "committee (trained on them as recorded); an experiment is slip when any frame of "
           "either finger is flagged.\n")
     print(TABLE_HEADER)
-    flags = [[clip_flags(c, model="markers") for c in exp] for exp in clips]
+    flags = [[clip_flags(c, model="markers", still_filter=still_filter) for c in exp]
+             for exp in clips]
     print(format_scores(first_row, score_experiments(labels, flags)), flush=True)
     return exps, labels, clips, flags
 

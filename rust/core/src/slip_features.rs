@@ -48,7 +48,7 @@ pub const SNAP_MIN_DISPLACEMENT: f64 = 0.2;
 const REVERSAL_FLOOR: f64 = 1e-4;
 
 /// Linear-interpolation percentile (`q` in 0..=100) of `v`, which it sorts; 0 when empty.
-fn percentile(v: &mut [f64], q: f64) -> f64 {
+pub(crate) fn percentile(v: &mut [f64], q: f64) -> f64 {
     if v.is_empty() {
         return 0.0;
     }
@@ -404,15 +404,14 @@ impl SlipFeatures {
                 format!("expected {} flags; got {}", motion.len(), valid.len()),
             ));
         }
-        let held;
-        let motion = match self.still.as_mut() {
-            Some(f) => {
-                held = f.update(motion).to_vec();
-                &held[..]
-            }
+        // The filter is taken out while its output is borrowed (no copy of the field a frame).
+        let mut still = self.still.take();
+        let motion = match still.as_mut() {
+            Some(filter) => filter.update(motion),
             None => motion,
         };
         let f = self.frame_values(motion, valid);
+        self.still = still;
         let snap = self.snap_values();
         if self.recent_snap.len() == WINDOW {
             self.recent_snap.pop_front();

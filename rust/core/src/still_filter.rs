@@ -13,6 +13,8 @@
 
 use std::collections::VecDeque;
 
+use crate::slip_features::percentile;
+
 /// Online hysteresis of one marker field (motions in pixels, thresholds in pitches).
 #[derive(Debug, Clone)]
 pub struct StillFilter {
@@ -90,7 +92,7 @@ impl StillFilter {
         let step = if self.scratch.is_empty() {
             f64::INFINITY
         } else {
-            quantile(&mut self.scratch, Self::QUANTILE)
+            percentile(&mut self.scratch, 100.0 * Self::QUANTILE)
         };
         if self.steps.len() == Self::WINDOW {
             self.steps.pop_front();
@@ -99,7 +101,9 @@ impl StillFilter {
         if self.steps.len() == Self::WINDOW {
             self.scratch.clear();
             self.scratch.extend(self.steps.iter().copied());
-            self.floor = self.floor.min(quantile(&mut self.scratch, 0.5));
+            // A window holding infinite steps (frames without a finite marker) can give NaN
+            // (inf - inf), which `min` ignores as it would ignore an infinite median.
+            self.floor = self.floor.min(percentile(&mut self.scratch, 50.0));
         }
         let h = self.hysteresis() * self.pitch;
         for ((held, &m), prev) in self.held.iter_mut().zip(motion).zip(self.prev.iter_mut()) {
@@ -114,19 +118,6 @@ impl StillFilter {
         }
         &self.held
     }
-}
-
-/// Linear-interpolation quantile (`q` in 0..=1) of `v`, which it sorts (numpy's default);
-/// infinite values sort last.
-fn quantile(v: &mut [f64], q: f64) -> f64 {
-    v.sort_unstable_by(|a, b| a.total_cmp(b));
-    let pos = q * (v.len() - 1) as f64;
-    let lo = pos.floor() as usize;
-    let hi = pos.ceil() as usize;
-    if v[lo] == v[hi] {
-        return v[lo]; // also when both are infinite (no NaN from inf - inf)
-    }
-    v[lo] + (v[hi] - v[lo]) * (pos - lo as f64)
 }
 
 #[cfg(test)]
@@ -217,18 +208,17 @@ mod tests {
                 assert_eq!(out[0], m[0]);
             }
         }
+        // Frames with every marker lost (infinite steps) leave the floor where it was.
+        let h = f.hysteresis();
+        for _ in 0..8 {
+            let lost = vec![[f32::NAN, f32::NAN]; 12];
+            assert!(f.update(&lost).iter().all(|p| p[0].is_nan()));
+            assert_eq!(f.hysteresis(), h);
+        }
         // Reset starts over: the next frame is reported as given.
         f.reset();
         assert_eq!(f.hysteresis(), 0.0);
         let m = vec![[1.0, 2.0]; 12];
         assert_eq!(f.update(&m), &m[..]);
-    }
-
-    #[test]
-    fn quantile_matches_numpy_linear() {
-        let mut v = vec![4.0, 1.0, 3.0, 2.0];
-        assert!((quantile(&mut v, 0.25) - 1.75).abs() < 1e-12);
-        let mut w = vec![f64::INFINITY, f64::INFINITY];
-        assert_eq!(quantile(&mut w, 0.5), f64::INFINITY);
     }
 }

@@ -86,6 +86,21 @@ def test_motion_skips_and_names_unreadable_images(
     assert "cannot read an image from" in capsys.readouterr().err
 
 
+def test_motion_skips_and_names_a_video_that_does_not_decode(
+        tmp_path: Path, grasp: sim.GraspSequence, capsys: pytest.CaptureFixture[str]) -> None:
+    videos = tmp_path / "videos"
+    videos.mkdir()
+    (videos / "a_empty.avi").write_bytes(b"")
+    write_video(videos / "b.mkv", [grasp.reference, *grasp.frames[:4]], "FFV1", fps=30)
+    out = tmp_path / "mo"
+    assert main(["motion", str(videos), "-o", str(out), "-q"]) == 0
+    assert [p.name for p in out.glob("*.csv")] == ["b.csv"]
+    err = capsys.readouterr().err
+    assert "skipped 1 unreadable input" in err and "a_empty.avi" in err
+    (videos / "b.mkv").unlink()
+    assert main(["motion", str(videos), "-o", str(out), "-q"]) == 1
+
+
 def test_markers_reads_a_video_frame(tmp_path: Path, grasp: sim.GraspSequence,
                                      capsys: pytest.CaptureFixture[str]) -> None:
     # A lossless video, so the frames are exactly the images extracted from.

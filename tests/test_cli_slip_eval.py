@@ -139,6 +139,14 @@ def test_errors_name_the_argument(labelled: Path, tmp_path: Path,
     assert "lacks column(s) ['experiment']" in capsys.readouterr().err
     assert main(["evaluate", "slip", str(labelled), "--rigid-threshold-px", "2", "-q"]) != 0
     assert "--rigid-threshold-px: applies to --rule paper only" in capsys.readouterr().err
+    # Options --cv would ignore (it trains its own scorers) are refused, not dropped.
+    for extra, name in ((["--rule", "paper"], "--rule paper"), (["--model", "m.onnx"], "--model"),
+                        (["--score-threshold", "1"], "--score-threshold")):
+        assert main(["evaluate", "slip", str(labelled), "--cv", "3", "-q", *extra]) != 0
+        assert f"{name}: does not apply with --cv" in capsys.readouterr().err
+    assert main(["evaluate", "slip", str(labelled), "--rule", "paper", "--score-threshold", "1",
+                 "-q"]) != 0
+    assert "--score-threshold: applies to --rule learned only" in capsys.readouterr().err
     pytest.importorskip("torch")
     assert main(["train", "slip", str(labelled), "--out", str(tmp_path / "m.onnx"),
                  "--simulated", "-1", "-q"]) != 0
@@ -195,7 +203,7 @@ def test_train_slip_markerless_also_learns_from_the_marker_tracks(labelled: Path
                                                 default_votes(MARKERLESS_COMMITTEE))
     names = sorted(p.name for p in cache.iterdir())
     assert sum("markerless-v2" in n for n in names) == 6
-    assert sum("markers-v2" in n for n in names) == 6
+    assert sum("markers-v3" in n for n in names) == 6
     alone = tmp_path / "alone.onnx"
     code, text = run("train", "slip", str(labelled), "--markerless", "--no-marker-tracks",
                      "--out", str(alone), "--epochs", "1", "--cache", str(cache))
@@ -230,3 +238,49 @@ def test_evaluate_slip_cv_trains_a_voting_committee_per_fold(labelled: Path, tmp
     code, _ = run("evaluate", "slip", str(labelled), "--cv", "3", "--seeds", "1", "--augment",
                   "1", "-q", "--cache", str(tmp_path / "cache"))
     assert code == 0 and seen == [(1, None, 8)] * 3
+
+
+def test_a_replaced_video_is_tracked_again_not_read_from_the_cache(labelled: Path,
+                                                                    tmp_path: Path) -> None:
+    import shutil
+
+    import numpy as np
+
+    from tacswitch.grasp.dataset import cached_clip
+
+    video = tmp_path / "obj" / "exp" / "camera_0.avi"
+    video.parent.mkdir(parents=True)
+    shutil.copy(labelled / "cup" / "exp_0" / "camera_0.avi", video)
+    cache = tmp_path / "cache"
+    first = cached_clip(video, cache)
+    again = cached_clip(video, cache)
+    np.testing.assert_array_equal(first.motion, again.motion)
+    shutil.copy(labelled / "box" / "exp_3" / "camera_0.avi", video)  # another grasp, same name
+    replaced = cached_clip(video, cache)
+    fresh = cached_clip(video, None)
+    np.testing.assert_array_equal(replaced.motion, fresh.motion)
+    assert not np.array_equal(replaced.motion, first.motion)
+
+
+def test_labels_with_spaces_and_repeated_experiments(labelled: Path, tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    from tacswitch.grasp.dataset import read_labels
+
+    spaced = tmp_path / "spaced.csv"
+    spaced.write_text("object, experiment, slip\ncup, exp_0, 1\nbox,exp_3,0\n")
+    exps = read_labels(labelled, spaced)
+    assert [(e.object, e.name, e.slip) for e in exps] == [("cup", "exp_0", True),
+                                                          ("box", "exp_3", False)]
+    twice = tmp_path / "twice.csv"
+    twice.write_text("object,experiment,slip\ncup,exp_0,1\ncup,exp_0,0\n")
+    with pytest.raises(ValueError, match=r"^labels: line 3: cup/exp_0 is listed again"):
+        read_labels(labelled, twice)
+    # Only slips: the balanced accuracy is undefined, written as null, not NaN.
+    slips = tmp_path / "slips.csv"
+    slips.write_text("object,experiment,slip\ncup,exp_0,1\nbox,exp_2,1\n")
+    out = tmp_path / "s.json"
+    code, _ = run("evaluate", "slip", str(labelled), "--labels", str(slips), "--json",
+                  str(out), "-q", "--cache", str(tmp_path / "c"))
+    assert code == 0
+    data = json.loads(out.read_text())  # strict JSON would refuse NaN
+    assert data["scores"]["balanced_accuracy"] is None

@@ -451,3 +451,47 @@ def test_paired_view_trains_only_on_the_training_objects(monkeypatch) -> None:
     assert all(max(ids) < 100 for ids in seen)
     with pytest.raises(ValueError, match="paired: one entry per experiment"):
         crossval.cross_validated_flags(clips, labels, objects, seeds=1, paired=paired[:3])
+
+
+def test_a_contact_from_the_first_frame_that_keeps_moving_starts_a_grasp_after_max_wait() -> None:
+    from tacswitch.grasp.phases import GraspSegmenter
+
+    # Loaded from frame 0 (onset 0) and never settling: the grasp must start after max_wait,
+    # as it does for an onset at any later frame.
+    pts = np.stack(np.meshgrid(np.arange(5) * 20.0, np.arange(5) * 20.0), -1).reshape(-1, 2)
+    for first in (0, 5):
+        seg = GraspSegmenter(1.6, max_wait=30)
+        steps = [seg.update(np.full((len(pts), 2), 5.0 + t if t >= first else 0.0),
+                            np.ones(len(pts), bool)) for t in range(80)]
+        onset = steps[-1].onset
+        assert onset is not None and onset <= first + 3
+        start = next(s.start for s in steps if s.starts)
+        assert start == onset + 30
+
+
+def test_detector_refuses_arguments_of_the_wrong_kind_by_name() -> None:
+    pts = np.stack(np.meshgrid(np.arange(5) * 20.0, np.arange(5) * 20.0), -1).reshape(-1, 2)
+    pts = pts.astype(np.float32)
+    for kwargs, name in (({"threshold": "a"}, "threshold"), ({"image_width": "640"}, "image_width"),
+                         ({"image_width": 0}, "image_width"),
+                         ({"rule": "paper", "threshold_px": "3"}, "threshold_px"),
+                         ({"start": 2.5}, "start"), ({"start": -1}, "start"),
+                         ({"smooth_frames": 3}, "smooth_frames"),
+                         ({"rule": "paper", "smooth_frames": 0}, "smooth_frames")):
+        with pytest.raises((TypeError, ValueError), match=rf"^{name}:"):
+            GraspSlipDetector(pts, **kwargs)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"^zip\(\)"):
+        run_clip(np.zeros((5, len(pts), 2), np.float32), np.ones((3, len(pts)), bool), pts)
+
+
+def test_false_alarms_per_minute_use_each_video_s_frame_rate() -> None:
+    held = [np.array([False, True, False, True] + [False] * 46)]  # 2 episodes in 50 frames
+    at_25 = score_experiments([False, True], [held, [np.ones(50, bool)]])
+    at_50 = score_experiments([False, True], [held, [np.ones(50, bool)]],
+                              fps=[[50.0], [50.0]])
+    assert at_25.false_alarms_per_min == pytest.approx(2 / (50 / 25 / 60))
+    assert at_50.false_alarms_per_min == pytest.approx(2 * at_25.false_alarms_per_min)
+    mixed = score_experiments([False, True], [held, [np.ones(50, bool)]], fps=[[None], [50.0]])
+    assert mixed.false_alarms_per_min == pytest.approx(at_25.false_alarms_per_min)
+    with pytest.raises(ValueError, match=r"^fps:"):
+        score_experiments([False, True], [held, [np.ones(50, bool)]], fps=[[25.0]])

@@ -25,7 +25,10 @@ from tacswitch.grasp.features import (
 
 def _affine(pts: np.ndarray, vec: np.ndarray) -> tuple[float, float, float]:
     a = np.c_[pts, np.ones(len(pts))]
-    if np.linalg.matrix_rank(a) < 3:  # collinear markers determine no affine field: zeros
+    # Nearly collinear markers (spread across under 1 % of the spread along, as variances)
+    # determine no affine field: zeros.
+    across, along = np.linalg.eigvalsh(np.cov(np.asarray(pts, np.float64).T, bias=True))
+    if not across > 0.01 * along:
         return 0.0, 0.0, 0.0
     coef, *_ = np.linalg.lstsq(a, vec, rcond=None)
     resid = np.sqrt(((a @ coef - vec) ** 2).sum(axis=1))

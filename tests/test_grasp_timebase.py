@@ -185,3 +185,15 @@ def test_a_saved_clip_keeps_its_frame_rate(tmp_path) -> None:  # type: ignore[no
         assert back.fps == fps and back.width == 320 and back.pitch == 30.0
         np.testing.assert_array_equal(back.motion, motion)
         np.testing.assert_array_equal(back.valid, valid)
+
+
+@pytest.mark.parametrize("fps", [50.0, 60.0, 100.0])
+def test_an_explicit_start_on_a_fast_stream_is_never_before_the_frame_asked_for(
+        fps: float) -> None:
+    motion, valid, pts = slipping_field()
+    for start in range(0, 13):
+        states = run_clip(motion, valid, pts, image_width=320, model=velocity_scorer(0.07),
+                          threshold=0.0, votes=1, start=start, fps=fps)
+        begun = next(s.grasp_start for s in states if s.grasp_start is not None)
+        # The first frame on the scorer's 25 frames/s clock at or after the one asked for.
+        assert start <= begun <= start + np.ceil(fps / 25.0)

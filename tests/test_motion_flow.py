@@ -367,3 +367,16 @@ def test_cli_slip_markerless_says_when_the_start_frame_shows_no_contact(mini, tm
     assert main(["slip", str(folder), "--markerless", "--start", "0", "--all-markers", "--log",
                  str(log), "-q"]) == 0
     assert "warning" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("shape", [(8, 40), (10, 40), (15, 400), (9, 1000), (8, 2000)])
+def test_flow_on_short_wide_frames_is_finite(shape: tuple[int, int]) -> None:
+    # DIS at its half-size finest scale crashed the process (OpenCV 5.0) on frames under 16 px
+    # high, and the 320 px working width shrank a 9 x 1000 frame to 3 rows.
+    rng = np.random.default_rng(0)
+    ref = rng.integers(0, 255, (*shape, 3), np.uint8)
+    img = np.roll(ref, 1, axis=1)
+    c = np.array([[shape[1] / 2, shape[0] / 2]], np.float32)
+    out = flow.flow_motion(img, ref, c)
+    assert out.shape == (1, 2) and np.isfinite(out).all()
+    assert flow.work_factor(shape[1], height=shape[0]) * 16 <= max(shape[0], 16)

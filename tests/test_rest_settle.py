@@ -25,6 +25,7 @@ from tacswitch.grasp.dataset import track_clip
 from tacswitch.tracking import (
     REST_STALE_FRAMES,
     REST_THUMBNAIL,
+    lattice_irregularity,
     rest_thumbnail,
     settled_index,
 )
@@ -190,3 +191,58 @@ def test_a_markerless_stream_starts_after_the_stale_frames(
         assert int(next(csv.DictReader(fh))["frame"]) == 4
     clip = track_clip(iter(frames[:12]), markerless=True)
     assert clip.motion.shape[0] == 12 and np.all(clip.motion[:4] == 0)
+
+
+# --- a stale start that fades (no jump) ---------------------------------------------------
+
+def _fading(seed: int, fade: int = 3) -> list[np.ndarray]:
+    """Thumbnails of a stale deformed gel (``b``) relaxing into the gel at rest (``a``) over
+    ``fade`` frames, then still: as on real Mini recordings, no single jump."""
+    rng = np.random.default_rng(seed)
+    a, b = _scene(1), _scene(2)
+    ramp = [b + (a - b) * k / fade for k in range(1, fade + 1)]
+
+    def still(x: np.ndarray) -> np.ndarray:  # a still MPEG-4 gel: 0.1-0.4 grey levels a frame
+        return (x + rng.normal(0.0, 0.25, x.shape)).astype(np.float32)
+
+    return [still(b)] + [still(x) for x in ramp] + [still(a) for _ in range(15)]
+
+
+@pytest.mark.parametrize("fade", [2, 3, 5])
+def test_a_stale_start_that_fades_into_a_regular_lattice_is_passed_over(fade: int) -> None:
+    thumbs = _fading(0, fade)
+    assert settled_index(thumbs) == 0  # no jump: the image tests alone keep frame 0
+    relaxed = [0.05] * fade + [0.02] * (len(thumbs) - fade)  # deformed, then at rest
+    assert settled_index(thumbs, relaxed) == fade
+    # A press (the lattice gets less regular) and markers not counted keep the first frame.
+    pressed = [0.02] * fade + [0.04] * (len(thumbs) - fade)
+    assert settled_index(thumbs, pressed) == 0
+    assert settled_index(thumbs, [float("nan")] * len(thumbs)) == 0
+    with pytest.raises(ValueError, match=r"^irregularity:"):
+        settled_index(thumbs, [0.02])
+
+
+def test_lattice_irregularity_reads_a_deformed_grid() -> None:
+    xs, ys = np.meshgrid(np.arange(12) * 20.0 + 15, np.arange(9) * 20.0 + 15)
+    grid = np.stack([xs.ravel(), ys.ravel()], 1)
+    rng = np.random.default_rng(0)
+    rest = grid + rng.normal(0, 0.2, grid.shape)
+    # A press: markers pushed outward from the centre by up to 6 px.
+    d = grid - grid.mean(0)
+    r = np.linalg.norm(d, axis=1, keepdims=True)
+    pressed = rest + 6.0 * np.exp(-(r / 40.0) ** 2) * d / np.maximum(r, 1e-9)
+    assert lattice_irregularity(rest) < 0.02
+    assert lattice_irregularity(pressed) > 1.25 * lattice_irregularity(rest)
+    assert lattice_irregularity(rest + 7.0) == pytest.approx(lattice_irregularity(rest))
+    assert np.isnan(lattice_irregularity(grid[:5]))
+
+
+def test_motion_of_a_video_starts_after_the_stale_frames(
+        tmp_path: Path, seq: sim.GraspSequence, capsys: pytest.CaptureFixture[str]) -> None:
+    frames = _stale_start(seq)
+    video = write_video(tmp_path / "v.mkv", frames, fourcc="FFV1")
+    assert main(["motion", str(video), "-o", str(tmp_path / "out")]) == 0
+    assert "frames 0-3 come before the camera settled" in capsys.readouterr().out
+    with open(tmp_path / "out" / "v.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert min(int(r["frame"]) for r in rows) == 4

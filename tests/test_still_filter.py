@@ -19,7 +19,8 @@ K, CAP, WINDOW, QUANTILE = 8.0, 0.01, 5, 0.25
 def hysteresis(motion: np.ndarray, pitch: float) -> np.ndarray:
     """The filter in numpy: a marker's reported motion follows its tracked one only once the
     two are more than ``h`` pitches apart; ``h`` = K x the smallest running median (over
-    WINDOW frames) of each frame's QUANTILE frame-to-frame step, at most CAP."""
+    WINDOW frames) of each frame's QUANTILE frame-to-frame step, at most CAP; a repeated frame
+    (every finite step exactly 0) adds no step."""
     m = np.asarray(motion, np.float64)
     out = m.copy()
     held = m[0].copy()
@@ -28,8 +29,10 @@ def hysteresis(motion: np.ndarray, pitch: float) -> np.ndarray:
     for t in range(1, len(m)):
         d = np.hypot(*(m[t] - m[t - 1]).T) / pitch
         d = d[np.isfinite(d)]
-        steps.append(float(np.quantile(d, QUANTILE)) if len(d) else np.inf)
-        if len(steps) >= WINDOW:
+        repeated = len(d) > 0 and not d.any()
+        if not repeated:
+            steps.append(float(np.quantile(d, QUANTILE)) if len(d) else np.inf)
+        if not repeated and len(steps) >= WINDOW:
             floor = min(floor, float(np.median(steps[-WINDOW:])))
         h = min(K * floor, CAP) * pitch if np.isfinite(floor) else 0.0
         far = ~(np.hypot(*(m[t] - held).T) <= h)  # NaN (lost) always follows
@@ -60,11 +63,16 @@ def field(rng: np.random.Generator, pts: np.ndarray, frames: int, noise_px: floa
 @settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 10_000), noise=st.sampled_from([0.0, 0.005, 0.03, 0.2, 2.0]),
        pitch=st.sampled_from([8.0, 20.0, 45.0]), lost=st.booleans(),
-       frames=st.integers(1, 40))
-def test_matches_numpy(seed: int, noise: float, pitch: float, lost: bool, frames: int) -> None:
+       frames=st.integers(1, 40), repeats=st.integers(0, 8))
+def test_matches_numpy(seed: int, noise: float, pitch: float, lost: bool, frames: int,
+                       repeats: int) -> None:
     rng = np.random.default_rng(seed)
     pts = grid(6, pitch)
     motion = field(rng, pts, frames, noise * pitch / 20, lost)
+    # Repeated frames: at the start (a stale start read as rest) and one in the middle.
+    motion[:min(repeats, frames)] = 0.0
+    if frames > 12 and repeats:
+        motion[frames // 2 + 1] = motion[frames // 2]
     valid = ~np.isnan(motion).any(axis=2)
     got = sequence_features(motion, valid, pts, pitch, still_filter=True)
     want = sequence_features(hysteresis(motion, pitch), valid, pts, pitch)
@@ -82,12 +90,16 @@ def test_a_stream_without_jitter_reads_the_same_with_and_without_the_filter() ->
                                   sequence_features(motion, valid, pts, 20.0))
 
 
-def test_a_still_gel_under_sensor_noise_reads_still() -> None:
+@pytest.mark.parametrize("stale", [0, 6])
+def test_a_still_gel_under_sensor_noise_reads_still(stale: int) -> None:
     # 0.02 px of jitter (0.001 pitch): what 4 grey levels of sensor noise do to a Mini's markers.
+    # ``stale``: the first frames repeat the rest frame exactly, as a recording's stale start
+    # is read (`track_clip`) or a camera repeats frames; they must not switch the filter off.
     rng = np.random.default_rng(2)
     pts = grid(8, 20.0)
-    clean = np.zeros((40, len(pts), 2), np.float32)
+    clean = np.zeros((40 + stale, len(pts), 2), np.float32)
     noisy = clean + rng.normal(0.0, 0.02, clean.shape).astype(np.float32)
+    noisy[:stale] = 0.0
     valid = np.ones(clean.shape[:2], bool)
     still = sequence_features(clean, valid, pts, 20.0)
     filtered = sequence_features(noisy, valid, pts, 20.0, still_filter=True)
@@ -99,7 +111,7 @@ def test_a_still_gel_under_sensor_noise_reads_still() -> None:
     # 0.01 pitch: the displacement values stay near, not at, zero.)
     changes = [i for i, n in enumerate(FEATURE_NAMES)
                if n.startswith(("v1_", "v4_", "snap_")) and not n.endswith("_change")]
-    settle = WINDOW + 4 + 8
+    settle = stale + WINDOW + 4 + 8
     np.testing.assert_array_equal(filtered[settle:, changes], still[settle:, changes])
     assert np.abs(raw[settle:, changes] - still[settle:, changes]).max() > 1e-4
     assert np.abs(filtered[settle:, :2]).max() < 0.01

@@ -50,6 +50,22 @@ REST_EXPOSURE_STEP = 0.05
 #: Thumbnail size (width, height) px for the settling test: the whole image's change, not its
 #: texture or the camera's noise.
 REST_THUMBNAIL = (80, 60)
+#: A stale start that fades instead of jumping: on the real GelSight Mini slip recordings some
+#: videos open on the gel still deformed by the previous grasp (smeared markers, an imprint),
+#: relaxing to rest over 2-5 frames (changes of 2-6 grey levels a frame, then under 1) with no
+#: jump. Such a run among the first :data:`REST_STALE_FRAMES` frames, followed by this many
+#: still frames, ...
+REST_RELAX_STILL_FRAMES = 5
+#: ... each changing by less than :data:`REST_JUMP_GREY` and by at most this in the median (a
+#: still gel's thumbnail changes by 0.1-0.4 grey levels a frame in those MPEG-4 videos) ...
+REST_RELAX_STILL_GREY = 0.5
+#: ... ends the stale frames when the marker lattice after it is at least this much more regular
+#: (:func:`lattice_irregularity`) than at the first frame: a gel relaxing to rest. A press at a
+#: recording's start does the opposite (the load compresses and stretches the lattice: on 31
+#: real contact onsets the loaded lattice was 0.86-1.96x as irregular as before; the relaxed
+#: lattices of the stale starts 1.3-2.5x less), so a recording that starts with a press keeps
+#: its first frame.
+REST_RELAX_REGULARITY = 1.25
 
 
 def rest_thumbnail(frame: Any) -> NDArray[np.float32]:
@@ -81,15 +97,56 @@ def _isolated_jump(change: Sequence[float], j: int) -> bool:
         REST_JUMP_ISOLATION * max(around))
 
 
-def settled_index(thumbs: Sequence[NDArray[np.float32]]) -> int:
+def lattice_irregularity(centres: Any) -> float:
+    """How irregular a marker lattice is: the median absolute deviation of the distances from
+    each marker to its neighbours (up to 4 nearest, within 1.5x the median nearest spacing), over
+    their median. About 0.01-0.03 on a gel at rest (lens distortion, extraction noise); a load
+    compresses and stretches the lattice and smeared stale frames scatter it. ``centres``:
+    ``N x 2`` ``(x, y)`` px. NaN for fewer than 8 markers."""
+    c = np.asarray(centres, np.float64).reshape(-1, 2)
+    c = c[np.isfinite(c).all(axis=1)]
+    if len(c) < 8:
+        return float("nan")
+    d2 = np.sum((c[:, None, :] - c[None, :, :]) ** 2, axis=2)
+    np.fill_diagonal(d2, np.inf)
+    near = np.sqrt(np.partition(d2, 3, axis=1)[:, :4])
+    spacing = float(np.median(near.min(axis=1)))
+    d = near[near < 1.5 * spacing]
+    mid = float(np.median(d))
+    return float(np.median(np.abs(d - mid)) / mid) if mid > 0 else float("nan")
+
+
+def _relaxed_start(raw: Sequence[float], irregularity: Sequence[float], start: int) -> int:
+    """The frame ending a stale start that fades (:data:`REST_RELAX_STILL_FRAMES`), or
+    ``start``."""
+    changing = [j for j in range(start + 1, min(len(raw), start + REST_STALE_FRAMES + 1))
+                if raw[j] > REST_JUMP_GREY]
+    if not changing:
+        return start
+    end = changing[-1]
+    still = raw[end + 1:end + 1 + REST_RELAX_STILL_FRAMES]
+    if (len(still) < REST_RELAX_STILL_FRAMES or max(still) >= REST_JUMP_GREY
+            or float(np.median(still)) > REST_RELAX_STILL_GREY):
+        return start
+    before, after = irregularity[start], irregularity[end]
+    return end if before > REST_RELAX_REGULARITY * after else start  # NaN: keeps start
+
+
+def settled_index(thumbs: Sequence[NDArray[np.float32]],
+                  irregularity: Sequence[float] | None = None) -> int:
     """Index of the first frame of a stream's start that shows the gel as it is now (see
     :data:`REST_STALE_FRAMES`): after the last isolated jump among the first
     :data:`REST_STALE_FRAMES` frames (of the image, or of its content with the brightness
     taken out), and past the frames whose exposure is still changing by more than
     :data:`REST_EXPOSURE_STEP` a frame (unless it changes that much to the last frame: a
     flickering light). ``thumbs``: :func:`rest_thumbnail` of the
-    first frames, in order. 0 for a stream that starts settled (or has one frame)."""
+    first frames, in order. 0 for a stream that starts settled (or has one frame).
+    ``irregularity``: :func:`lattice_irregularity` of the same frames' markers (a marker
+    sensor): a stale start that fades over a few frames into a more regular lattice is skipped
+    too (:data:`REST_RELAX_STILL_FRAMES`)."""
     n = len(thumbs)
+    if irregularity is not None and len(irregularity) != n:
+        raise ValueError(f"irregularity: one value per thumbnail ({n}); got {len(irregularity)}")
     means = [float(np.mean(t)) for t in thumbs]
     # Jumps of the image as it is, and of its content alone (each thumbnail scaled to the pair's
     # mean grey): under a flickering light every frame changes in brightness, which hides the
@@ -107,7 +164,10 @@ def settled_index(thumbs: Sequence[NDArray[np.float32]]) -> int:
         settled += 1
     # Brightness that keeps changing to the end of the frames looked at is a flickering light,
     # not an exposure settling: the frames are not skipped for it.
-    return start if settled == n - 1 and n > 2 else settled
+    settled = start if settled == n - 1 and n > 2 else settled
+    if irregularity is not None:
+        settled = _relaxed_start(raw, irregularity, settled)
+    return settled
 
 
 def usable_rest_frame(counts: Sequence[int], fraction: float = REST_USABLE_FRACTION,

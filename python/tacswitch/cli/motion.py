@@ -23,8 +23,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                                    "markerless frames; writes a CSV and an arrow overlay per "
                                    "image. A video is one sequence (as --sequence): every "
                                    "frame's motion from rest by tacswitch.MarkerlessTracker "
-                                   "(with --method model: by the model, from --ref or the "
-                                   "video's first frame), one CSV per video (frame, x, y, dx, "
+                                   "(with --method model: by the model), from --ref or else "
+                                   "the video's first frame after the camera settled (the "
+                                   "frames before get no rows), one CSV per video (frame, x, "
+                                   "y, dx, "
                                    "dy) and the overlay "
                                    "of its last frame. Unreadable images are skipped, counted "
                                    "and named in a warning on stderr.")
@@ -169,21 +171,28 @@ def run(args: argparse.Namespace) -> int:
     if videos and args.method not in ("auto", "model"):
         raise UsageError(f"--method: a video is one sequence, tracked by MarkerlessTracker "
                          f"(the flow from rest) or, with --method model, by the model from "
-                         f"--ref (else the first frame); drop --method {args.method}")
+                         f"--ref (else the first settled frame); drop --method {args.method}")
     out = output_dir(args.out, "--out")
     if centres is None:
         say("centres: the default grid (the GelSight Mini's 9 x 11 markers scaled to the "
             "frame); pass --centres for your sensor's own", quiet=args.quiet)
+    failed: list[tuple[Path, str]] = []
+    done = 0
     for path in videos:
-        _track_video(path, ref, centres, gain, args, out,
-                     model=model if args.method == "model" else None)
+        try:
+            _track_video(path, ref, centres, gain, args, out,
+                         model=model if args.method == "model" else None)
+        except ValueError as exc:  # a video that does not decode: skipped and named, as images
+            if not str(exc).startswith("inputs:"):
+                raise
+            failed.append((path, str(exc)))
+            continue
+        done += 1
     tracker = None
     if args.sequence:
         from tacswitch.motion.sequence import MarkerlessTracker
 
         tracker = MarkerlessTracker(ref, centres, gain=gain, model=args.model)
-    failed: list[tuple[Path, str]] = []
-    done = 0
     with progress(files, desc="motion", unit="img", quiet=args.quiet) as bar:
         for path in bar:
             img = read_quiet(path)
@@ -212,7 +221,7 @@ def run(args: argparse.Namespace) -> int:
             say(f"{path}: {len(motion)} markers, largest motion {mx:.2f} px -> "
                 f"{out / (path.stem + '.csv')}", quiet=args.quiet)
             done += 1
-    report_unreadable("motion", failed, done + len(videos))
+    report_unreadable("motion", failed, done)
     return 0
 
 
@@ -253,6 +262,23 @@ class _ModelFromAnchor:
         return self.model(img, ref=self.anchor, centres=self.centres)
 
 
+def _settled_start(frames):  # type: ignore[no-untyped-def]
+    """``(frames again, index of the first settled frame)``: a video's first frames read ahead
+    (:data:`tacswitch.tracking.REST_LOOK_AHEAD`) and :func:`tacswitch.tracking.settled_index`
+    on them, as ``tacswitch slip`` chooses its rest frame (None items: undecodable frames)."""
+    import itertools
+
+    from tacswitch.tracking import REST_LOOK_AHEAD, rest_thumbnail, settled_index
+
+    it = iter(frames)
+    head = list(itertools.islice(it, REST_LOOK_AHEAD))
+    readable = [t for t, f in enumerate(head) if f is not None]
+    if not readable:
+        return itertools.chain(head, it), 0
+    settled = settled_index([rest_thumbnail(head[t]) for t in readable])
+    return itertools.chain(head, it), readable[settled]
+
+
 def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # type: ignore[no-untyped-def]
                  out: Path, stream=None, sink=None, model=None) -> None:
     """Every frame of the video ``path`` through one :class:`MarkerlessTracker` (``ref``: the
@@ -279,8 +305,17 @@ def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # ty
     n = 0
     from tacswitch.cli.bagio import motion_fields
 
-    for t, img in enumerate(video_frames(path, "inputs") if stream is None else stream):
-        if img is None:
+    frames = video_frames(path, "inputs") if stream is None else stream
+    skip = 0
+    if ref is None and stream is None:
+        frames, skip = _settled_start(frames)
+        if skip:
+            say(f"{path}: frames 0-{skip - 1} come before the camera settled (exposure "
+                "changing, or frames left from before), so motion is measured from frame "
+                f"{skip}; those frames get no rows (pass --ref to choose the reference)",
+                quiet=args.quiet)
+    for t, img in enumerate(frames):
+        if img is None or t < skip:
             continue
         motion = tracker.update(img)
         pts = tracker.centres

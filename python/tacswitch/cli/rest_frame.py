@@ -27,6 +27,7 @@ import numpy as np
 from tacswitch.tracking import (
     REST_LOOK_AHEAD,
     REST_USABLE_FRACTION,
+    lattice_irregularity,
     rest_thumbnail,
     settled_index,
     usable_rest_frame,
@@ -71,8 +72,9 @@ class RestFrame:
             before = "frame 0 comes" if self.settled == 1 else (
                 f"frames 0-{self.settled - 1} come")
             found = f" ({self.markers} markers)" if self.counted else ""
-            return (f"source: {before} before the camera settled (exposure changing, or a "
-                    f"jump of the whole image at frame {self.settled}), so frame {self.index} "
+            return (f"source: {before} before the camera settled (exposure changing, or "
+                    f"frames left from before: a jump of the whole image, or a deformed gel "
+                    f"relaxing, up to frame {self.settled}), so frame {self.index} "
                     f"is the rest frame{found}; {skipped} not tracked")
         shows = "no markers" if self.first == 0 else f"only {self.first} markers"
         return (f"source: frame 0 shows {shows}, so frame {self.index} is the rest frame "
@@ -82,7 +84,7 @@ class RestFrame:
 
 
 def choose_rest_frame(stream: Iterable[np.ndarray | None],
-                      count: Callable[[np.ndarray], int] | None,
+                      count: Callable[[np.ndarray], int | np.ndarray] | None,
                       *, source: str, max_frames: int | None = None, hint: str = ""
                       ) -> tuple[RestFrame | None, Iterator[np.ndarray | None]]:
     """Reads up to :data:`LOOK_AHEAD` readable frames of ``stream`` ahead (at most
@@ -90,8 +92,10 @@ def choose_rest_frame(stream: Iterable[np.ndarray | None],
 
     Args:
         stream: frames, None for an unreadable one (:func:`tacswitch.cli.sources.frames`).
-        count: markers found on a frame (the command's own extraction options); None for a
-            markerless stream (the first settled frame is the rest frame).
+        count: markers found on a frame (the command's own extraction options): their number,
+            or their ``N x 2`` centres, which also lets a stale start that fades into a more
+            regular marker lattice be skipped (:func:`tacswitch.tracking.settled_index`); None
+            for a markerless stream (the first settled frame is the rest frame).
         source: the source as the user named it (for the error).
         max_frames: the command's ``--max-frames`` (frames past it are never tracked).
         hint: appended to the error (e.g. ``"; check --polarity"``).
@@ -111,6 +115,7 @@ def choose_rest_frame(stream: Iterable[np.ndarray | None],
     buffer: list[np.ndarray | None] = []
     counts: list[int] = []
     thumbs: list[np.ndarray] = []
+    irregular: list[float] = []
     error: Exception | None = None
     try:
         while len(counts) < look_ahead:
@@ -120,7 +125,12 @@ def choose_rest_frame(stream: Iterable[np.ndarray | None],
             frame: np.ndarray | None = item  # type: ignore[assignment]
             buffer.append(frame)
             if frame is not None:
-                counts.append(1 if count is None else int(count(frame)))
+                found = 1 if count is None else count(frame)
+                if isinstance(found, np.ndarray):
+                    counts.append(len(found))
+                    irregular.append(lattice_irregularity(found))
+                else:
+                    counts.append(int(found))
                 thumbs.append(rest_thumbnail(frame))
     except Exception as exc:  # replayed where it happened (a disconnected camera, ...)
         if not counts:
@@ -128,7 +138,7 @@ def choose_rest_frame(stream: Iterable[np.ndarray | None],
         error = exc
     rest = None
     if counts:
-        settled = settled_index(thumbs)
+        settled = settled_index(thumbs, irregular if len(irregular) == len(thumbs) else None)
         index = usable_rest_frame(counts, USABLE_FRACTION, settled)
         if index is None:
             if error is not None:

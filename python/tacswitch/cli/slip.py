@@ -56,7 +56,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "later and fewer detections")
     p.add_argument("--votes", type=int, default=None, metavar="K",
                    help="--rule learned: flag a grasp once K members of the scorer's committee "
-                        "have fired in it (default: the model's, 4 of 8); fewer: earlier and "
+                        f"have fired in it (default: the model's, {_shipped_votes()}); fewer: "
+                        "earlier and "
                         "more detections, more false alarms")
     p.add_argument("--threshold-px", type=float, default=None,
                    help="--rule paper: displacement threshold (default: 3.25 px scaled to the "
@@ -223,6 +224,11 @@ def run(args: argparse.Namespace) -> int:
     bag = bag_source(args.source, args)
     if args.markerless and bag is None:
         _warn_inter_frame_codec(args.source)
+    if args.markerless and args.rule == "learned" and not args.centres:
+        warn("slip", "--centres not given: motion is predicted on the motion model's grid; the "
+             "markerless scorer learned from a sensor's own marker centres, so pass --centres "
+             "from a frame with markers (`tacswitch markers VIDEO --frame N -o DIR`) where you "
+             "have one")
     rule: _PaperLoop | _LearnedLoop = (_LearnedLoop(args, _source_fps(args, bag), bag)
                                        if args.rule == "learned" else _PaperLoop(args))
     show = args.show  # _check refused it where no window can open
@@ -230,6 +236,10 @@ def run(args: argparse.Namespace) -> int:
     starts: list[int] = []
     t0 = time.perf_counter()
     log_path = csv_output(args.log, "--log")
+    if bag is None and not args.source.isdigit() and not Path(args.source).exists():
+        # Before the log is opened: a run that cannot start leaves no empty log behind.
+        raise FileNotFoundError(f"source: {args.source!r} is not a file, folder or camera "
+                                "index")
     status = 0
     total = (frame_count(args.source, args.max_frames) if bag is None else
              min(len(bag), args.max_frames or len(bag)) or None)
@@ -243,7 +253,7 @@ def run(args: argparse.Namespace) -> int:
             stream = frames(args.source) if bag is None else iter(bag)
             # Predicted motion needs no markers on the rest frame, only a settled camera.
             rest, stream = choose_rest_frame(
-                stream, None if args.markerless else lambda f: len(ts.extract_markers(f)),
+                stream, None if args.markerless else lambda f: ts.extract_markers(f).centres,
                 source=args.source, max_frames=args.max_frames)
             if rest is not None and rest.index > 0:
                 warn("slip", rest.message())
@@ -317,6 +327,18 @@ def _first_tracker(frame: np.ndarray, args: argparse.Namespace, markerless: type
     import tacswitch as ts
 
     return markerless(frame, args) if args.markerless else ts.MarkerTracker(frame)
+
+
+def _shipped_votes() -> str:
+    """The recipe's votes for the help text: ``"13 of 32"`` (and the markerless recipe's when
+    it differs)."""
+    from tacswitch.grasp.train import COMMITTEE, MARKERLESS_COMMITTEE, default_votes
+
+    text = f"{default_votes(COMMITTEE)} of {COMMITTEE}"
+    if MARKERLESS_COMMITTEE != COMMITTEE:
+        text += (f", with --markerless {default_votes(MARKERLESS_COMMITTEE)} of "
+                 f"{MARKERLESS_COMMITTEE}")
+    return text
 
 
 def _start_after(args: argparse.Namespace, offset: int) -> int | None:
@@ -616,7 +638,9 @@ def _starts_text(starts: list[int], args: argparse.Namespace, segmenter,  # type
     where the segmenter's frame numbers start)."""
     if args.start is not None:
         if starts and starts[0] != args.start:
-            return f"grasp start: frame {starts[0]} (--start {args.start}, before the rest frame)"
+            why = ("before the rest frame" if args.start < offset else
+                   "the first frame on the scorer's time base at or after it")
+            return f"grasp start: frame {starts[0]} (--start {args.start}, {why})"
         return (f"grasp start: frame {args.start} (--start)" if starts else
                 f"grasp start --start {args.start} not reached")
     if not starts:

@@ -11,11 +11,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 from typing import Any
 
 from tacswitch.cli.options import UsageError
+from tacswitch.cli.progress import stderr_is_terminal
 
 
 def _common(p: argparse.ArgumentParser) -> None:
@@ -141,7 +143,7 @@ def _paired_marker_clips(args: argparse.Namespace, exps):  # type: ignore[no-unt
     if not args.markerless or args.no_marker_tracks:
         return None
     return experiment_clips(exps, _cache_dir(args), markerless=False, workers=args.workers,
-                            progress=not args.quiet)
+                            progress=not args.quiet and stderr_is_terminal())
 
 
 def _cache_dir(args: argparse.Namespace) -> Path:
@@ -149,7 +151,9 @@ def _cache_dir(args: argparse.Namespace) -> Path:
     return Path(args.cache) if args.cache else Path(args.data) / ".tacswitch-cache"
 
 
-def _load(args: argparse.Namespace):  # type: ignore[no-untyped-def]
+def _load(args: argparse.Namespace, folds: int = 0):  # type: ignore[no-untyped-def]
+    """The labelled experiments and their tracked clips (``folds``: ``--cv``'s, checked against
+    the objects before anything is tracked)."""
     from tacswitch.grasp.dataset import experiment_clips, read_labels
 
     if args.workers < 1:
@@ -160,8 +164,12 @@ def _load(args: argparse.Namespace):  # type: ignore[no-untyped-def]
         msg = str(exc)
         raise ValueError(msg.replace("root:", "data:", 1)
                          .replace("labels:", "--labels:", 1)) from None
+    n_objects = len({e.object for e in exps})
+    if folds > n_objects:
+        raise UsageError(f"--cv: {folds} folds grouped by object need at least {folds} "
+                         f"objects; the labels name {n_objects}")
     clips = experiment_clips(exps, _cache_dir(args), markerless=args.markerless,
-                             workers=args.workers, progress=not args.quiet)
+                             workers=args.workers, progress=not args.quiet and stderr_is_terminal())
     return exps, clips
 
 
@@ -179,6 +187,17 @@ def run_evaluate(args: argparse.Namespace) -> int:
         raise UsageError("--rigid-threshold-px: applies to --rule paper only")
     if args.cv and args.cv < 2:
         raise UsageError(f"--cv: at least 2 folds; got {args.cv}")
+    if args.cv:
+        for opt, given in (("--rule paper", args.rule == "paper"),
+                           ("--model", args.model is not None),
+                           ("--score-threshold", args.score_threshold is not None)):
+            if given:
+                raise UsageError(f"{opt}: does not apply with --cv (which trains its own "
+                                 "scorers)")
+    if args.rule == "paper" and args.score_threshold is not None:
+        raise UsageError("--score-threshold: applies to --rule learned only")
+    if args.rule == "paper" and args.model is not None:
+        raise UsageError("--model: applies to --rule learned only")
     seeds, votes = _committee(args)
     for opt, val in (("--seeds", args.seeds), ("--votes", args.votes)):
         if val is not None and not args.cv:
@@ -188,7 +207,12 @@ def run_evaluate(args: argparse.Namespace) -> int:
     if args.augment is not None and not args.cv:
         raise UsageError("--augment: applies to --cv (training) only")
     augment = _augment(args)
-    exps, clips = _load(args)
+    if args.json is not None:
+        out = Path(args.json)
+        if out.is_dir() or not out.parent.is_dir():
+            raise UsageError(f"--json: cannot write {args.json!r} (a folder, or its folder "
+                             "does not exist)")
+    exps, clips = _load(args, folds=args.cv)
     labels = [e.slip for e in exps]
     if args.cv:
         flags = cross_validated_flags(clips, labels, [e.object for e in exps], folds=args.cv,
@@ -208,7 +232,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
         flags = [[clip_flags(c, model=model, threshold=args.score_threshold) for c in exp]
                  for exp in clips]
         name = f"learned ({args.model or f'shipped {kind} scorer'})"
-    scores = score_experiments(labels, flags)
+    scores = score_experiments(labels, flags, fps=[[c.fps for c in exp] for exp in clips])
     print(TABLE_HEADER)
     print(format_scores(("markerless: " if args.markerless else "markers: ") + name, scores))
     if args.json:
@@ -221,8 +245,10 @@ def run_evaluate(args: argparse.Namespace) -> int:
                 "first_flag": [int(f.argmax()) if f.any() else None for f in fl],
                 "videos": [str(v) for v in e.videos]} for e, fl in zip(exps, flags, strict=False)]
         with atomic_open(args.json, "w") as fh:
-            json.dump({"detector": name, "scores": asdict(scores), "experiments": per}, fh,
-                      indent=1)
+            # NaN (e.g. balanced accuracy without held grasps) is not JSON: null.
+            values = {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+                      for k, v in asdict(scores).items()}
+            json.dump({"detector": name, "scores": values, "experiments": per}, fh, indent=1)
     return 0
 
 

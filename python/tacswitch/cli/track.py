@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
         writer.writerow(["frame", "marker", "x_ref", "y_ref", "dx", "dy", "valid"])
         rest, stream = choose_rest_frame(
             frames(args.source) if bag is None else bag,
-            lambda f: len(ts.extract_markers(f, polarity=args.polarity)),
+            lambda f: ts.extract_markers(f, polarity=args.polarity).centres,
             source=args.source, max_frames=args.max_frames, hint="; check --polarity")
         if rest is not None and rest.index > 0:
             warn("track", rest.message())

@@ -21,6 +21,7 @@ import sys
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -33,6 +34,7 @@ from tacswitch.removal import remove_markers
 from tacswitch.tracking import (
     REST_LOOK_AHEAD,
     MarkerTracker,
+    lattice_irregularity,
     rest_thumbnail,
     settled_index,
     usable_rest_frame,
@@ -64,21 +66,30 @@ def read_labels(root: str | os.PathLike[str], labels: str | os.PathLike[str] | N
         raise ValueError(f"labels: no such file: {str(path)!r}")
     with open(path, newline="") as fh:
         reader = csv.DictReader(fh)
-        missing = {"object", "experiment", "slip"} - set(reader.fieldnames or [])
+        # Spaces around the header's names and the cells are a spreadsheet's, not meaning.
+        fields = [f.strip() for f in (reader.fieldnames or [])]
+        reader.fieldnames = fields
+        missing = {"object", "experiment", "slip"} - set(fields)
         if missing:
             raise ValueError(f"labels: {str(path)!r} lacks column(s) {sorted(missing)} "
-                             "(needs object, experiment, slip)")
+                             f"(needs object, experiment, slip; found {fields})")
         out = []
+        seen: dict[tuple[str, str], int] = {}
         for line, row in enumerate(reader, start=2):
             label = (row["slip"] or "").strip()
             if label not in ("0", "1"):
                 raise ValueError(f"labels: line {line}: slip must be 0 or 1; got {label!r}")
-            folder = base / row["object"] / row["experiment"]
+            obj, exp = (row["object"] or "").strip(), (row["experiment"] or "").strip()
+            if (obj, exp) in seen:
+                raise ValueError(f"labels: line {line}: {obj}/{exp} is listed again (first on "
+                                 f"line {seen[(obj, exp)]})")
+            seen[(obj, exp)] = line
+            folder = base / obj / exp
             videos = sorted(p for p in folder.glob("*") if p.suffix.lower() in VIDEO_SUFFIXES)
             if not videos:
                 raise ValueError(f"labels: line {line}: no video (*.avi, *.mp4, ...) in "
                                  f"{str(folder)!r}")
-            out.append(Experiment(row["object"], row["experiment"], label == "1", videos))
+            out.append(Experiment(obj, exp, label == "1", videos))
     if not out:
         raise ValueError(f"labels: {str(path)!r} lists no experiment")
     return out
@@ -144,11 +155,13 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
     if not head:
         raise ValueError("frames: no readable frame")
     width = int(head[0].shape[1])
-    rest = settled_index([rest_thumbnail(f) for f in head])
+    thumbs = [rest_thumbnail(f) for f in head]
     if markerless:
+        rest = settled_index(thumbs)
         points = extract_markers(head[rest]).centres
     else:
         found = [extract_markers(f).centres for f in head]
+        rest = settled_index(thumbs, [lattice_irregularity(c) for c in found])
         rest = usable_rest_frame([len(c) for c in found], start=rest) or 0
         points = found[rest]
     n = len(points)
@@ -173,16 +186,34 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
     return TrackedClip(np.stack(motions), np.stack(valids), points, marker_pitch(points), width)
 
 
-def save_clip(path: Path, clip: TrackedClip) -> None:
+def source_stamp(video: Path) -> NDArray[np.int64]:
+    """``[size in bytes, modification time in ns]`` of a video: a cached clip of an edited or
+    replaced file is tracked again."""
+    st = video.stat()
+    return np.array([st.st_size, st.st_mtime_ns], np.int64)
+
+
+def save_clip(path: Path, clip: TrackedClip, video: Path | None = None) -> None:
     """Writes ``clip`` to ``path`` (``.npz``) atomically, so an interrupted run leaves no
-    partial file."""
+    partial file; with ``video``, its :func:`source_stamp` too."""
     from tacswitch._io import atomic_open
 
     path.parent.mkdir(parents=True, exist_ok=True)
+    arrays: dict[str, Any] = {"motion": clip.motion, "valid": clip.valid,
+                              "points": clip.points, "pitch": clip.pitch, "width": clip.width,
+                              "fps": np.nan if clip.fps is None else clip.fps}
+    if video is not None:
+        arrays["source"] = source_stamp(video)
     with atomic_open(path, "wb") as fh:
-        np.savez_compressed(fh, motion=clip.motion, valid=clip.valid, points=clip.points,
-                            pitch=clip.pitch, width=clip.width,
-                            fps=np.nan if clip.fps is None else clip.fps)
+        np.savez_compressed(fh, **arrays)
+
+
+def _cache_matches(path: Path, video: Path) -> bool:
+    """The cached clip at ``path`` was tracked from ``video`` as it is now (a cache written
+    without a stamp is trusted)."""
+    with np.load(path) as z:
+        return "source" not in z.files or bool(np.array_equal(z["source"],
+                                                              source_stamp(video)))
 
 
 def load_clip(path: Path, video: Path | None = None) -> TrackedClip:
@@ -206,17 +237,17 @@ def cached_clip(video: Path, cache: Path | None, *, markerless: bool = False) ->
 
     target = None
     if cache is not None:
-        # "-v2": the rest frame after the camera settles (2026-11-28); a cache of the
-        # earlier tracks (from frame 0) is tracked again rather than read.
-        tag = "markerless-v2" if markerless else "markers-v2"
+        # "-v2": the rest frame after the camera settles (2026-11-28); "-v3" (markers): also
+        # after a stale start that fades (2026-11-29). An older cache is tracked again.
+        tag = "markerless-v2" if markerless else "markers-v3"
         key = f"{video.parent.parent.name}__{video.parent.name}__{video.stem}__{tag}.npz"
         target = cache / key
-        if target.is_file():
+        if target.is_file() and _cache_matches(target, video):
             return load_clip(target, video)
     clip = replace(track_clip(read_video(video), markerless=markerless),
                    fps=stated_fps(video, "video"))
     if target is not None:
-        save_clip(target, clip)
+        save_clip(target, clip, video)
     return clip
 
 

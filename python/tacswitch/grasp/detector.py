@@ -20,6 +20,7 @@ shaken grasps slipping; the learned rule reads how the field moves over time ins
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -29,7 +30,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from tacswitch._checks import as_motion, as_points, as_valid
+from tacswitch._checks import as_count, as_motion, as_number, as_points, as_valid
 from tacswitch.grasp.features import N_BASE_FEATURES, N_FEATURES, FieldFeatures, marker_pitch
 from tacswitch.grasp.phases import GRASP, PRESSING, GraspSegmenter, Step
 from tacswitch.grasp.timebase import TRAINED_FPS, TimeBase, check_fps, needs_resampling
@@ -188,13 +189,16 @@ class GraspSlipDetector:
         self.points = as_points(points, "points")
         if image_width is None:
             xs = self.points[:, 0]
-            image_width = round(float(xs.max() + xs.min())) if len(xs) else 640
-        if image_width < 1:
-            raise ValueError(f"image_width: must be >= 1; got {image_width}")
-        self.image_width = int(image_width)
+            image_width = max(1, round(float(xs.max() + xs.min()))) if len(xs) else 640
+        self.image_width = as_count(image_width, "image_width", 1)
         self.rule = rule
-        if threshold_px is not None and not threshold_px > 0:
-            raise ValueError(f"threshold_px: must be > 0; got {threshold_px!r}")
+        if threshold_px is not None:
+            threshold_px = as_number(threshold_px, "threshold_px")
+            if not threshold_px > 0:
+                raise ValueError(f"threshold_px: must be > 0; got {threshold_px!r}")
+        if start is not None:
+            start = as_count(start, "start", 0)
+        smooth_frames = as_count(smooth_frames, "smooth_frames", 1)
         epsilon = float(threshold_px) if threshold_px else scaled_threshold(self.image_width)
         self.frame = -1
         self.tick = -1
@@ -222,6 +226,8 @@ class GraspSlipDetector:
         else:
             if rigid_threshold_px is not None or rigid_only:
                 raise ValueError("rigid_threshold_px: applies to rule='paper' only")
+            if smooth_frames != 1:
+                raise ValueError("smooth_frames: applies to rule='paper' only")
             self.pitch = marker_pitch(self.points)
             if callable(model) and not isinstance(model, (str, os.PathLike)):
                 self._scorer = model
@@ -239,9 +245,7 @@ class GraspSlipDetector:
                 self.still_filter = bool(still_filter)
             self._features = FieldFeatures(self.points, self.pitch, self.still_filter)
             if threshold is not None:
-                if not np.isfinite(threshold):
-                    raise ValueError(f"threshold: must be finite; got {threshold!r}")
-                self.threshold = float(threshold)
+                self.threshold = as_number(threshold, "threshold")
             if votes is not None:
                 if isinstance(votes, bool) or not isinstance(votes, (int, np.integer)):
                     raise TypeError(f"votes: expected an int; got {type(votes).__name__}")
@@ -251,7 +255,8 @@ class GraspSlipDetector:
                          if self.fps is not None and needs_resampling(self.fps, self.model_fps)
                          else None)
         if start is not None and self.timebase is not None:
-            start = round(start * self.timebase.ratio)
+            # The first tick at or after the frame asked for (never an earlier one).
+            start = math.ceil(start * self.timebase.ratio - 1e-9)
         self.segmenter = GraspSegmenter(epsilon, start=start)
         self._last: GraspSlipState | None = None
 
@@ -341,4 +346,4 @@ def run_clip(motions: NDArray[np.floating], valids: NDArray[np.bool_], points: A
     """A :class:`GraspSlipDetector` over a whole tracked clip (``T x N x 2`` motions since the
     first frame, ``T x N`` valid): the states of every frame, as the online loop sees them."""
     det = GraspSlipDetector(points, image_width=image_width, **options)
-    return [det.update(m, v) for m, v in zip(motions, valids, strict=False)]
+    return [det.update(m, v) for m, v in zip(motions, valids, strict=True)]

@@ -64,11 +64,20 @@ class SlipScores:
 
 
 def score_experiments(labels: Sequence[bool], flags: Sequence[Sequence[np.ndarray]],
-                      fps: float = DEFAULT_FPS) -> SlipScores:
+                      fps: float | Sequence[Sequence[float | None]] = DEFAULT_FPS
+                      ) -> SlipScores:
     """Scores ``flags[i]`` (one bool array per video of experiment ``i``, per frame) against
-    ``labels[i]``."""
+    ``labels[i]``. ``fps``: the videos' frame rate (frames/s), one for all or one per video
+    (``fps[i][j]``, None: :data:`DEFAULT_FPS`), for the false alarms per minute."""
     if len(labels) != len(flags):
         raise ValueError("flags: one list of videos per label")
+    rates = ([[fps] * len(exp) for exp in flags] if isinstance(fps, (int, float))
+             else [[DEFAULT_FPS if r is None else r for r in exp] for exp in fps])
+    if len(rates) != len(flags) or any(len(r) != len(e) for r, e in zip(rates, flags,
+                                                                         strict=True)):
+        raise ValueError("fps: one frame rate per video of every experiment")
+    if not all(np.isfinite(r) and r > 0 for exp in rates for r in exp):
+        raise ValueError("fps: frame rates must be finite and positive")
     y = np.asarray(labels, bool)
     called = np.array([any(bool(np.any(v)) for v in exp) for exp in flags], bool)
     tp = int((y & called).sum())
@@ -79,15 +88,14 @@ def score_experiments(labels: Sequence[bool], flags: Sequence[Sequence[np.ndarra
     tpr = tp / n_slip if n_slip else float("nan")
     tnr = tn / n_hold if n_hold else float("nan")
     episodes = 0
-    hold_frames = 0
-    for lab, exp in zip(y, flags, strict=False):
+    minutes = 0.0
+    for lab, exp, exp_fps in zip(y, flags, rates, strict=True):
         if lab:
             continue
-        for v in exp:
+        for v, rate in zip(exp, exp_fps, strict=True):
             a = np.asarray(v, bool)
-            hold_frames += len(a)
+            minutes += len(a) / rate / 60.0
             episodes += int(a[0]) + int(np.sum(a[1:] & ~a[:-1])) if len(a) else 0
-    minutes = hold_frames / fps / 60.0
     firsts = [min(int(np.argmax(v)) for v in exp if np.any(v))
               for lab, exp in zip(y, flags, strict=False) if lab and any(np.any(v) for v in exp)]
     return SlipScores(

@@ -126,5 +126,5 @@ def sequence_features(motions: Any, valids: Any, points: Any, pitch: float, *,
     frame, ``T x N`` valid), frame by frame as the online detector computes them
     (``still_filter``: :class:`FieldFeatures`)."""
     ff = FieldFeatures(points, pitch, still_filter)
-    rows = [ff.update(m, v) for m, v in zip(motions, valids, strict=False)]
+    rows = [ff.update(m, v) for m, v in zip(motions, valids, strict=True)]
     return np.stack(rows) if rows else np.zeros((0, N_FEATURES), np.float32)

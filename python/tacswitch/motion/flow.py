@@ -78,6 +78,9 @@ BALANCED = {"finest_scale": 1, "gradient_descent_iterations": 8,
 BALANCED_WORK_WIDTH = 320
 #: OpenCV's DIS needs the width or the height to be at least this (px).
 DIS_MIN_SIDE = 12
+#: Smallest side (px, padded) DIS is run on at its ``balanced`` finest scale (two 8 px patches);
+#: smaller frames get the full-size flow, and the downsampling never goes below it.
+DIS_SMALL_SIDE = 16
 #: Mirror padding of both frames before the flow, a fraction of the frame width (16 px at 320).
 PAD_REL = 0.05
 #: Background blur sigma as a fraction of the frame width (the illumination model's scale).
@@ -335,7 +338,7 @@ def flow_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8], centres: NDArray
     check_flow_options(algorithm, preset, suppress_imprint)
     if len(centres) == 0 or np.array_equal(img, ref):
         return np.zeros((len(centres), 2), np.float32)
-    k = work_factor(img.shape[1], algorithm, preset)
+    k = work_factor(img.shape[1], algorithm, preset, height=img.shape[0])
     gi = _shrink(_grey(img), k)
     ref8, scale = _prepared_ref(ref, k)
     img8 = _to8(_local_contrast(gi, _bg_sigma(gi.shape[1])), scale)
@@ -344,7 +347,10 @@ def flow_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8], centres: NDArray
     # frames with no side of at least DIS_MIN_SIDE px, which the padding also provides.
     pad = min(round(PAD_REL * w), min(h, w) - 1)
     pad = max(pad, (DIS_MIN_SIDE - max(h, w) + 1) // 2)
-    flow = dense_flow(ref8, img8, algorithm, preset, pad=pad, finest_scale=0 if k > 1 else None)
+    # DIS stopping at half size crashes (OpenCV 5.0) on frames under 2 patches (16 px) high
+    # once padded; such small frames are cheap at full size.
+    full = k > 1 or min(h, w) + 2 * pad < DIS_SMALL_SIDE
+    flow = dense_flow(ref8, img8, algorithm, preset, pad=pad, finest_scale=0 if full else None)
     if suppress_imprint:
         # Normalised convolution: the weighted mean of the flow over a wide Gaussian, so inside
         # an imprint that appeared the field comes from the gel around it.
@@ -395,10 +401,15 @@ def imprint_weight(gi: NDArray[np.float32], gr: NDArray[np.float32]) -> NDArray[
     return np.asarray(wt, np.float32)
 
 
-def work_factor(width: int, algorithm: str = "dis", preset: str = DEFAULT_PRESET) -> int:
+def work_factor(width: int, algorithm: str = "dis", preset: str = DEFAULT_PRESET, *,
+                height: int | None = None) -> int:
     """Integer area-downsampling factor :func:`flow_motion` applies to a frame ``width`` px wide
     before the flow (1 = none): ``round(width / BALANCED_WORK_WIDTH)`` for DIS ``balanced`` on
-    frames at least 1.5x that wide."""
+    frames at least 1.5x that wide, lowered so that a frame ``height`` px high keeps at least
+    :data:`DIS_SMALL_SIDE` px a side."""
     if algorithm != "dis" or preset != "balanced" or width < 1.5 * BALANCED_WORK_WIDTH:
         return 1
-    return max(1, round(width / BALANCED_WORK_WIDTH))
+    k = max(1, round(width / BALANCED_WORK_WIDTH))
+    if height is not None:
+        k = max(1, min(k, height // DIS_SMALL_SIDE))
+    return k

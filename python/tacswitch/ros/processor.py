@@ -82,6 +82,7 @@ from tacswitch.grasp.timebase import check_fps, fps_from_intervals
 from tacswitch.tracking import (
     REST_LOOK_AHEAD,
     REST_USABLE_FRACTION,
+    lattice_irregularity,
     rest_thumbnail,
     settled_index,
     usable_rest_frame,
@@ -239,11 +240,13 @@ class _Builder(BagSink):
 
 @dataclass
 class _Held:
-    """A frame held for the look-ahead: the frame, where it came from, its marker count."""
+    """A frame held for the look-ahead: the frame, where it came from, its marker count and
+    the lattice's irregularity (:func:`tacswitch.tracking.lattice_irregularity`)."""
 
     frame: NDArray[np.uint8]
     at: BagFrame
     markers: int = 0
+    irregularity: float = float("nan")
 
 
 @dataclass
@@ -437,7 +440,8 @@ class TactileProcessor:
                     return
                 self._stats.before_reference += 1
                 return
-            self._held.append(_Held(frame, at, _count(frame)))
+            centres = _centres(frame)
+            self._held.append(_Held(frame, at, len(centres), lattice_irregularity(centres)))
             if len(self._held) >= cfg.look_ahead:
                 self._choose()
             return
@@ -447,7 +451,8 @@ class TactileProcessor:
         """The reference among the frames held: the first showing at least
         :data:`USABLE_FRACTION` of the most markers any of them shows (module doc)."""
         held, self._held = self._held, []
-        settled = settled_index([rest_thumbnail(h.frame) for h in held])
+        settled = settled_index([rest_thumbnail(h.frame) for h in held],
+                                [h.irregularity for h in held])
         index = usable_rest_frame([h.markers for h in held], USABLE_FRACTION, settled)
         if index is None:
             self._stats.before_reference += len(held)
@@ -457,7 +462,8 @@ class TactileProcessor:
         best = max(h.markers for h in held)
         if index and 0 < settled <= index:
             self.warn(f"tacswitch: frames before {settled} come before the camera settled "
-                      f"(exposure changing, or a jump of the whole image), so frame {index} "
+                      "(exposure changing, or frames left from before: a jump of the whole "
+                      f"image, or a deformed gel relaxing), so frame {index} "
                       f"of the first {len(held)} is the reference ({held[index].markers} "
                       "markers); frames before it get no motion or slip")
         elif index:
@@ -533,11 +539,17 @@ def motion_fields(points: Any, motion: Any, valid: Any) -> dict[str, NDArray[np.
             "dy": np.where(ok, mot[:, 1], np.nan), "valid": ok.astype(np.float32)}
 
 
-def _count(frame: NDArray[np.uint8]) -> int:
-    """Markers found on a frame (the default extraction, as the trackers use)."""
+def _centres(frame: NDArray[np.uint8]) -> NDArray[np.float32]:
+    """Centres ``N x 2`` of the markers found on a frame (the default extraction, as the
+    trackers use)."""
     from tacswitch.markers import extract_markers
 
-    return len(extract_markers(frame))
+    return np.asarray(extract_markers(frame).centres, np.float32)
+
+
+def _count(frame: NDArray[np.uint8]) -> int:
+    """Markers found on a frame (the default extraction, as the trackers use)."""
+    return len(_centres(frame))
 
 
 def _remove(frame: NDArray[np.uint8], cfg: ProcessorConfig) -> NDArray[np.uint8]:

@@ -9,7 +9,8 @@
 //! value reported last; `h` is [`StillFilter::K`] times the stream's own frame-to-frame jitter
 //! floor (the smallest running median so far of each frame's 25th-percentile marker step, in
 //! pitches), at most [`StillFilter::CAP`]. A stream with no jitter (the recordings) gets `h = 0`
-//! and passes through unchanged; a noisy camera gets `h` above its noise.
+//! and passes through unchanged; a noisy camera gets `h` above its noise. Repeated frames (every
+//! marker exactly where it was) do not count towards the floor.
 
 use std::collections::VecDeque;
 
@@ -89,21 +90,27 @@ impl StillFilter {
                     (dx * dx + dy * dy).sqrt() / self.pitch
                 }),
         );
-        let step = if self.scratch.is_empty() {
-            f64::INFINITY
-        } else {
-            percentile(&mut self.scratch, 100.0 * Self::QUANTILE)
-        };
-        if self.steps.len() == Self::WINDOW {
-            self.steps.pop_front();
-        }
-        self.steps.push_back(step);
-        if self.steps.len() == Self::WINDOW {
-            self.scratch.clear();
-            self.scratch.extend(self.steps.iter().copied());
-            // A window holding infinite steps (frames without a finite marker) can give NaN
-            // (inf - inf), which `min` ignores as it would ignore an infinite median.
-            self.floor = self.floor.min(percentile(&mut self.scratch, 50.0));
+        // A repeated frame (every marker exactly where it was: a camera or a player repeating a
+        // frame, or the rest frames a recording's stale start is read as) says nothing of the
+        // camera's jitter; counted, three of them in a window would set the floor to 0 for good.
+        let repeated = !self.scratch.is_empty() && self.scratch.iter().all(|&s| s == 0.0);
+        if !repeated {
+            let step = if self.scratch.is_empty() {
+                f64::INFINITY
+            } else {
+                percentile(&mut self.scratch, 100.0 * Self::QUANTILE)
+            };
+            if self.steps.len() == Self::WINDOW {
+                self.steps.pop_front();
+            }
+            self.steps.push_back(step);
+            if self.steps.len() == Self::WINDOW {
+                self.scratch.clear();
+                self.scratch.extend(self.steps.iter().copied());
+                // A window holding infinite steps (frames without a finite marker) can give NaN
+                // (inf - inf), which `min` ignores as it would ignore an infinite median.
+                self.floor = self.floor.min(percentile(&mut self.scratch, 50.0));
+            }
         }
         let h = self.hysteresis() * self.pitch;
         for ((held, &m), prev) in self.held.iter_mut().zip(motion).zip(self.prev.iter_mut()) {
@@ -220,5 +227,27 @@ mod tests {
         assert_eq!(f.hysteresis(), 0.0);
         let m = vec![[1.0, 2.0]; 12];
         assert_eq!(f.update(&m), &m[..]);
+    }
+
+    #[test]
+    fn repeated_frames_do_not_switch_the_filter_off() {
+        // A noisy stream whose first frames repeat (a stale start read as rest, or a camera
+        // repeating frames): the repeats must not set the jitter floor to zero.
+        let pitch = 20.0;
+        let noise = noisy(40, 40, 0.02, 11);
+        let mut f = StillFilter::new(pitch);
+        for _ in 0..6 {
+            f.update(&vec![[0.0, 0.0]; 40]);
+        }
+        for nm in &noise {
+            f.update(nm);
+        }
+        let h = f.hysteresis();
+        assert!(h > 0.0, "floor set to zero by repeated frames");
+        // A freeze in the middle of the stream leaves the threshold where it was.
+        for _ in 0..8 {
+            f.update(&noise[39]);
+        }
+        assert_eq!(f.hysteresis(), h);
     }
 }

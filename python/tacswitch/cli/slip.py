@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from tacswitch.cli.rest_frame import choose_rest_frame
-from tacswitch.cli.sources import frame_count, frames
+from tacswitch.cli.sources import check_source, frame_count, frames
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -236,10 +236,8 @@ def run(args: argparse.Namespace) -> int:
     starts: list[int] = []
     t0 = time.perf_counter()
     log_path = csv_output(args.log, "--log")
-    if bag is None and not args.source.isdigit() and not Path(args.source).exists():
-        # Before the log is opened: a run that cannot start leaves no empty log behind.
-        raise FileNotFoundError(f"source: {args.source!r} is not a file, folder or camera "
-                                "index")
+    if bag is None:  # before the log is opened: a run that cannot start leaves no log
+        check_source(args.source)
     status = 0
     total = (frame_count(args.source, args.max_frames) if bag is None else
              min(len(bag), args.max_frames or len(bag)) or None)

@@ -236,6 +236,13 @@ def frame_count(source: str, limit: int | None = None) -> int | None:
     return limit if count is None else min(count, limit)
 
 
+def check_source(source: str) -> None:
+    """``FileNotFoundError`` naming ``source`` unless it is a file, a folder or a camera index
+    (checked before anything is written, e.g. a log)."""
+    if not source.isdigit() and not Path(source).is_dir() and not Path(source).is_file():
+        raise FileNotFoundError(f"source: {source!r} is not a file, folder or camera index")
+
+
 def frames(source: str) -> Iterator[np.ndarray | None]:
     """Yields BGR frames from a folder, a video or a camera index; None for an unreadable frame.
 
@@ -253,8 +260,7 @@ def frames(source: str) -> Iterator[np.ndarray | None]:
             yield read_quiet(f)
         return
     if not source.isdigit():
-        if not path.is_file():
-            raise FileNotFoundError(f"source: {source!r} is not a file, folder or camera index")
+        check_source(source)
         yield from video_frames(path)
         return
     _quiet_decoder()

@@ -27,6 +27,7 @@ from bench_slip_real import CACHE, DEFAULT_DATA, shipped_committee_as_recorded
 
 from tacswitch.grasp.crossval import clip_flags
 from tacswitch.grasp.dataset import (
+    MARKER_TRACKS_TAG,
     TrackedClip,
     load_clip,
     read_video,
@@ -82,7 +83,9 @@ def reencoded_clip(job: tuple[Path, str]) -> TrackedClip:
     from tacswitch.sim.capture import h264_roundtrip, jpeg_roundtrip
 
     video, codec = job
-    name = f"{video.parent.parent.name}__{video.parent.name}__{video.stem}__{codec}.npz"
+    # The tracking rules' version in the name: tracks of an older rest frame are made again.
+    name = (f"{video.parent.parent.name}__{video.parent.name}__{video.stem}__{codec}__"
+            f"{MARKER_TRACKS_TAG}.npz")
     key = CACHE / "codecs" / name
     if key.is_file():
         return load_clip(key)

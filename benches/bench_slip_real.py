@@ -155,7 +155,7 @@ def main() -> int:
         export_scorer(res, args.export, extra={
             "trained_on": f"{args.data.name}: {len(exps)} experiments, "
                           f"{len(set(objects))} objects (real GelSight Mini, {motion})"},
-                      still_filter=still)
+                      still_filter=still, motion="markerless" if args.markerless else "markers")
         print(f"wrote {args.export}")
         return 0
     print(f"REAL GelSight Mini grasps: {len(exps)} experiments, {len(set(objects))} objects, "

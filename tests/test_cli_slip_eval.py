@@ -65,7 +65,8 @@ def test_evaluate_slip_scores_every_experiment(labelled: Path, tmp_path: Path) -
 
 
 def test_evaluate_slip_markerless_scores_with_the_markerless_scorer(
-        labelled: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+        labelled: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
     """Predicted motion is scored by the shipped markerless scorer, as `tacswitch slip
     --markerless` scores it; tracked markers by the marker scorer; --model overrides both."""
     from tacswitch.grasp import crossval
@@ -89,9 +90,16 @@ def test_evaluate_slip_markerless_scores_with_the_markerless_scorer(
     from tacswitch.grasp.detector import slip_model_path
 
     mine = str(slip_model_path("markers"))
+    capsys.readouterr()
     code, text = run("evaluate", "slip", str(labelled), "--markerless", "-q", "--cache", cache,
                      "--model", mine)
     assert code == 0 and set(used) == {mine} and f"learned ({mine})" in text
+    # The shipped files say what they learned from; the marker scorer on predicted motion warns.
+    assert "--model: learned from tracked markers, and this run predicts" in capsys.readouterr().err
+    from tacswitch.grasp.detector import load_scorer
+
+    assert (load_scorer("markers").motion, load_scorer("markerless").motion) == (
+        "markers", "markerless")
 
 
 def test_train_slip_writes_a_model_the_slip_loop_uses(labelled: Path, tmp_path: Path,
@@ -113,6 +121,7 @@ def test_train_slip_writes_a_model_the_slip_loop_uses(labelled: Path, tmp_path: 
 
     scorer = load_scorer(model)
     assert (scorer.committee, scorer.votes) == (COMMITTEE, VOTES)
+    assert scorer.motion == "markers"
     video = next(labelled.rglob("*.avi"))
     log = tmp_path / "log.csv"
     code, _ = run("slip", str(video), "--log", str(log), "--slip-model", str(model), "-q")
@@ -123,6 +132,14 @@ def test_train_slip_writes_a_model_the_slip_loop_uses(labelled: Path, tmp_path: 
     assert main(["slip", str(video), "--log", str(log), "--slip-model", str(model), "-q",
                  "--votes", str(COMMITTEE + 1)]) != 0
     assert f"--votes: must be >= 1, at most the committee's {COMMITTEE}" in capsys.readouterr().err
+    # A marker scorer fed predicted motion: said once, before any frame.
+    assert main(["slip", str(video), "--log", str(log), "--slip-model", str(model), "-q",
+                 "--markerless", "--max-frames", "4"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("--slip-model: learned from tracked markers, and this run predicts") == 1
+    assert main(["slip", str(video), "--log", str(log), "--slip-model", str(model), "-q",
+                 "--max-frames", "4"]) == 0
+    assert "learned from" not in capsys.readouterr().err
 
 
 def test_errors_name_the_argument(labelled: Path, tmp_path: Path,
@@ -262,6 +279,37 @@ def test_a_replaced_video_is_tracked_again_not_read_from_the_cache(labelled: Pat
     assert not np.array_equal(replaced.motion, first.motion)
 
 
+def test_a_copied_dataset_keeps_its_cache_and_edited_bytes_do_not(
+        labelled: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import os
+    import shutil
+
+    import numpy as np
+
+    from tacswitch.grasp import dataset
+
+    video = tmp_path / "obj" / "exp" / "camera_0.avi"
+    video.parent.mkdir(parents=True)
+    shutil.copy(labelled / "cup" / "exp_0" / "camera_0.avi", video)
+    cache = tmp_path / "cache"
+    first = dataset.cached_clip(video, cache)
+    st = video.stat()
+    os.utime(video, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))  # copied: a new mtime
+
+    def no_tracking(*args: object, **kw: object) -> None:
+        raise AssertionError("tracked again")
+
+    monkeypatch.setattr(dataset, "track_clip", no_tracking)
+    np.testing.assert_array_equal(dataset.cached_clip(video, cache).motion, first.motion)
+    # The same size, one byte changed, a new mtime: not the file the cache was made from.
+    (entry,) = cache.glob("*.npz")
+    data = bytearray(video.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    video.write_bytes(bytes(data))
+    assert video.stat().st_size == st.st_size
+    assert not dataset._cache_matches(entry, video)
+
+
 def test_labels_with_spaces_and_repeated_experiments(labelled: Path, tmp_path: Path,
                                                      capsys: pytest.CaptureFixture[str]) -> None:
     from tacswitch.grasp.dataset import read_labels
@@ -284,3 +332,13 @@ def test_labels_with_spaces_and_repeated_experiments(labelled: Path, tmp_path: P
     assert code == 0
     data = json.loads(out.read_text())  # strict JSON would refuse NaN
     assert data["scores"]["balanced_accuracy"] is None
+
+
+def test_train_slip_help_states_the_rendered_grasps_it_adds(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    from tacswitch.grasp.simulated import SIMULATED_PER_KIND
+
+    with pytest.raises(SystemExit):
+        main(["train", "slip", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert f"(default: {SIMULATED_PER_KIND}, as the shipped scorer" in text

@@ -150,6 +150,34 @@ def test_argument_errors(press_samples):
         predict_motion(img, ref, model="/nonexistent/model.onnx")
 
 
+@pytest.mark.parametrize("method", ["auto", "flow", "ensemble", "model", "outward"])
+def test_centres_of_another_resolution_are_refused_border_markers_are_not(press_samples,
+                                                                           method):
+    s = press_samples[0]
+    img, ref = s["image"], s["reference"]
+    h, w = img.shape[:2]
+    doubled = s["rest"] * 2 + [w / 2, h / 2]  # a frame twice the size, shifted: far outside
+    with pytest.raises(ValueError, match=r"^centres: point \d+ .* lies outside the "
+                                         rf"{w}x{h} frame"):
+        predict_motion(img, ref, centres=doubled, method=method)
+    # A marker cut by the border: its centre a few pixels outside the frame.
+    border = np.array([[-4.0, h / 2], [w + 3.0, 5.0]], np.float32)
+    out = predict_motion(img, ref, centres=border, method=method)
+    assert out.shape == (2, 2) and np.isfinite(out).all()
+
+
+def test_markerless_tracker_refuses_centres_outside_its_frames(press_samples):
+    from tacswitch.motion.sequence import MarkerlessTracker
+
+    s = press_samples[0]
+    h, w = s["image"].shape[:2]
+    with pytest.raises(ValueError, match=r"^centres: point 0"):
+        MarkerlessTracker(s["reference"], np.array([[w * 2.0, h * 2.0]], np.float32))
+    tracker = MarkerlessTracker(None, np.array([[-1.0, h * 3.0]], np.float32))
+    with pytest.raises(ValueError, match=r"^centres: point 0"):
+        tracker.update(s["image"])
+
+
 def test_slip_detector_accepts_predicted_motion(press_samples):
     s = press_samples[2]
     det = ts.SlipDetector(image_width=320)

@@ -196,6 +196,29 @@ def as_points(pts: Any, name: str, *, check_finite: bool = True) -> NDArray[np.f
     return arr
 
 
+#: How far outside the frame a point may lie, as a fraction of the frame's width / height: a
+#: marker cut by the border has its centre near the border; a point farther out is taken for
+#: pixels of another resolution (centres from a 640x480 frame given with a 320x240 one).
+OUTSIDE_FRAME_FRACTION = 0.125
+
+
+def check_points_in_frame(pts: NDArray[np.float32], height: int, width: int, name: str
+                          ) -> None:
+    """``ValueError`` naming ``name`` when a point ``(x, y)`` lies outside the ``width x
+    height`` frame by more than :data:`OUTSIDE_FRAME_FRACTION` of its side."""
+    if not len(pts):
+        return
+    mx, my = OUTSIDE_FRAME_FRACTION * width, OUTSIDE_FRAME_FRACTION * height
+    x, y = pts[:, 0], pts[:, 1]
+    out = (x < -mx) | (x > width - 1 + mx) | (y < -my) | (y > height - 1 + my)
+    if out.any():
+        i = int(np.flatnonzero(out)[0])
+        raise ValueError(f"{name}: point {i} ({x[i]:.1f}, {y[i]:.1f}) lies outside the "
+                         f"{width}x{height} frame ({int(out.sum())} of {len(pts)} points); "
+                         "points are (x, y) pixels of this frame (taken at another "
+                         "resolution?)")
+
+
 def as_valid(valid: Any, n: int, name: str = "valid") -> NDArray[np.bool_]:
     """Returns ``valid`` as a length-``n`` bool array."""
     arr = np.asarray(valid)

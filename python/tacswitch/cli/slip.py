@@ -319,6 +319,25 @@ def _source_fps(args: argparse.Namespace, bag: Any) -> float | None:
     return None
 
 
+def warn_scorer_kind(learned_from: str | None, markerless: bool, *, command: str = "slip",
+                     flag: str = "--slip-model") -> None:
+    """One line on stderr when the scorer given (``flag``) learned from the other kind of
+    motion than this run feeds it (a marker scorer reads predicted motion as nearly still: 3
+    of 65 real slips caught, BENCHMARKS.md)."""
+    from tacswitch.cli.progress import warn
+
+    fed = "markerless" if markerless else "markers"
+    if learned_from is None or learned_from == fed:
+        return
+    other = ("tracked markers" if learned_from == "markers"
+             else "motion predicted on a markerless sensor")
+    hint = "with --markerless" if markerless else "without --markerless"
+    warn(command, f"{flag}: learned from {other}, and this run "
+         f"{'predicts motion (--markerless)' if markerless else 'tracks markers'}; its "
+         f"decisions are not measured on such motion (train one {hint}: `tacswitch train "
+         "slip`)")
+
+
 def _first_tracker(frame: np.ndarray, args: argparse.Namespace, markerless: type) -> Any:
     """The marker tracker (or its markerless stand-in) from the rest frame (one with markers:
     :func:`tacswitch.cli.rest_frame.choose_rest_frame`)."""
@@ -406,19 +425,21 @@ class _LearnedLoop:
         self.label = " (learned rule)"
         self.model = (str(input_file(args.slip_model, "--slip-model")) if args.slip_model
                       else "markerless" if args.markerless else "markers")
-        if args.votes is not None:
-            # Checked now, against the scorer's committee: a usage error before any frame.
+        if args.votes is not None or args.slip_model:
+            # Checked now, against the scorer: a usage error or a warning before any frame.
             from tacswitch.cli.options import UsageError
             from tacswitch.grasp.detector import check_votes, load_scorer
 
             try:
-                size = load_scorer(self.model).committee
+                scorer = load_scorer(self.model)
             except (ValueError, FileNotFoundError) as exc:
                 raise ValueError(str(exc).replace("model:", "--slip-model:", 1)) from None
-            try:
-                check_votes(args.votes, size)
-            except ValueError as exc:
-                raise UsageError(f"--{exc}") from None
+            if args.votes is not None:
+                try:
+                    check_votes(args.votes, scorer.committee)
+                except ValueError as exc:
+                    raise UsageError(f"--{exc}") from None
+            warn_scorer_kind(scorer.motion, args.markerless)
         self.tracker: Any = None
         self.detector: Any = None
         self.offset = 0  # the rest frame: the detector counts frames from it

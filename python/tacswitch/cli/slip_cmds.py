@@ -212,6 +212,18 @@ def run_evaluate(args: argparse.Namespace) -> int:
         if out.is_dir() or not out.parent.is_dir():
             raise UsageError(f"--json: cannot write {args.json!r} (a folder, or its folder "
                              "does not exist)")
+    if args.model is not None:
+        # Before tracking: a file that cannot be read is named at once, and a scorer of the
+        # other kind of motion is said.
+        from tacswitch.cli.slip import warn_scorer_kind
+        from tacswitch.grasp.detector import load_scorer
+
+        try:
+            scorer = load_scorer(args.model)
+        except (ValueError, FileNotFoundError) as exc:
+            raise ValueError(str(exc).replace("model:", "--model:", 1)) from None
+        warn_scorer_kind(scorer.motion, args.markerless, command="evaluate slip",
+                         flag="--model")
     exps, clips = _load(args, folds=args.cv)
     labels = [e.slip for e in exps]
     if args.cv:
@@ -308,7 +320,7 @@ def run_train(args: argparse.Namespace) -> int:
                                                  f"experiments{views}, "
                                                  f"{sum(e.slip for e in exps)} slip; "
                                                  f"{n_rendered} rendered"},
-                  still_filter=still)
+                  still_filter=still, motion="markerless" if args.markerless else "markers")
     if not args.quiet:
         kept = (f", {res.committee} scorers, {res.votes} votes" if res.committee > 1
                 else ", one scorer")

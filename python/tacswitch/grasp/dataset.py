@@ -186,6 +186,13 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
     return TrackedClip(np.stack(motions), np.stack(valids), points, marker_pitch(points), width)
 
 
+#: The version of the tracking rules a cached clip was made with, in its file name; an older
+#: cache is tracked again. "-v2": the rest frame after the camera settles (2026-11-28); "-v3"
+#: (markers): also after a stale start that fades (2026-11-29).
+MARKER_TRACKS_TAG = "markers-v3"
+MARKERLESS_TRACKS_TAG = "markerless-v2"
+
+
 def source_stamp(video: Path) -> NDArray[np.int64]:
     """``[size in bytes, modification time in ns]`` of a video: a cached clip of an edited or
     replaced file is tracked again."""
@@ -193,9 +200,21 @@ def source_stamp(video: Path) -> NDArray[np.int64]:
     return np.array([st.st_size, st.st_mtime_ns], np.int64)
 
 
+def source_digest(video: Path) -> str:
+    """A BLAKE2b digest (hex) of the video's bytes: a copied or re-extracted dataset (new
+    modification times, the same files) keeps its cache."""
+    import hashlib
+
+    h = hashlib.blake2b(digest_size=16)
+    with open(video, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
 def save_clip(path: Path, clip: TrackedClip, video: Path | None = None) -> None:
     """Writes ``clip`` to ``path`` (``.npz``) atomically, so an interrupted run leaves no
-    partial file; with ``video``, its :func:`source_stamp` too."""
+    partial file; with ``video``, its :func:`source_stamp` and :func:`source_digest` too."""
     from tacswitch._io import atomic_open
 
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -204,16 +223,24 @@ def save_clip(path: Path, clip: TrackedClip, video: Path | None = None) -> None:
                               "fps": np.nan if clip.fps is None else clip.fps}
     if video is not None:
         arrays["source"] = source_stamp(video)
+        arrays["source_digest"] = np.array(source_digest(video))
     with atomic_open(path, "wb") as fh:
         np.savez_compressed(fh, **arrays)
 
 
 def _cache_matches(path: Path, video: Path) -> bool:
-    """The cached clip at ``path`` was tracked from ``video`` as it is now (a cache written
-    without a stamp is trusted)."""
+    """The cached clip at ``path`` was tracked from ``video`` as it is now: the same size and
+    modification time, or the same size and bytes (a cache written without a stamp is
+    trusted)."""
     with np.load(path) as z:
-        return "source" not in z.files or bool(np.array_equal(z["source"],
-                                                              source_stamp(video)))
+        if "source" not in z.files:
+            return True
+        stored, now = z["source"], source_stamp(video)
+        if stored.shape != now.shape or stored[0] != now[0]:
+            return False
+        if stored[1] == now[1]:
+            return True
+        return "source_digest" in z.files and str(z["source_digest"]) == source_digest(video)
 
 
 def load_clip(path: Path, video: Path | None = None) -> TrackedClip:
@@ -237,9 +264,7 @@ def cached_clip(video: Path, cache: Path | None, *, markerless: bool = False) ->
 
     target = None
     if cache is not None:
-        # "-v2": the rest frame after the camera settles (2026-11-28); "-v3" (markers): also
-        # after a stale start that fades (2026-11-29). An older cache is tracked again.
-        tag = "markerless-v2" if markerless else "markers-v3"
+        tag = MARKERLESS_TRACKS_TAG if markerless else MARKER_TRACKS_TAG
         key = f"{video.parent.parent.name}__{video.parent.name}__{video.stem}__{tag}.npz"
         target = cache / key
         if target.is_file() and _cache_matches(target, video):

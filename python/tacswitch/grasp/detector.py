@@ -75,6 +75,8 @@ class OnnxScorer:
         self.still_filter = bool(json.loads(meta.get("tacswitch.still_filter", "false")))
         # The frame rate its features were computed at (files before this key: 25 frames/s).
         self.fps = float(json.loads(meta.get("tacswitch.fps", str(TRAINED_FPS))))
+        # "markers" or "markerless": what its features came from (files before this key: None).
+        self.motion: str | None = meta.get("tacswitch.motion")
         n = int(json.loads(meta.get("tacswitch.n_features", str(N_FEATURES))))
         # A scorer trained before the snap-back features reads the vector's first values.
         if n not in (N_FEATURES, N_BASE_FEATURES):

@@ -67,6 +67,9 @@ VOTE_FRACTION = Fraction(2, 5)
 #: Share of a committee's members trained without the rendered grasps (rounded down: 16 of 32)
 #: when rendered grasps join the training set (:func:`train_committee`'s ``extra``).
 REAL_ONLY_FRACTION = Fraction(1, 2)
+#: What a scorer learned from (ONNX metadata ``tacswitch.motion``): tracked markers, or the
+#: motion ``MarkerlessTracker`` predicts on a markerless sensor.
+SCORER_MOTIONS = ("markers", "markerless")
 #: Experiments per optimisation step.
 BATCH = 8
 LEARNING_RATE = 2e-3
@@ -338,11 +341,15 @@ def frame_scores(net: Any, features: NDArray[np.float32]) -> NDArray[np.float32]
 
 def export_scorer(result: SlipTrainResult, path: str | os.PathLike[str],
                   threshold: float = 0.0, extra: dict[str, object] | None = None, *,
-                  still_filter: bool = False) -> None:
+                  still_filter: bool = False, motion: str = "markers") -> None:
     """Writes the scorer as ONNX (input ``features`` ``B x N_FEATURES`` float32, output
     ``logit`` ``B``, or ``B x K`` for a committee of ``K``) with its decision threshold, votes
     and training summary as metadata; ``still_filter``: its features were read through the
-    still-marker hysteresis (the detector then reads them so too)."""
+    still-marker hysteresis (the detector then reads them so too); ``motion``: what it learned
+    from, ``"markers"`` (tracked) or ``"markerless"`` (predicted motion, perhaps with marker
+    tracks beside it), so that a run on the other kind of stream can say so."""
+    if motion not in SCORER_MOTIONS:
+        raise ValueError(f"motion: one of {SCORER_MOTIONS}; got {motion!r}")
     import tempfile
     from pathlib import Path
 
@@ -367,6 +374,7 @@ def export_scorer(result: SlipTrainResult, path: str | os.PathLike[str],
             "experiments": result.n_experiments, "slip_experiments": result.n_slip,
             "epochs": result.epochs, "seed": result.seed, "committee": result.committee,
             "votes": result.votes, "fps": TRAINED_FPS, "still_filter": bool(still_filter),
+            "motion": motion,
         }
         info.update(extra or {})
         write_onnx(tmp, path, meta, info)

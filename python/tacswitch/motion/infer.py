@@ -17,7 +17,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from tacswitch._checks import as_points, check_downsampled_size, check_gain, check_model_arg
+from tacswitch._checks import (
+    as_points,
+    check_downsampled_size,
+    check_gain,
+    check_model_arg,
+    check_points_in_frame,
+)
 from tacswitch._ort import providers, session_options
 from tacswitch.motion.regressor import (
     DEFAULT_MODEL,
@@ -114,7 +120,13 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
 
     Returns:
         ``N x 2`` float32 ``(dx, dy)`` px in ``img``'s pixels, one row per centre, never NaN
-        (a centre outside the frame gets the motion at the nearest border).
+        (a centre just outside the frame, a marker cut by its border, gets the motion at the
+        nearest border).
+
+    Raises:
+        ValueError: naming the argument: ``centres`` farther outside the frame than an eighth
+            of its side (:func:`tacswitch._checks.check_points_in_frame`: pixels of another
+            resolution), frames of different shapes, an unknown method or option.
     """
     check_model_arg(model)
     providers(device)  # checked whichever method runs
@@ -145,6 +157,11 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
         if isinstance(gain, str):
             raise ValueError("gain: applies to method='model' as a number >= 0 (its single-frame "
                              f"scale), not a sensor name; got {gain!r}")
+        if centres is not None:
+            shape = np.shape(img)
+            if len(shape) >= 2:
+                check_points_in_frame(as_points(centres, "centres"), shape[0], shape[1],
+                                      "centres")
         return load_model(model, device)(img, ref=ref, centres=centres, gain=gain)
     frame = _bgr(img, "img")
     check_downsampled_size(frame.shape, 1, MIN_IMAGE_SIDE_PX, "img")
@@ -158,6 +175,7 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
                          "markerless no-contact frame (or the frame at the grasp start)")
     pts = (load_model(model).centres_for(*frame.shape[:2]) if centres is None
            else as_points(centres, "centres"))
+    check_points_in_frame(pts, frame.shape[0], frame.shape[1], "centres")
     if method == "auto":
         # With a reference, flow, whatever the reference shows: on real GelSight Mini videos
         # with tracked markers (benches/bench_motion_video_real.py) flow from the no-contact

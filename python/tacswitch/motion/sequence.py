@@ -107,12 +107,14 @@ class MarkerlessTracker:
     def _checked(self, img: NDArray[np.uint8], name: str, what: str) -> NDArray[np.uint8]:
         """``img`` (argument ``name``) after the size check; fixes the frame shape (``what``
         fixed it, for later errors) and the default centres from the first frame seen."""
-        from tacswitch._checks import check_downsampled_size
+        from tacswitch._checks import check_downsampled_size, check_points_in_frame
         from tacswitch.motion.infer import MIN_IMAGE_SIDE_PX, load_model
 
         check_downsampled_size(img.shape, 1, MIN_IMAGE_SIDE_PX, name)
         if self.centres is None:
             self.centres = load_model(self._model).centres_for(*img.shape[:2])
+        else:
+            check_points_in_frame(self.centres, img.shape[0], img.shape[1], "centres")
         self._shape, self._shape_of = img.shape, what
         return img
 

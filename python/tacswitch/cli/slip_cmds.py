@@ -72,7 +72,7 @@ def add_train_parser(what: argparse._SubParsersAction) -> None:
                    help="add N rendered grasps per kind (slip / hold / vibration) and sensor "
                         "(GelSight, GelSight Mini) to the training set of half the committee "
                         "(the other half trains on your grasps alone): the textbook slip your "
-                        "recordings may lack (default: 24, as the shipped scorer; 0: none; "
+                        "recordings may lack (default: 48, as the shipped scorer; 0: none; "
                         "ignored with --markerless)")
     _marker_tracks_option(p, "")
     _augment_option(p, "")

@@ -122,6 +122,29 @@ def test_slip_survives_corrupt_frames(tmp_path: Path, frame_folder: Path) -> Non
     assert sum(1 for _ in open(log)) > 10
 
 
+def test_a_video_cut_short_is_said_to_be_not_just_skipped_frames(
+        tmp_path: Path, video: Path, frame_folder: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    import re
+
+    data = video.read_bytes()
+    cut = tmp_path / "cut.avi"
+    cut.write_bytes(data[: int(len(data) * 0.6)])  # the container still counts every frame
+    for command in (["track", str(cut), "-o", str(tmp_path / "t.csv")],
+                    ["slip", str(cut), "--log", str(tmp_path / "s.csv")]):
+        capsys.readouterr()
+        assert main(command) == 0
+        out = capsys.readouterr().out
+        m = re.search(r"\((\d+) skipped, the last (\d+) at the end of the source: a video cut "
+                      r"short\?\)", out)
+        assert m and int(m.group(1)) == int(m.group(2)) > 0, out
+    # A damaged frame in the middle is only skipped.
+    (frame_folder / "0005.png").write_bytes(b"not a png")
+    assert main(["track", str(frame_folder), "-o", str(tmp_path / "f.csv")]) == 0
+    out = capsys.readouterr().out
+    assert "(1 skipped)" in out and "cut short" not in out
+
+
 def test_track_video_writes_motion_per_frame(tmp_path: Path, video: Path, grasp) -> None:
     out = tmp_path / "track.csv"
     assert main(["track", str(video), "-o", str(out), "-q"]) == 0

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from tacswitch.cli.rest_frame import choose_rest_frame
-from tacswitch.cli.sources import check_source, frame_count, frames
+from tacswitch.cli.sources import check_source, frame_count, frames, skipped_text
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -232,7 +232,7 @@ def run(args: argparse.Namespace) -> int:
     rule: _PaperLoop | _LearnedLoop = (_LearnedLoop(args, _source_fps(args, bag), bag)
                                        if args.rule == "learned" else _PaperLoop(args))
     show = args.show  # _check refused it where no window can open
-    n = skipped = slips = 0
+    n = skipped = slips = trailing = 0  # trailing: undecodable frames since the last good one
     starts: list[int] = []
     t0 = time.perf_counter()
     log_path = csv_output(args.log, "--log")
@@ -262,7 +262,9 @@ def run(args: argparse.Namespace) -> int:
                 bar.update()
                 if frame is None or frame.ndim != 3:
                     skipped += 1
+                    trailing += 1
                     continue
+                trailing = 0
                 if rule.tracker is None:
                     if rest is not None and n < rest.index:  # before the rest frame: no row
                         n += 1
@@ -297,7 +299,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"source: no readable frames in {args.source!r}")
     if not args.quiet:
         found = _starts_text(starts, args, rule.segmenter, rule.offset)
-        print(f"{n} frames ({skipped} skipped), {found}, "
+        print(f"{n} frames ({skipped_text(skipped, trailing)}), {found}, "
               f"{slips} with slip{rule.label}, {n / elapsed:.0f} frames/s; log: {log_path}")
     return status
 

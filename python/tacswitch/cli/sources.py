@@ -236,6 +236,15 @@ def frame_count(source: str, limit: int | None = None) -> int | None:
     return limit if count is None else min(count, limit)
 
 
+def skipped_text(skipped: int, trailing: int) -> str:
+    """How a command's summary counts the frames it skipped: ``"3 skipped"``; when the last
+    ``trailing`` of them end the stream undecoded, says so (a truncated video reads so)."""
+    if not trailing:
+        return f"{skipped} skipped"
+    last = "the last frame" if trailing == 1 else f"the last {trailing}"
+    return f"{skipped} skipped, {last} at the end of the source: a video cut short?"
+
+
 def check_source(source: str) -> None:
     """``FileNotFoundError`` naming ``source`` unless it is a file, a folder or a camera index
     (checked before anything is written, e.g. a log)."""

@@ -321,16 +321,23 @@ def _source_fps(args: argparse.Namespace, bag: Any) -> float | None:
     return None
 
 
-def warn_scorer_kind(learned_from: str | None, markerless: bool, *, command: str = "slip",
-                     flag: str = "--slip-model") -> None:
-    """One line on stderr when the scorer given (``flag``) learned from the other kind of
-    motion than this run feeds it (a marker scorer reads predicted motion as nearly still: 3
-    of 65 real slips caught, BENCHMARKS.md)."""
+def checked_scorer(model: str, markerless: bool, *, command: str = "slip",
+                   flag: str = "--slip-model") -> Any:
+    """The slip scorer ``model`` (a path or a shipped name), loaded before any frame is read:
+    a file that cannot be used is an error naming ``flag``, and one line on stderr says when it
+    learned from the other kind of motion than this run feeds it (a marker scorer reads
+    predicted motion as nearly still: 3 of 65 real slips caught, BENCHMARKS.md)."""
     from tacswitch.cli.progress import warn
+    from tacswitch.grasp.detector import load_scorer
 
+    try:
+        scorer = load_scorer(model)
+    except (ValueError, FileNotFoundError) as exc:
+        raise ValueError(str(exc).replace("model:", f"{flag}:", 1)) from None
     fed = "markerless" if markerless else "markers"
+    learned_from = scorer.motion
     if learned_from is None or learned_from == fed:
-        return
+        return scorer
     other = ("tracked markers" if learned_from == "markers"
              else "motion predicted on a markerless sensor")
     hint = "with --markerless" if markerless else "without --markerless"
@@ -338,6 +345,7 @@ def warn_scorer_kind(learned_from: str | None, markerless: bool, *, command: str
          f"{'predicts motion (--markerless)' if markerless else 'tracks markers'}; its "
          f"decisions are not measured on such motion (train one {hint}: `tacswitch train "
          "slip`)")
+    return scorer
 
 
 def _first_tracker(frame: np.ndarray, args: argparse.Namespace, markerless: type) -> Any:
@@ -430,18 +438,14 @@ class _LearnedLoop:
         if args.votes is not None or args.slip_model:
             # Checked now, against the scorer: a usage error or a warning before any frame.
             from tacswitch.cli.options import UsageError
-            from tacswitch.grasp.detector import check_votes, load_scorer
+            from tacswitch.grasp.detector import check_votes
 
-            try:
-                scorer = load_scorer(self.model)
-            except (ValueError, FileNotFoundError) as exc:
-                raise ValueError(str(exc).replace("model:", "--slip-model:", 1)) from None
+            scorer = checked_scorer(self.model, args.markerless)
             if args.votes is not None:
                 try:
                     check_votes(args.votes, scorer.committee)
                 except ValueError as exc:
                     raise UsageError(f"--{exc}") from None
-            warn_scorer_kind(scorer.motion, args.markerless)
         self.tracker: Any = None
         self.detector: Any = None
         self.offset = 0  # the rest frame: the detector counts frames from it

@@ -215,15 +215,9 @@ def run_evaluate(args: argparse.Namespace) -> int:
     if args.model is not None:
         # Before tracking: a file that cannot be read is named at once, and a scorer of the
         # other kind of motion is said.
-        from tacswitch.cli.slip import warn_scorer_kind
-        from tacswitch.grasp.detector import load_scorer
+        from tacswitch.cli.slip import checked_scorer
 
-        try:
-            scorer = load_scorer(args.model)
-        except (ValueError, FileNotFoundError) as exc:
-            raise ValueError(str(exc).replace("model:", "--model:", 1)) from None
-        warn_scorer_kind(scorer.motion, args.markerless, command="evaluate slip",
-                         flag="--model")
+        checked_scorer(args.model, args.markerless, command="evaluate slip", flag="--model")
     exps, clips = _load(args, folds=args.cv)
     labels = [e.slip for e in exps]
     if args.cv:

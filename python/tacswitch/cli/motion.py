@@ -262,23 +262,6 @@ class _ModelFromAnchor:
         return self.model(img, ref=self.anchor, centres=self.centres)
 
 
-def _settled_start(frames):  # type: ignore[no-untyped-def]
-    """``(frames again, index of the first settled frame)``: a video's first frames read ahead
-    (:data:`tacswitch.tracking.REST_LOOK_AHEAD`) and :func:`tacswitch.tracking.settled_index`
-    on them, as ``tacswitch slip`` chooses its rest frame (None items: undecodable frames)."""
-    import itertools
-
-    from tacswitch.tracking import REST_LOOK_AHEAD, rest_thumbnail, settled_index
-
-    it = iter(frames)
-    head = list(itertools.islice(it, REST_LOOK_AHEAD))
-    readable = [t for t, f in enumerate(head) if f is not None]
-    if not readable:
-        return itertools.chain(head, it), 0
-    settled = settled_index([rest_thumbnail(head[t]) for t in readable])
-    return itertools.chain(head, it), readable[settled]
-
-
 def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # type: ignore[no-untyped-def]
                  out: Path, stream=None, sink=None, model=None) -> None:
     """Every frame of the video ``path`` through one :class:`MarkerlessTracker` (``ref``: the
@@ -293,6 +276,7 @@ def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # ty
 
     from tacswitch._io import atomic_open, write_image
     from tacswitch.cli.progress import say
+    from tacswitch.cli.rest_frame import choose_rest_frame
     from tacswitch.cli.sources import video_frames
     from tacswitch.motion.sequence import MarkerlessTracker
 
@@ -306,17 +290,23 @@ def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # ty
     from tacswitch.cli.bagio import motion_fields
 
     frames = video_frames(path, "inputs") if stream is None else stream
-    skip = 0
+    skip = 0  # readable frames before the rest frame (the camera settling)
     if ref is None and stream is None:
-        frames, skip = _settled_start(frames)
-        if skip:
-            say(f"{path}: frames 0-{skip - 1} come before the camera settled (exposure "
-                "changing, or frames left from before), so motion is measured from frame "
-                f"{skip}; those frames get no rows (pass --ref to choose the reference)",
-                quiet=args.quiet)
+        # As `tacswitch slip --markerless` chooses its rest frame: the first settled frame.
+        rest, frames = choose_rest_frame(frames, None, source=str(path))
+        skip = 0 if rest is None else rest.index
+    readable = 0
     for t, img in enumerate(frames):
-        if img is None or t < skip:
+        if img is None:
             continue
+        readable += 1
+        if readable <= skip:
+            continue
+        if n == 0 and skip:
+            say(f"{path}: frames 0-{t - 1} come before the camera settled (exposure "
+                "changing, or frames left from before), so motion is measured from frame "
+                f"{t}; those frames get no rows (pass --ref to choose the reference)",
+                quiet=args.quiet)
         motion = tracker.update(img)
         pts = tracker.centres
         assert pts is not None  # set by the first update

@@ -58,6 +58,16 @@ def read_manifest(root: str | Path) -> tuple[dict[str, Any], list[dict[str, Any]
     return header, records
 
 
+def _index(i: Any, n: int, what: str) -> int:
+    """``i`` as an index into ``n`` items (negative from the end): ``TypeError`` /
+    ``IndexError`` naming ``i`` otherwise."""
+    if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
+        raise TypeError(f"i: expected an integer index, got {type(i).__name__}")
+    if not -n <= i < n:
+        raise IndexError(f"i: {i} out of range for {n} {what}")
+    return int(i) % n
+
+
 def _record_dir(root: Path, rec: dict[str, Any], i: int) -> Path:
     """The folder of record ``i``; it must lie inside ``root`` (no absolute path, no ``..``)."""
     rel = rec.get("dir")
@@ -142,12 +152,8 @@ class TactileDataset:
         return len(self.records)
 
     def __getitem__(self, i: int) -> Any:
-        if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
-            raise TypeError(f"i: expected an integer index, got {type(i).__name__}")
-        if not -len(self) <= i < len(self):
-            raise IndexError(f"i: {i} out of range for {len(self)} samples")
-        rec = self.records[i]
-        n = int(i) % len(self)
+        n = _index(i, len(self), "samples")
+        rec = self.records[n]
         d = _record_dir(self.root, rec, n)
         f = lambda key: _field(rec, key, n)  # noqa: E731
         try:
@@ -193,12 +199,8 @@ class SequenceDataset:
         return len(self.records)
 
     def __getitem__(self, i: int) -> Any:
-        if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
-            raise TypeError(f"i: expected an integer index, got {type(i).__name__}")
-        if not -len(self) <= i < len(self):
-            raise IndexError(f"i: {i} out of range for {len(self)} sequences")
-        rec = self.records[i]
-        n = int(i) % len(self)
+        n = _index(i, len(self), "sequences")
+        rec = self.records[n]
         d = _record_dir(self.root, rec, n)
         try:
             item = self._load(rec, d, n)

@@ -12,7 +12,8 @@ from tacswitch.cli.options import UsageError
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("evaluate", help="evaluate a learned model on held-out synthetic data")
+    p = sub.add_parser("evaluate", help="score slip on your labelled grasp videos, or a "
+                       "motion or removal model on held-out data")
     what = p.add_subparsers(dest="what", required=True, metavar="MODEL")
     m = what.add_parser("motion", help="markerless -> marker motion regressor",
                         description=__doc__)

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from tacswitch.cli.rest_frame import choose_rest_frame
-from tacswitch.cli.sources import check_source, frame_count, frames, skipped_text
+from tacswitch.cli.sources import SkipCount, check_source, frame_count, frames
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -232,7 +232,8 @@ def run(args: argparse.Namespace) -> int:
     rule: _PaperLoop | _LearnedLoop = (_LearnedLoop(args, _source_fps(args, bag), bag)
                                        if args.rule == "learned" else _PaperLoop(args))
     show = args.show  # _check refused it where no window can open
-    n = skipped = slips = trailing = 0  # trailing: undecodable frames since the last good one
+    n = slips = 0
+    skipped = SkipCount()
     starts: list[int] = []
     t0 = time.perf_counter()
     log_path = csv_output(args.log, "--log")
@@ -261,17 +262,16 @@ def run(args: argparse.Namespace) -> int:
                 k += 1
                 bar.update()
                 if frame is None or frame.ndim != 3:
-                    skipped += 1
-                    trailing += 1
+                    skipped.undecodable()
                     continue
-                trailing = 0
+                skipped.decoded()
                 if rule.tracker is None:
                     if rest is not None and n < rest.index:  # before the rest frame: no row
                         n += 1
                         continue
                     rule.begin(frame, n)
                 elif frame.shape[:2] != rule.tracker.reference_shape:
-                    skipped += 1
+                    skipped.unusable()
                     continue
                 row, slip, started, state = rule.step(frame, n, time.perf_counter() - t0)
                 if started:
@@ -299,7 +299,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"source: no readable frames in {args.source!r}")
     if not args.quiet:
         found = _starts_text(starts, args, rule.segmenter, rule.offset)
-        print(f"{n} frames ({skipped_text(skipped, trailing)}), {found}, "
+        print(f"{n} frames ({skipped}), {found}, "
               f"{slips} with slip{rule.label}, {n / elapsed:.0f} frames/s; log: {log_path}")
     return status
 

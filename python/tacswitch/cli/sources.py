@@ -236,13 +236,34 @@ def frame_count(source: str, limit: int | None = None) -> int | None:
     return limit if count is None else min(count, limit)
 
 
-def skipped_text(skipped: int, trailing: int) -> str:
-    """How a command's summary counts the frames it skipped: ``"3 skipped"``; when the last
-    ``trailing`` of them end the stream undecoded, says so (a truncated video reads so)."""
-    if not trailing:
-        return f"{skipped} skipped"
-    last = "the last frame" if trailing == 1 else f"the last {trailing}"
-    return f"{skipped} skipped, {last} at the end of the source: a video cut short?"
+class SkipCount:
+    """The frames a streaming command skipped, for its summary line: every skip, and how many
+    undecodable frames have come since the last decoded one (those that end the stream read
+    as a video cut short)."""
+
+    def __init__(self) -> None:
+        self.total = 0
+        self.trailing = 0
+
+    def undecodable(self) -> None:
+        """A frame that did not decode."""
+        self.total += 1
+        self.trailing += 1
+
+    def decoded(self) -> None:
+        """A frame that decoded (skipped or not)."""
+        self.trailing = 0
+
+    def unusable(self) -> None:
+        """A decoded frame the command cannot use (e.g. another size)."""
+        self.total += 1
+
+    def __str__(self) -> str:
+        """``"3 skipped"``, and when the last of them end the stream undecoded, says so."""
+        if not self.trailing:
+            return f"{self.total} skipped"
+        last = "the last frame" if self.trailing == 1 else f"the last {self.trailing}"
+        return f"{self.total} skipped, {last} at the end of the source: a video cut short?"
 
 
 def check_source(source: str) -> None:

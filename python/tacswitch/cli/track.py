@@ -6,7 +6,7 @@ import argparse
 import csv
 
 from tacswitch.cli.rest_frame import choose_rest_frame
-from tacswitch.cli.sources import frame_count, frames, skipped_text
+from tacswitch.cli.sources import SkipCount, frame_count, frames
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -54,7 +54,8 @@ def run(args: argparse.Namespace) -> int:
     bag = bag_source(args.source, args)
     out = csv_output(args.out, "--out")
     tracker: ts.MarkerTracker | None = None
-    n = skipped = trailing = 0  # trailing: undecodable frames since the last good one
+    n = 0
+    skipped = SkipCount()
     k = -1  # index in the stream (bag frames are looked up by it)
     total = (frame_count(args.source, args.max_frames) if bag is None else
              min(len(bag), args.max_frames or len(bag)) or None)
@@ -74,17 +75,16 @@ def run(args: argparse.Namespace) -> int:
             k += 1
             bar.update()
             if frame is None:
-                skipped += 1
-                trailing += 1
+                skipped.undecodable()
                 continue
-            trailing = 0
+            skipped.decoded()
             if tracker is None:
                 if rest is not None and n < rest.index:  # before the rest frame: no rows
                     n += 1
                     continue
                 tracker = ts.MarkerTracker(frame, args.max_dist, polarity=args.polarity)
             if frame.shape[:2] != tracker.reference_shape:
-                skipped += 1
+                skipped.unusable()
                 continue
             motion, valid = tracker.update(frame)
             ref = tracker.reference
@@ -103,6 +103,6 @@ def run(args: argparse.Namespace) -> int:
     if n == 0:
         raise ValueError(f"source: no readable frames in {args.source!r}")
     if not args.quiet:
-        print(f"{n} frames ({skipped_text(skipped, trailing)}), {len(tracker or [])} markers "
+        print(f"{n} frames ({skipped}), {len(tracker or [])} markers "
               f"-> {out}")
     return 0

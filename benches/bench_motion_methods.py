@@ -35,18 +35,19 @@ from tacswitch.motion.evaluate import motion_metrics
 
 SECTION = "## Markerless motion: flow presets (speed, brightness, real-texture accuracy)"
 SENSORS = ("gelsight_mini", "gelsight")
-PRESETS = ("balanced", "medium", "fast", "ultrafast")
+PRESETS = ("refined", "balanced", "medium", "fast", "ultrafast")
 BRIGHTNESS = ((1.15, 5.0), (0.85, -5.0), (1.15, 0.0), (0.85, 0.0), (1.0, 8.0))
 #: Flow variants of the brightness and accuracy tables: name -> predict_motion keywords.
 VARIANTS = {p: {"preset": p} for p in PRESETS}
-VARIANTS["balanced, suppress_imprint"] = {"preset": "balanced", "suppress_imprint": True}
-SUPPRESS = "flow, DIS balanced, suppress_imprint"
+VARIANTS[f"{flow.DEFAULT_PRESET}, suppress_imprint"] = {"preset": flow.DEFAULT_PRESET,
+                                                        "suppress_imprint": True}
+SUPPRESS = f"flow, DIS {flow.DEFAULT_PRESET}, suppress_imprint"
 
 
 def speed_methods() -> dict[str, dict[str, str]]:
     out = {f"flow, DIS {p}" + (" (default)" if p == flow.DEFAULT_PRESET else ""):
            {"method": "flow", "preset": p} for p in PRESETS}
-    out[SUPPRESS] = {"method": "flow", "preset": "balanced", "suppress_imprint": True}
+    out[SUPPRESS] = {"method": "flow", "preset": flow.DEFAULT_PRESET, "suppress_imprint": True}
     out["outward rule"] = {"method": "outward"}
     out["mechanics rule"] = {"method": "mechanics"}
     out["ensemble (auto's choice here)"] = {"method": "ensemble"}

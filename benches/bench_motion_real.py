@@ -67,7 +67,7 @@ ORACLE = "outward, scale fitted on this data (upper bound)"
 
 
 #: DIS presets compared (OpenCV's three and the library's own).
-DIS_PRESETS = ("ultrafast", "fast", "balanced", "medium")
+DIS_PRESETS = ("ultrafast", "fast", "balanced", "refined", "medium")
 
 
 def _dis_label(preset: str) -> str:
@@ -242,7 +242,8 @@ def main() -> int:
                        "markers):", "", table(["method", "320 x 240", "640 x 480"], srows), ""]
     else:
         notes_speed = []
-    cmd = "OMP_NUM_THREADS=1 python benches/bench_motion_real.py" + \
+    omp = os.environ.get("OMP_NUM_THREADS")
+    cmd = (f"OMP_NUM_THREADS={omp} " if omp else "") + "python benches/bench_motion_real.py" + \
         (" --quick" if args.quick else "") + (" --slow" if args.slow else "") + \
         (f" --every {args.every}" if args.every > 1 and not args.quick else "") + \
         "".join(f" --model {s}" for s in args.model) + " --update"

@@ -3,8 +3,9 @@
 Rendered grasps (``tacswitch.sim.grasp.render_grasp``: press, shear ramp, then hold, slip — the
 stuck zone vanishing — or vibration, a hard negative; 30 frames; SIMULATED data). From the grasp
 start on, each markerless frame goes to ``predict_motion`` (dense optical flow at the default
-``balanced`` preset and at ``medium``; with ``--all`` also ``fast``, the outward and mechanics
-rules and the shipped model) with the markerless grasp-start frame (or the no-contact frame) as
+``refined`` preset, at ``balanced`` (the default until 2026-11-30) and at ``medium``; with
+``--all`` also ``fast``, the outward and mechanics rules and the shipped model) with the
+markerless grasp-start frame (or the no-contact frame) as
 reference; the paper's displacement rule (3.25 px at 640 wide, scaled), the rigid-fit criterion
 (half that threshold on the residual of a rigid fit) and both together decide, on the mean motion
 of the last ``--smooth-frames`` frames (``SlipDetector(smooth_frames=...)``; the markerless
@@ -40,7 +41,10 @@ def _flow(preset: str) -> Any:
 
 
 def sources(models: dict[str, str | None], every: bool) -> dict[str, Any]:
-    out: dict[str, Any] = {"flow DIS balanced (default)": _flow("balanced"),
+    from tacswitch.motion.flow import DEFAULT_PRESET
+
+    out: dict[str, Any] = {f"flow DIS {DEFAULT_PRESET} (default)": _flow(DEFAULT_PRESET),
+                           "flow DIS balanced": _flow("balanced"),
                            "flow DIS medium": _flow("medium")}
     if every:
         out["flow DIS fast"] = _flow("fast")

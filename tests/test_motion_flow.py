@@ -22,9 +22,9 @@ def _brighter(img: np.ndarray, gain: float, offset: float) -> np.ndarray:
     return np.clip(img.astype(np.float64) * gain + offset, 0, 255).astype(np.uint8)
 
 
-@pytest.mark.parametrize("preset", [None, "medium"])
+@pytest.mark.parametrize("preset", [None, "balanced", "medium"])
 def test_flow_ignores_a_global_brightness_change(mini, grid, preset) -> None:
-    # None: the default preset ("balanced"); the grid's outer rows sit 5.5 px from the edge.
+    # None: the default preset ("refined"); the grid's outer rows sit 5.5 px from the edge.
     for img in (mini.f0, mini.imgs[5], mini.imgs[3]):
         for gain, offset in ((1.15, 5.0), (0.85, -5.0), (0.85, 0.0), (1.0, 8.0)):
             m = predict_motion(_brighter(img, gain, offset), img, grid, method="flow",
@@ -40,19 +40,43 @@ def test_flow_ignores_a_global_brightness_change_at_640x480() -> None:
         assert np.hypot(m[:, 0], m[:, 1]).max() < 0.2, (gain, offset)
 
 
-def test_default_preset_is_balanced_and_presets_differ(mini, grid) -> None:
+def test_default_preset_is_refined_and_presets_differ(mini, grid) -> None:
     img, ref = mini.imgs[4], mini.f0
-    assert flow.DEFAULT_PRESET == "balanced"
+    assert flow.DEFAULT_PRESET == "refined"
     default = predict_motion(img, ref, grid, method="flow")
-    np.testing.assert_array_equal(default, flow.flow_motion(img, ref, grid, preset="balanced"))
-    assert not np.array_equal(default, flow.flow_motion(img, ref, grid, preset="medium"))
-    assert not np.array_equal(default, flow.flow_motion(img, ref, grid, preset="fast"))
-    with pytest.raises(ValueError, match=r"^preset: unknown 'Balanced'; choose from \['balanced'"):
-        flow.flow_motion(img, ref, grid, preset="Balanced")
+    np.testing.assert_array_equal(default, flow.flow_motion(img, ref, grid, preset="refined"))
+    for other in ("balanced", "medium", "fast"):
+        assert not np.array_equal(default, flow.flow_motion(img, ref, grid, preset=other))
+    with pytest.raises(ValueError, match=r"^preset: unknown 'Refined'; choose from \['refined'"):
+        flow.flow_motion(img, ref, grid, preset="Refined")
 
 
-def test_balanced_works_on_640x480_downsampled_in_the_callers_pixels() -> None:
+def test_refined_is_balanced_with_fewer_descent_and_more_refinement_steps() -> None:
+    assert flow.REFINED["finest_scale"] == flow.BALANCED["finest_scale"]
+    assert (flow.REFINED["gradient_descent_iterations"]
+            < flow.BALANCED["gradient_descent_iterations"])
+    assert (flow.REFINED["variational_refinement_iterations"]
+            > flow.BALANCED["variational_refinement_iterations"])
+    dis = flow._dis("refined")
+    assert dis.getGradientDescentIterations() == flow.REFINED["gradient_descent_iterations"]
+    assert (dis.getVariationalRefinementIterations()
+            == flow.REFINED["variational_refinement_iterations"])
+
+
+def test_the_imprint_suppression_reads_the_cached_reference_as_a_fresh_one(mini, grid) -> None:
+    # The reference's grey is cached with its contrast: a second call (cache hit) and a call
+    # after another reference (cache miss) give the same motion.
+    img, ref = mini.imgs[4], mini.f0
+    first = flow.flow_motion(img, ref, grid, suppress_imprint=True)
+    np.testing.assert_array_equal(first, flow.flow_motion(img, ref, grid, suppress_imprint=True))
+    flow.flow_motion(img, mini.imgs[2], grid, suppress_imprint=True)
+    np.testing.assert_array_equal(first, flow.flow_motion(img, ref.copy(), grid,
+                                                          suppress_imprint=True))
+
+
+def test_refined_works_on_640x480_downsampled_in_the_callers_pixels() -> None:
     assert [flow.work_factor(w) for w in (320, 479, 480, 640, 1280)] == [1, 1, 2, 2, 4]
+    assert flow.work_factor(640, preset="balanced") == 2
     assert flow.work_factor(640, preset="medium") == 1
     assert flow.work_factor(640, algorithm="farneback") == 1
     gs = proxy.load_real_presses("gelsight")

@@ -55,6 +55,52 @@ def test_with_the_no_contact_frame_it_is_the_direct_flow_from_it(grid) -> None:
     assert not tr.update(f0.copy()).any()
 
 
+def test_the_flow_preset_is_the_default_unless_given(mini, grid) -> None:
+    from tacswitch.grasp.detector import SCORER_FLOW_PRESET
+    from tacswitch.motion.flow import DEFAULT_PRESET, flow_motion
+
+    img = mini.imgs[4]
+    assert MarkerlessTracker(mini.f0, grid).preset == DEFAULT_PRESET
+    for preset in (DEFAULT_PRESET, SCORER_FLOW_PRESET):
+        tr = MarkerlessTracker(mini.f0, grid, preset=preset)
+        np.testing.assert_array_equal(
+            tr.update(img), flow_motion(img, mini.f0, grid, preset=preset,
+                                        suppress_imprint=True))
+    # The slip scorer's preset is not the default: the two trackers differ.
+    assert SCORER_FLOW_PRESET != DEFAULT_PRESET
+    with pytest.raises(ValueError, match=r"^preset: unknown 'quick'"):
+        MarkerlessTracker(mini.f0, grid, preset="quick")
+
+
+def test_markerless_slip_reads_the_flow_its_scorer_learned(monkeypatch, mini, grid) -> None:
+    # Training clips (tacswitch train slip --markerless) and the slip CLI's markerless source
+    # both track with the scorer's preset.
+    import argparse
+
+    from tacswitch.cli.slip import MarkerlessSequence
+    from tacswitch.grasp.detector import SCORER_FLOW_PRESET
+
+    args = argparse.Namespace(ref=None, centres=None, model=None)
+    src = MarkerlessSequence(mini.f0, args)
+    assert src._tracker.preset == SCORER_FLOW_PRESET and not src._tracker.suppress_imprint
+
+    from tacswitch.grasp import dataset
+
+    made: list[MarkerlessTracker] = []
+
+    class Spy(MarkerlessTracker):
+        def __init__(self, *a, **kw) -> None:  # type: ignore[no-untyped-def]
+            super().__init__(*a, **kw)
+            made.append(self)
+
+    monkeypatch.setattr(dataset, "MarkerlessTracker", Spy)
+    from gel_fixtures import _gel
+
+    gel = _gel()
+    dataset.track_clip(iter([gel] * 4), markerless=True)
+    assert [t.preset for t in made] == [SCORER_FLOW_PRESET]
+
+
 def test_reset_and_bad_inputs(mini, grid) -> None:
     tr = MarkerlessTracker(mini.f0, grid)
     tr.update(mini.imgs[3])

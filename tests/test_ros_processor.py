@@ -142,8 +142,11 @@ def test_markerless_motion_matches_markerless_tracker() -> None:
     frames = grasp("slip")[:10]
     p = TactileProcessor(motion="markerless", outputs=["motion", "slip"])
     out = process_all(p, [message(f, i, "bgr8") for i, f in enumerate(frames)])
-    # With the learned slip output, the plain flow the markerless scorer was trained on.
-    tracker = ts.MarkerlessTracker(frames[0], suppress_imprint=False)
+    # With the learned slip output, the plain flow (of the preset) the markerless scorer was
+    # trained on.
+    from tacswitch.grasp.detector import SCORER_FLOW_PRESET
+
+    tracker = ts.MarkerlessTracker(frames[0], suppress_imprint=False, preset=SCORER_FLOW_PRESET)
     motions = by_name(out, "motion")
     assert [o.stamp_ns for o in motions] == [T0 + i * DT for i in range(10)]
     assert len(by_name(out, "slip")) == 10

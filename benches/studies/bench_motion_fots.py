@@ -146,7 +146,8 @@ def main() -> int:
     for label, (a, b) in (("markers removed", clean), ("holes at the same places", same_holes)):
         preds, ms = {"zero": np.zeros_like(d0)}, {"zero": 0.0}
         preds["outward rule"], ms["outward rule"] = _timed(outward_motion, b, a, at0)
-        preds["flow DIS balanced"], ms["flow DIS balanced"] = _timed(flow_motion, b, a, at0)
+        name = "flow DIS, default preset"
+        preds[name], ms[name] = _timed(flow_motion, b, a, at0)
         preds["predict_motion auto"], ms["predict_motion auto"] = _timed(predict_motion, b, a,
                                                                          at0)
         _score(rows, f"pair 0.png -> 1.png (same contact), {label}", preds, d1 - d0, 1, ms,

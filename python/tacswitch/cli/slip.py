@@ -504,6 +504,7 @@ class MarkerlessSequence:
         from tacswitch._io import read_image
         from tacswitch.cli.motion import _read_centres
         from tacswitch.cli.options import input_file, load_model_option
+        from tacswitch.grasp.detector import SCORER_FLOW_PRESET
         from tacswitch.motion.infer import load_model
 
         ref = (read_image(input_file(args.ref, "--ref"), "--ref", quiet=True) if args.ref
@@ -517,8 +518,10 @@ class MarkerlessSequence:
                           load_model_option(load_model, args.model).centres_for(
                               *first.shape[:2]))
         self.positions = self.reference.copy()
-        # The plain flow, as the markerless scorer was trained (MarkerlessTracker's doc).
-        self._tracker = ts.MarkerlessTracker(ref, self.reference, suppress_imprint=False)
+        # The plain flow of the preset the markerless scorer was trained on (MarkerlessTracker's
+        # doc).
+        self._tracker = ts.MarkerlessTracker(ref, self.reference, suppress_imprint=False,
+                                             preset=SCORER_FLOW_PRESET)
 
     def __len__(self) -> int:
         return len(self.reference)

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tacswitch.grasp.detector import SCORER_FLOW_PRESET
 from tacswitch.grasp.features import marker_pitch, sequence_features
 from tacswitch.grasp.timebase import needs_resampling, resample_field
 from tacswitch.markers import extract_markers
@@ -168,7 +169,7 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
     motions: list[NDArray[np.float32]] = [np.zeros((n, 2), np.float32)] * rest
     valids: list[NDArray[np.bool_]] = [np.ones(n, bool)] * rest
     if markerless:
-        mtracker = MarkerlessTracker(None, points)
+        mtracker = MarkerlessTracker(None, points, preset=SCORER_FLOW_PRESET)
         for frame in itertools.chain(head[rest:], it):
             m = mtracker.update(remove_markers(frame)) if n else np.zeros((0, 2), np.float32)
             motions.append(np.asarray(m, np.float32))

@@ -39,6 +39,10 @@ from tacswitch.grasp.timebase import TRAINED_FPS, TimeBase, check_fps, needs_res
 #: motion ``MarkerlessTracker`` predicts once the markers are removed from the same videos.
 SHIPPED_SLIP_MODELS = {"markers": "slip_scorer.onnx", "markerless": "slip_scorer_markerless.onnx"}
 DEFAULT_SLIP_MODEL = SHIPPED_SLIP_MODELS["markers"]
+#: The DIS preset (:data:`tacswitch.motion.flow.DIS_PRESETS`) of the markerless motion the
+#: shipped markerless scorer was trained on (``MarkerlessTracker``'s plain flow): the slip paths
+#: keep it, and training on markerless videos uses it too, so a scorer reads what it learned.
+SCORER_FLOW_PRESET = "balanced"
 RULES = ("learned", "paper")
 
 Scorer = Callable[[NDArray[np.float32]], NDArray[np.float32]]

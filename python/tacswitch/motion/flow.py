@@ -33,8 +33,8 @@ smoothing 0.04-0.12; blanking the imprint before DIS (a harder mask) and a high-
 3-6 px) before DIS were worse on the real-texture proxy.
 
 Algorithms (OpenCV 4.x/5.x, ``opencv-contrib`` for the ``optflow`` ones): ``"dis"`` (DIS, presets
-``balanced`` (default), ``ultrafast``/``fast``/``medium``), ``"farneback"``, ``"deepflow"``,
-``"pcaflow"``, ``"rlof"`` (dense RLOF).
+``refined`` (default), ``balanced``, ``ultrafast``/``fast``/``medium``), ``"farneback"``,
+``"deepflow"``, ``"pcaflow"``, ``"rlof"`` (dense RLOF).
 
 Presets: OpenCV's ``fast`` and ``ultrafast`` stop at a quarter of the frame's resolution (finest
 scale 2), which on the faint texture of a gel away from the contact turns the requantisation of
@@ -48,6 +48,20 @@ each). On frames at least 480 px wide it works on the pair area-downsampled to a
 at 640 x 480, with the normalisation, padding and smoothing done on a quarter of the pixels
 (a quarter-resolution grid at 640 x 480, as OpenCV's ``fast`` gives, fails the brightness
 bound).
+
+``refined`` (the default) is ``balanced`` with 6 descent and 4 refinement iterations: on real
+frames fewer patch-descent steps and more variational refinement (a smoothness-regularised fit
+of the whole field) trade the patches' isolated errors on faint texture for a smoother field.
+Measured (``benches/bench_motion_video_real.py``, BENCHMARKS.md; chosen on the development
+objects) on real GelSight Mini videos with the markers removed (tracked truth, 14 held-out
+objects): ``MarkerlessTracker`` 0.56x -> 0.53x zero motion, the plain flow from the no-contact
+frame 0.66x -> 0.60x; on taxim's truly markerless real presses, GelSight's grain-matched gel
+motion 1.81 -> 1.69 px (plain flow) and the false motion of a Mini gel that does not move 0.55
+-> 0.47 px; the real FOTS press -> shear pair 0.98 -> 0.93 px. On real texture warped by
+modelled fields up to a marker pitch it is worse from a frame of the same contact on the
+GelSight (2.69 -> 2.96 px; fewer descent steps follow a large shift less far) and better from
+the no-contact frame. It costs 1.17-1.19x ``balanced``'s time. ``balanced`` stays for the
+learned markerless slip scorer, which was trained on its flow.
 """
 
 from __future__ import annotations
@@ -58,23 +72,30 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ["ALGORITHMS", "BALANCED_WORK_WIDTH", "DEFAULT_PRESET", "DIS_PRESETS",
-           "IMPRINT_CHANGE", "IMPRINT_SIGMA_REL", "IMPRINT_SMOOTH_REL", "PAD_REL", "SMOOTH_REL",
+           "IMPRINT_CHANGE", "IMPRINT_SIGMA_REL", "IMPRINT_SMOOTH_REL", "PAD_REL", "REFINED",
+           "SMOOTH_REL",
            "check_flow_options", "dense_flow", "flow_motion", "imprint_weight", "normalise_pair",
            "sample_field", "work_factor"]
 
 #: Flow algorithms accepted by :func:`flow_motion`.
 ALGORITHMS = ("dis", "farneback", "deepflow", "pcaflow", "rlof")
-#: DIS presets (``preset=``); only DIS has presets. ``balanced`` is this module's own (see the
-#: module doc), the others are OpenCV's.
-DIS_PRESETS = ("balanced", "ultrafast", "fast", "medium")
+#: DIS presets (``preset=``); only DIS has presets. ``refined`` and ``balanced`` are this
+#: module's own (see the module doc), the others are OpenCV's.
+DIS_PRESETS = ("refined", "balanced", "ultrafast", "fast", "medium")
 #: The preset used when none is given.
-DEFAULT_PRESET = "balanced"
+DEFAULT_PRESET = "refined"
 #: ``balanced``: OpenCV's ``fast`` preset with these DIS settings changed: finest scale 1 (half
 #: resolution), 8 gradient-descent and 2 variational-refinement iterations.
 BALANCED = {"finest_scale": 1, "gradient_descent_iterations": 8,
             "variational_refinement_iterations": 2}
-#: ``balanced`` area-downsamples frames at least 1.5x this wide by ``round(width / this)`` and
-#: computes the flow there at finest scale 0 (see the module doc).
+#: ``refined``: ``balanced`` with 6 gradient-descent and 4 variational-refinement iterations
+#: (module doc).
+REFINED = {**BALANCED, "gradient_descent_iterations": 6,
+           "variational_refinement_iterations": 4}
+#: Presets on ``balanced``'s working grid (:data:`BALANCED_WORK_WIDTH`, :func:`work_factor`).
+_OWN_PRESETS = {"balanced": BALANCED, "refined": REFINED}
+#: ``balanced`` and ``refined`` area-downsample frames at least 1.5x this wide by
+#: ``round(width / this)`` and compute the flow there at finest scale 0 (see the module doc).
 BALANCED_WORK_WIDTH = 320
 #: OpenCV's DIS needs the width or the height to be at least this (px).
 DIS_MIN_SIDE = 12
@@ -188,22 +209,27 @@ def _normalised_ref(gr: NDArray[np.float32]) -> tuple[NDArray[np.uint8], float]:
     return _to8(cr, scale), scale
 
 
-#: The last reference prepared by :func:`flow_motion`: ``(key, (ref8, scale))``. A video is
-#: measured against one reference (the no-contact frame, the grasp start) frame after frame,
+#: The last reference prepared by :func:`flow_motion`: ``(key, (ref8, scale, grey))``. A video
+#: is measured against one reference (the no-contact frame, the grasp start) frame after frame,
 #: so its preparation (grey, downsampling, local contrast, spread: ~40 % of the time outside
 #: the flow) is done once. The key is the frame's shape, the working factor and a CRC-32 of its
 #: bytes (~0.02 ms at 320 x 240), so an array changed in place is prepared again.
 _REF_CACHE: list[Any] = [None]
 
 
-def _prepared_ref(ref: NDArray[np.uint8], k: int) -> tuple[NDArray[np.uint8], float]:
+def _prepared_ref(ref: NDArray[np.uint8], k: int
+                  ) -> tuple[NDArray[np.uint8], float, NDArray[np.float32]]:
+    """``ref``'s 8-bit local contrast, the shared contrast scale and its float grey at the
+    working size (for :func:`imprint_weight`), from :data:`_REF_CACHE` when it is the last
+    reference seen."""
     import zlib
 
     key = (ref.shape, ref.dtype.str, k, zlib.crc32(np.ascontiguousarray(ref).data))
     hit = _REF_CACHE[0]
     if hit is not None and hit[0] == key:
         return hit[1]  # type: ignore[no-any-return]
-    out = _normalised_ref(_shrink(_grey(ref), k))
+    grey = _shrink(_grey(ref), k)
+    out = (*_normalised_ref(grey), grey)
     _REF_CACHE[0] = (key, out)
     return out
 
@@ -216,12 +242,14 @@ def _dis(preset: str, finest_scale: int | None = None) -> Any:
     code = {"ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST,
             "fast": cv2.DISOPTICAL_FLOW_PRESET_FAST,
             "balanced": cv2.DISOPTICAL_FLOW_PRESET_FAST,
+            "refined": cv2.DISOPTICAL_FLOW_PRESET_FAST,
             "medium": cv2.DISOPTICAL_FLOW_PRESET_MEDIUM}[preset]
     dis = cv2.DISOpticalFlow_create(code)
-    if preset == "balanced":
-        dis.setFinestScale(BALANCED["finest_scale"] if finest_scale is None else finest_scale)
-        dis.setGradientDescentIterations(BALANCED["gradient_descent_iterations"])
-        dis.setVariationalRefinementIterations(BALANCED["variational_refinement_iterations"])
+    own = _OWN_PRESETS.get(preset)
+    if own is not None:
+        dis.setFinestScale(own["finest_scale"] if finest_scale is None else finest_scale)
+        dis.setGradientDescentIterations(own["gradient_descent_iterations"])
+        dis.setVariationalRefinementIterations(own["variational_refinement_iterations"])
     return dis
 
 
@@ -231,7 +259,8 @@ def dense_flow(ref8: NDArray[np.uint8], img8: NDArray[np.uint8], algorithm: str 
     """Forward flow ``ref8 -> img8`` (``H x W x 2`` float32, ``(dx, dy)`` px at ``ref8``'s
     pixels) between two 8-bit grey frames of the same size, computed on both frames
     mirror-padded by ``pad`` px (the padding is cropped off the result). ``finest_scale``
-    overrides the ``balanced`` preset's (pyramid level where DIS stops; 0 = full size)."""
+    overrides the ``balanced`` / ``refined`` presets' (pyramid level where DIS stops; 0 = full
+    size)."""
     import cv2 as _cv2
 
     cv2: Any = _cv2  # OpenCV's stubs reject None as the flow argument
@@ -340,7 +369,7 @@ def flow_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8], centres: NDArray
         return np.zeros((len(centres), 2), np.float32)
     k = work_factor(img.shape[1], algorithm, preset, height=img.shape[0])
     gi = _shrink(_grey(img), k)
-    ref8, scale = _prepared_ref(ref, k)
+    ref8, scale, gr = _prepared_ref(ref, k)
     img8 = _to8(_local_contrast(gi, _bg_sigma(gi.shape[1])), scale)
     h, w = img8.shape
     # Mirror padding needs pad < each side (a frame may be as small as 8 px a side); DIS refuses
@@ -354,7 +383,7 @@ def flow_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8], centres: NDArray
     if suppress_imprint:
         # Normalised convolution: the weighted mean of the flow over a wide Gaussian, so inside
         # an imprint that appeared the field comes from the gel around it.
-        wt = imprint_weight(gi, _shrink(_grey(ref), k))
+        wt = imprint_weight(gi, gr)
         packed = np.empty((*wt.shape, 3), np.float32)
         np.multiply(flow, wt[..., None], out=packed[..., :2])
         packed[..., 2] = wt
@@ -404,10 +433,10 @@ def imprint_weight(gi: NDArray[np.float32], gr: NDArray[np.float32]) -> NDArray[
 def work_factor(width: int, algorithm: str = "dis", preset: str = DEFAULT_PRESET, *,
                 height: int | None = None) -> int:
     """Integer area-downsampling factor :func:`flow_motion` applies to a frame ``width`` px wide
-    before the flow (1 = none): ``round(width / BALANCED_WORK_WIDTH)`` for DIS ``balanced`` on
-    frames at least 1.5x that wide, lowered so that a frame ``height`` px high keeps at least
-    :data:`DIS_SMALL_SIDE` px a side."""
-    if algorithm != "dis" or preset != "balanced" or width < 1.5 * BALANCED_WORK_WIDTH:
+    before the flow (1 = none): ``round(width / BALANCED_WORK_WIDTH)`` for DIS ``balanced`` or
+    ``refined`` on frames at least 1.5x that wide, lowered so that a frame ``height`` px high
+    keeps at least :data:`DIS_SMALL_SIDE` px a side."""
+    if algorithm != "dis" or preset not in _OWN_PRESETS or width < 1.5 * BALANCED_WORK_WIDTH:
         return 1
     k = max(1, round(width / BALANCED_WORK_WIDTH))
     if height is not None:

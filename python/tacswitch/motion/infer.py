@@ -87,9 +87,10 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             ``"farneback"``, ``"deepflow"``, ``"pcaflow"`` or ``"rlof"`` (the last three from
             opencv-contrib, 10-100x slower).
         preset: ``method="flow"`` (or ``"auto"`` when it runs flow) with DIS only:
-            ``"balanced"`` (default: within the speed budgets), ``"ultrafast"``, ``"fast"`` or
-            ``"medium"`` (OpenCV's; ``"medium"`` is ~2x slower, a little more accurate with a
-            reference of the same capture).
+            ``"refined"`` (default: within the speed budgets; lower error than ``"balanced"``
+            on real frames), ``"balanced"`` (the earlier default, what the markerless slip
+            scorer reads), ``"ultrafast"``, ``"fast"`` or ``"medium"`` (OpenCV's; ``"medium"``
+            is ~2x slower, a little more accurate with a reference of the same capture).
         suppress_imprint: ``method="flow"`` (or ``"auto"`` when it runs flow): ``True`` when
             ``ref`` is the no-contact frame: the flow is trusted less where an imprint
             appeared (its shading is not motion) and filled from the gel around it
@@ -147,11 +148,11 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
     rule_gain = (None if gain is None or method == "model"
                  else _rule_gain("ensemble" if auto else method, gain))
     if auto:
-        from tacswitch.motion.flow import check_flow_options
+        from tacswitch.motion.flow import DEFAULT_PRESET, check_flow_options
 
         # Checked here because "auto" may run the mechanics rule, which ignores them (flow
         # checks its own).
-        check_flow_options(algorithm or "dis", preset or "balanced",
+        check_flow_options(algorithm or "dis", preset or DEFAULT_PRESET,
                            False if suppress_imprint is None else suppress_imprint)
     if method == "model":
         if isinstance(gain, str):

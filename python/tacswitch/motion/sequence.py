@@ -23,7 +23,9 @@ Suppressing the imprint then lowered the error on the 14 held-out objects under 
 removal: 0.67x -> 0.57x zero motion with the default removal, 0.51x -> 0.47x with the mask grown
 by 4 px, 0.78x -> 0.74x with one mask per clip (cosine 0.84 -> 0.90, 0.92 -> 0.94, 0.68 -> 0.77;
 magnitude ratio 0.93 -> 0.80), as it did on real texture warped by known fields and on truly
-markerless real presses (a Mini gel that does not move: 0.55 -> 0.29 px of false motion).
+markerless real presses (a Mini gel that does not move: 0.55 -> 0.29 px of false motion). The
+flow's DIS preset ``refined`` (the default since 2026-11-30, :mod:`tacswitch.motion.flow`) then
+took the held-out default removal from 0.56x to 0.53x.
 
 A video that starts in contact has no no-contact frame (``no_contact=None``): the first frame
 is the anchor and the mechanics rule runs on it alone (single frame; ``predict_motion(img)``
@@ -69,6 +71,9 @@ class MarkerlessTracker:
             (default True; module doc). False gives the plain flow, which is what the
             markerless slip scorer was trained on (``tacswitch slip --markerless --ref``).
             Unused without a no-contact frame (the anchor may be in contact).
+        preset: the flow's DIS preset (:data:`tacswitch.motion.flow.DIS_PRESETS`; default
+            ``"refined"``). The markerless slip scorer reads ``"balanced"``, the flow it was
+            trained on.
 
     Attributes:
         centres: the rest centres used (None until the first frame when both ``no_contact``
@@ -81,16 +86,17 @@ class MarkerlessTracker:
     def __init__(self, no_contact: Any = None, centres: Any = None, *,
                  gain: float | str | None = None,
                  model: str | os.PathLike[str] | None = None,
-                 suppress_imprint: bool = True) -> None:
+                 suppress_imprint: bool = True, preset: str = "refined") -> None:
         from tacswitch._checks import as_points, check_model_arg
-        from tacswitch.motion.flow import DEFAULT_PRESET, check_flow_options
+        from tacswitch.motion.flow import check_flow_options
         from tacswitch.motion.infer import _bgr, _rule_gain
         from tacswitch.motion.mechanics import MECHANICS_GAIN
 
         # Checked now: it is first used at the first update (for the default centres).
         check_model_arg(model)
-        check_flow_options("dis", DEFAULT_PRESET, suppress_imprint)
+        check_flow_options("dis", preset, suppress_imprint)
         self.suppress_imprint = bool(suppress_imprint)
+        self.preset = preset
         self._model = model
         self.no_contact: NDArray[np.uint8] | None = None
         self.centres: NDArray[np.float32] | None = (
@@ -146,7 +152,8 @@ class MarkerlessTracker:
             return np.zeros((0, 2), np.float32)
         if self.no_contact is not None:
             # The direct flow from rest (module doc: chaining through anchors adds error).
-            return flow_motion(img, self.no_contact, c, suppress_imprint=self.suppress_imprint)
+            return flow_motion(img, self.no_contact, c, preset=self.preset,
+                               suppress_imprint=self.suppress_imprint)
         if self._anchor is None:
             # Starts in contact: the first frame is the anchor, the rule on it alone.
             self._anchor = (img.copy(), mechanics_motion(img, None, c, gain=self.gain))
@@ -154,4 +161,4 @@ class MarkerlessTracker:
             return self._anchor[1].copy()
         anchor, pressed = self._anchor
         at = (c + pressed).astype(np.float32)
-        return (pressed + flow_motion(img, anchor, at)).astype(np.float32)
+        return (pressed + flow_motion(img, anchor, at, preset=self.preset)).astype(np.float32)

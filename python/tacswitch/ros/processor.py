@@ -477,7 +477,7 @@ class TactileProcessor:
 
     def _begin(self, frame: NDArray[np.uint8], at: BagFrame) -> None:
         """Makes ``frame`` the reference and processes it (its motion: zero)."""
-        from tacswitch.grasp.detector import GraspSlipDetector
+        from tacswitch.grasp.detector import SCORER_FLOW_PRESET, GraspSlipDetector
         from tacswitch.motion.sequence import MarkerlessTracker
         from tacswitch.tracking import MarkerTracker
 
@@ -488,9 +488,12 @@ class TactileProcessor:
             self.tracker = MarkerTracker(frame)
             points = self.tracker.reference
         else:
-            # The learned markerless scorer was trained on the plain flow: keep its inputs so.
+            # The learned markerless scorer was trained on the plain flow of one preset: keep
+            # its inputs so.
+            scorer = "slip" in cfg.outputs and cfg.rule == "learned"
             self.tracker = MarkerlessTracker(
-                frame, suppress_imprint=not ("slip" in cfg.outputs and cfg.rule == "learned"))
+                frame, suppress_imprint=not scorer,
+                **({"preset": SCORER_FLOW_PRESET} if scorer else {}))
             points = self.tracker.centres
         self.points = np.asarray(points, np.float32)
         self.detector = None

@@ -349,6 +349,41 @@ def test_motion_sequence_is_the_markerless_tracker(tmp_path: Path, mini) -> None
                  str(tmp_path / "ref.png"), "-o", str(tmp_path / "x"), "-q"]) == 2
 
 
+def test_motion_flow_preset_reaches_the_tracker_and_the_pairwise_flow(
+        tmp_path: Path, mini, capsys: pytest.CaptureFixture[str]) -> None:
+    import tacswitch as ts
+    from tacswitch.motion.sequence import MarkerlessTracker
+
+    frames = tmp_path / "video"
+    frames.mkdir()
+    video = [mini.imgs[6], np.roll(mini.imgs[6], 3, axis=1)]
+    for k, f in enumerate(video):
+        cv2.imwrite(str(frames / f"{k:03d}.png"), f)
+    ref = tmp_path / "ref.png"
+    cv2.imwrite(str(ref), mini.f0)
+    out = tmp_path / "seq"
+    assert main(["motion", str(frames), "--ref", str(ref), "--sequence", "--flow-preset",
+                 "balanced", "-o", str(out), "-q"]) == 0
+    balanced = MarkerlessTracker(mini.f0, preset="balanced")
+    default = MarkerlessTracker(mini.f0)
+    _, got = _read_motion_csv(out / "001.csv")
+    np.testing.assert_allclose(got, balanced.update(video[1]), atol=1e-3)
+    assert np.abs(got - default.update(video[1])).max() > 1e-3  # the option changed the flow
+    pair = tmp_path / "pair"
+    assert main(["motion", str(frames / "001.png"), "--ref", str(ref), "--method", "flow",
+                 "--flow-preset", "medium", "-o", str(pair), "-q"]) == 0
+    pts, got = _read_motion_csv(pair / "001.csv")
+    np.testing.assert_allclose(got, ts.predict_motion(video[1], mini.f0, pts, method="flow",
+                                                      preset="medium"), atol=1e-3)
+    capsys.readouterr()
+    assert main(["motion", str(frames / "001.png"), "--method", "mechanics", "--flow-preset",
+                 "balanced", "-o", str(pair), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "--flow-preset" in err and "runs no optical flow" in err
+    with pytest.raises(SystemExit):  # argparse refuses an unknown preset
+        main(["motion", str(frames), "--flow-preset", "quick", "-o", str(pair), "-q"])
+
+
 def test_motion_on_a_video_tracks_it_as_one_sequence(tmp_path: Path) -> None:
     from gel_fixtures import _gel, _pressed_and_sheared
 

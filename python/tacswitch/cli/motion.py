@@ -59,6 +59,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "name (gelsight, gelsight_mini: fitted on real presses) or a number "
                         ">= 0, e.g. from tacswitch.motion.calibration.calibrate_press_gain "
                         "(default: the rule's own)")
+    from tacswitch.motion.flow import DEFAULT_PRESET, DIS_PRESETS
+
+    p.add_argument("--flow-preset", choices=DIS_PRESETS, default=None,
+                   help="the optical flow's DIS preset wherever flow runs (--method flow, auto "
+                        f"with --ref, videos, bags, --sequence); default {DEFAULT_PRESET} "
+                        "(lowest error on real frames); balanced is ~15 %% faster and follows "
+                        "large motions from a frame of the same contact further; medium is "
+                        "~2x slower")
     p.add_argument("--sequence", action="store_true",
                    help="the inputs are the frames of one video, in name order: each frame's "
                         "motion from rest by tacswitch.MarkerlessTracker (--ref: the no-contact "
@@ -121,6 +129,21 @@ def _gain_option(text: str | None, method: str) -> float | str | None:
     return gain
 
 
+def _flow_preset_option(args: argparse.Namespace) -> str:
+    """The DIS preset of the trackers and the pairwise flow (``--flow-preset``, else the
+    library's default); :class:`UsageError` naming the option when it was given and nothing of
+    this run computes flow."""
+    from tacswitch.cli.options import UsageError
+    from tacswitch.motion.flow import DEFAULT_PRESET
+
+    if args.flow_preset is None:
+        return DEFAULT_PRESET
+    if args.method not in ("auto", "flow"):
+        raise UsageError(f"--flow-preset: --method {args.method} runs no optical flow; drop "
+                         "--flow-preset or use --method flow / auto")
+    return str(args.flow_preset)
+
+
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -152,6 +175,7 @@ def run(args: argparse.Namespace) -> int:
         # ensemble's single-frame half).
         load_model_option(lambda m: learned_model(m, device), args.model)
     ref = read_image(input_file(args.ref, "--ref"), "--ref", quiet=True) if args.ref else None
+    preset = _flow_preset_option(args)
     # "auto" runs the ensemble without --ref and flow with one (which ignores the gain):
     # check --gain as the ensemble's.
     gain = _gain_option(args.gain, "ensemble" if args.method == "auto" else args.method)
@@ -165,7 +189,8 @@ def run(args: argparse.Namespace) -> int:
                              f"(the flow from rest); drop --method {args.method}")
         out = output_dir(args.out, "--out")
         with bag_sink(bag, args) as sink:
-            _track_video(bag.path, ref, centres, gain, args, out, stream=bag, sink=sink)
+            _track_video(bag.path, ref, centres, gain, args, out, stream=bag, sink=sink,
+                         preset=preset)
         return 0
     files, videos = collect_inputs(args.inputs)
     if videos and args.method not in ("auto", "model"):
@@ -181,7 +206,7 @@ def run(args: argparse.Namespace) -> int:
     for path in videos:
         try:
             _track_video(path, ref, centres, gain, args, out,
-                         model=model if args.method == "model" else None)
+                         model=model if args.method == "model" else None, preset=preset)
         except ValueError as exc:  # a video that does not decode: skipped and named, as images
             if not str(exc).startswith("inputs:"):
                 raise
@@ -192,7 +217,10 @@ def run(args: argparse.Namespace) -> int:
     if args.sequence:
         from tacswitch.motion.sequence import MarkerlessTracker
 
-        tracker = MarkerlessTracker(ref, centres, gain=gain, model=args.model)
+        tracker = MarkerlessTracker(ref, centres, gain=gain, model=args.model, preset=preset)
+    # Pairs run flow with --method flow, or auto with --ref; the preset goes only there.
+    pair_preset = preset if args.method == "flow" or (args.method == "auto" and ref is not None) \
+        else None
     with progress(files, desc="motion", unit="img", quiet=args.quiet) as bar:
         for path in bar:
             img = read_quiet(path)
@@ -208,7 +236,7 @@ def run(args: argparse.Namespace) -> int:
                 motion = (model(img, ref=ref, centres=pts) if args.method == "model" else
                           predict_motion(img, ref, pts, method=args.method, gain=gain,
                                          model=args.model if args.method in LEARNED_PART
-                                         else None, device=device))
+                                         else None, device=device, preset=pair_preset))
             buf = io.StringIO()
             w = csv.writer(buf)
             w.writerow(["x", "y", "dx", "dy"])
@@ -263,7 +291,7 @@ class _ModelFromAnchor:
 
 
 def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # type: ignore[no-untyped-def]
-                 out: Path, stream=None, sink=None, model=None) -> None:
+                 out: Path, stream=None, sink=None, model=None, preset=None) -> None:
     """Every frame of the video ``path`` through one :class:`MarkerlessTracker` (``ref``: the
     no-contact frame, or None: the video starts in contact), or with ``model`` (``--method
     model``) through :class:`_ModelFromAnchor`; ``<stem>.csv`` with a row per
@@ -271,17 +299,19 @@ def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # ty
     are skipped (their rows are absent); a video with none raises ``ValueError``. ``stream``:
     the frames when they come from elsewhere (a :class:`tacswitch.bags.BagSource`, whose
     ``frames`` then give ``sink``, a :class:`tacswitch.bags.BagSink` or None, each frame's
-    stamps)."""
+    stamps). ``preset``: the tracker's DIS preset (``--flow-preset``; None: the default)."""
     import numpy as np
 
     from tacswitch._io import atomic_open, write_image
     from tacswitch.cli.progress import say
     from tacswitch.cli.rest_frame import choose_rest_frame
     from tacswitch.cli.sources import video_frames
+    from tacswitch.motion.flow import DEFAULT_PRESET
     from tacswitch.motion.sequence import MarkerlessTracker
 
-    tracker = (MarkerlessTracker(ref, centres, gain=gain, model=args.model) if model is None
-               else _ModelFromAnchor(model, ref, centres))
+    tracker = (MarkerlessTracker(ref, centres, gain=gain, model=args.model,
+                                 preset=preset or DEFAULT_PRESET)
+               if model is None else _ModelFromAnchor(model, ref, centres))
     buf = io.StringIO()
     w = csv.writer(buf)
     w.writerow(["frame", "x", "y", "dx", "dy"])

@@ -129,15 +129,14 @@ def _gain_option(text: str | None, method: str) -> float | str | None:
     return gain
 
 
-def _flow_preset_option(args: argparse.Namespace) -> str:
-    """The DIS preset of the trackers and the pairwise flow (``--flow-preset``, else the
+def _flow_preset_option(args: argparse.Namespace) -> str | None:
+    """The DIS preset of the trackers and the pairwise flow (``--flow-preset``; None: the
     library's default); :class:`UsageError` naming the option when it was given and nothing of
     this run computes flow."""
     from tacswitch.cli.options import UsageError
-    from tacswitch.motion.flow import DEFAULT_PRESET
 
     if args.flow_preset is None:
-        return DEFAULT_PRESET
+        return None
     if args.method not in ("auto", "flow"):
         raise UsageError(f"--flow-preset: --method {args.method} runs no optical flow; drop "
                          "--flow-preset or use --method flow / auto")
@@ -306,11 +305,9 @@ def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # ty
     from tacswitch.cli.progress import say
     from tacswitch.cli.rest_frame import choose_rest_frame
     from tacswitch.cli.sources import video_frames
-    from tacswitch.motion.flow import DEFAULT_PRESET
     from tacswitch.motion.sequence import MarkerlessTracker
 
-    tracker = (MarkerlessTracker(ref, centres, gain=gain, model=args.model,
-                                 preset=preset or DEFAULT_PRESET)
+    tracker = (MarkerlessTracker(ref, centres, gain=gain, model=args.model, preset=preset)
                if model is None else _ModelFromAnchor(model, ref, centres))
     buf = io.StringIO()
     w = csv.writer(buf)

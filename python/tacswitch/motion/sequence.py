@@ -71,9 +71,9 @@ class MarkerlessTracker:
             (default True; module doc). False gives the plain flow, which is what the
             markerless slip scorer was trained on (``tacswitch slip --markerless --ref``).
             Unused without a no-contact frame (the anchor may be in contact).
-        preset: the flow's DIS preset (:data:`tacswitch.motion.flow.DIS_PRESETS`; default
-            ``"refined"``). The markerless slip scorer reads ``"balanced"``, the flow it was
-            trained on.
+        preset: the flow's DIS preset (:data:`tacswitch.motion.flow.DIS_PRESETS`; None: the
+            default, ``"refined"``). The markerless slip scorer reads ``"balanced"``, the flow
+            it was trained on.
 
     Attributes:
         centres: the rest centres used (None until the first frame when both ``no_contact``
@@ -86,17 +86,17 @@ class MarkerlessTracker:
     def __init__(self, no_contact: Any = None, centres: Any = None, *,
                  gain: float | str | None = None,
                  model: str | os.PathLike[str] | None = None,
-                 suppress_imprint: bool = True, preset: str = "refined") -> None:
+                 suppress_imprint: bool = True, preset: str | None = None) -> None:
         from tacswitch._checks import as_points, check_model_arg
-        from tacswitch.motion.flow import check_flow_options
+        from tacswitch.motion.flow import DEFAULT_PRESET, check_flow_options
         from tacswitch.motion.infer import _bgr, _rule_gain
         from tacswitch.motion.mechanics import MECHANICS_GAIN
 
         # Checked now: it is first used at the first update (for the default centres).
         check_model_arg(model)
-        check_flow_options("dis", preset, suppress_imprint)
+        self.preset = DEFAULT_PRESET if preset is None else preset
+        check_flow_options("dis", self.preset, suppress_imprint)
         self.suppress_imprint = bool(suppress_imprint)
-        self.preset = preset
         self._model = model
         self.no_contact: NDArray[np.uint8] | None = None
         self.centres: NDArray[np.float32] | None = (

@@ -478,7 +478,6 @@ class TactileProcessor:
     def _begin(self, frame: NDArray[np.uint8], at: BagFrame) -> None:
         """Makes ``frame`` the reference and processes it (its motion: zero)."""
         from tacswitch.grasp.detector import SCORER_FLOW_PRESET, GraspSlipDetector
-        from tacswitch.motion.flow import DEFAULT_PRESET
         from tacswitch.motion.sequence import MarkerlessTracker
         from tacswitch.tracking import MarkerTracker
 
@@ -494,7 +493,7 @@ class TactileProcessor:
             scorer = "slip" in cfg.outputs and cfg.rule == "learned"
             self.tracker = MarkerlessTracker(
                 frame, suppress_imprint=not scorer,
-                preset=SCORER_FLOW_PRESET if scorer else DEFAULT_PRESET)
+                preset=SCORER_FLOW_PRESET if scorer else None)
             points = self.tracker.centres
         self.points = np.asarray(points, np.float32)
         self.detector = None

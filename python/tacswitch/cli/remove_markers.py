@@ -38,7 +38,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "outputs made with the same options are skipped, so an interrupted run resumes (a "
         "video file is redone, a --frames folder resumes frame by frame); outputs made with "
         "other options are redone (OUT/.tacswitch-remove-markers.json records which options "
-        "made each output); every write is atomic.",
+        "made each output); every write is atomic. For markerless motion from the outputs "
+        "(tacswitch motion), --dilate 5 --radius 5 leaves no fill seams for the flow to "
+        "misread, and --codec ffv1 no codec noise (docs/markerless-motion.md).",
         epilog="Exit status: 0 when every readable input is done (unreadable ones are named "
         "in a warning on stderr), 1 when no input could be read or an input cannot be "
         "processed, 2 for an unusable option value (e.g. a file that is not a TacDiff "

@@ -225,8 +225,8 @@ def clip_key(clip: tuple[str, str, int]) -> str:
 
 def run_clip(clip: tuple[str, str, int], names: list[str], stride: int, score_every: int,
              fresh: bool, tag: str = "") -> tuple[dict[str, dict[str, object]], bool]:
-    """Per input kind (``removed`` / ``control``) and method: predictions, truths, time;
-    and whether the clip was cut short (see :data:`MAX_STEP_PITCH`)."""
+    """Per input kind (``removed`` / ``motion`` / ``control`` / ``static``) and method:
+    predictions, truths, time; and whether the clip was cut short (see :data:`MAX_STEP_PITCH`)."""
     import tacswitch as ts
     from tacswitch.tracking import REST_LOOK_AHEAD, rest_thumbnail, settled_index
 

@@ -40,3 +40,17 @@ def _pressed_and_sheared(img: np.ndarray, amp: float) -> tuple[np.ndarray, np.nd
     out = np.clip(warped.astype(np.float32) + dome * np.array([1.0, 0.6, 0.3], np.float32),
                   0, 255)
     return out.round().astype(np.uint8), np.dstack([fx, fy]).astype(np.float32)
+
+
+def _moved(img: np.ndarray, shift: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """``img`` (gel and imprint alike: a stuck contact) moved by a smooth field that is
+    ``shift`` ``(dx, dy)`` px at the frame's centre and fades towards its border, and that field
+    ``H x W x 2`` (forward, as :func:`_pressed_and_sheared`)."""
+    import cv2
+
+    h, w = img.shape[:2]
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+    bump = np.exp(-(((xx - 0.5 * w) / (0.35 * w)) ** 2 + ((yy - 0.5 * h) / (0.35 * h)) ** 2))
+    fx, fy = (np.float32(s) * bump.astype(np.float32) for s in shift)
+    moved = cv2.remap(img, xx - fx, yy - fy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+    return moved, np.dstack([fx, fy]).astype(np.float32)

@@ -335,11 +335,14 @@ def test_motion_sequence_is_the_markerless_tracker(tmp_path: Path, mini) -> None
     for k, f in enumerate(video):
         cv2.imwrite(str(frames / f"{k:03d}.png"), f)
     cv2.imwrite(str(tmp_path / "ref.png"), mini.f0)
-    for ref in (["--ref", str(tmp_path / "ref.png")], []):
-        out = tmp_path / f"o{len(ref)}"
-        assert main(["motion", str(frames), *ref, "--sequence", "--gain", "gelsight", "-o",
+    # --ref; without it the first frame is the no-contact frame, or with --starts-in-contact
+    # the anchor (the rule on it).
+    for k, (opts, first) in enumerate([(["--ref", str(tmp_path / "ref.png")], mini.f0),
+                                       ([], video[0]), (["--starts-in-contact"], None)]):
+        out = tmp_path / f"o{k}"
+        assert main(["motion", str(frames), *opts, "--sequence", "--gain", "gelsight", "-o",
                      str(out), "-q"]) == 0
-        tr = MarkerlessTracker(mini.f0 if ref else None, gain="gelsight")
+        tr = MarkerlessTracker(first, gain="gelsight")
         for k, f in enumerate(video):
             pts, motion = _read_motion_csv(out / f"{k:03d}.csv")
             np.testing.assert_allclose(motion, tr.update(f), atol=1e-3)
@@ -347,6 +350,45 @@ def test_motion_sequence_is_the_markerless_tracker(tmp_path: Path, mini) -> None
             np.testing.assert_allclose(pts, tr.centres, atol=1e-3)
     assert main(["motion", str(frames), "--sequence", "--method", "flow", "--ref",
                  str(tmp_path / "ref.png"), "-o", str(tmp_path / "x"), "-q"]) == 2
+    for opts in (["--starts-in-contact", "--ref", str(tmp_path / "ref.png")],
+                 ["--starts-in-contact", "--anchor", "rest"]):
+        assert main(["motion", str(frames), "--sequence", *opts, "-o", str(tmp_path / "x"),
+                     "-q"]) == 2
+
+
+def test_motion_anchor_reaches_the_tracker(tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                                           ) -> None:
+    from gel_fixtures import _gel, _moved, _pressed_and_sheared
+
+    from tacswitch.motion.sequence import MarkerlessTracker
+
+    f0 = _gel()
+    press, _ = _pressed_and_sheared(f0, 3.0)
+    video = [press, _moved(press, (3.0, -2.0))[0]]
+    frames = tmp_path / "video"
+    frames.mkdir()
+    for k, f in enumerate(video):
+        cv2.imwrite(str(frames / f"{k:03d}.png"), f)
+    ref = tmp_path / "ref.png"
+    cv2.imwrite(str(ref), f0)
+    got = {}
+    for anchor in ("contact", "rest"):
+        out = tmp_path / anchor
+        assert main(["motion", str(frames), "--ref", str(ref), "--sequence", "--anchor", anchor,
+                     "-o", str(out), "-q"]) == 0
+        pts, got[anchor] = _read_motion_csv(out / "001.csv")
+        tr = MarkerlessTracker(f0, pts, anchor=anchor)
+        tr.update(video[0])
+        np.testing.assert_allclose(got[anchor], tr.update(video[1]), atol=1e-3)
+    assert np.abs(got["contact"] - got["rest"]).max() > 0.1  # the option changed the motion
+    capsys.readouterr()
+    for extra, says in ((["--sequence", "--starts-in-contact"], "with --starts-in-contact"),
+                        (["--ref", str(ref)], "applies to a video, a bag or --sequence")):
+        src = str(frames) if "--sequence" in extra else str(frames / "001.png")
+        assert main(["motion", src, *extra, "--anchor", "rest", "-o", str(tmp_path / "x"),
+                     "-q"]) == 2
+        err = capsys.readouterr().err
+        assert "--anchor" in err and says in err, err
 
 
 def test_motion_flow_preset_reaches_the_tracker_and_the_pairwise_flow(
@@ -366,6 +408,8 @@ def test_motion_flow_preset_reaches_the_tracker_and_the_pairwise_flow(
                  "balanced", "-o", str(out), "-q"]) == 0
     balanced = MarkerlessTracker(mini.f0, preset="balanced")
     default = MarkerlessTracker(mini.f0)
+    for tr in (balanced, default):
+        tr.update(video[0])
     _, got = _read_motion_csv(out / "001.csv")
     np.testing.assert_allclose(got, balanced.update(video[1]), atol=1e-3)
     assert np.abs(got - default.update(video[1])).max() > 1e-3  # the option changed the flow

@@ -19,14 +19,14 @@ def _ratio_and_cos(m: np.ndarray, true: np.ndarray, moved: np.ndarray) -> tuple[
     return float(ratio), float(cos.mean())
 
 
-def test_with_the_no_contact_frame_it_is_the_direct_flow_from_it(grid) -> None:
+def test_with_anchor_rest_it_is_the_direct_flow_from_the_no_contact_frame(grid) -> None:
     from gel_fixtures import _gel, _pressed_and_sheared
 
     from tacswitch.motion.flow import flow_motion, sample_field
 
     f0 = _gel()
-    tr = MarkerlessTracker(f0, grid, gain="gelsight")
-    plain = MarkerlessTracker(f0, grid, suppress_imprint=False)
+    tr = MarkerlessTracker(f0, grid, gain="gelsight", anchor="rest")
+    plain = MarkerlessTracker(f0, grid, suppress_imprint=False, anchor="rest")
     assert tr.suppress_imprint and not plain.suppress_imprint
     assert not tr.update(f0.copy()).any()  # no contact: exactly zero
     frames = [_pressed_and_sheared(f0, a) for a in (2.0, 5.0, 8.0)]
@@ -55,6 +55,62 @@ def test_with_the_no_contact_frame_it_is_the_direct_flow_from_it(grid) -> None:
     assert not tr.update(f0.copy()).any()
 
 
+def test_a_steady_contact_is_read_from_the_frame_where_it_settled(grid) -> None:
+    """With ``anchor="contact"`` (the default) a contact that appears or grows is read from the
+    no-contact frame and anchors there; while it stays, the motion is the anchor's plus the
+    flow from the anchor, which sees the imprint in both frames and follows it with the gel."""
+    from gel_fixtures import _gel, _moved, _pressed_and_sheared
+
+    from tacswitch.motion.flow import flow_motion, sample_field
+
+    f0 = _gel()
+    press, fp = _pressed_and_sheared(f0, 3.0)
+    # The contact spreads: a second imprint beside the first.
+    h, w = f0.shape[:2]
+    yy, xx = np.mgrid[0:h, 0:w]
+    dome = 40.0 * np.exp(-(((xx - 0.15 * w) ** 2 + (yy - 0.2 * h) ** 2) / (0.08 * w) ** 2))
+    spread = np.clip(press + dome[..., None], 0, 255).astype(np.uint8)
+    tr = MarkerlessTracker(f0, grid)
+    rest = MarkerlessTracker(f0, grid, anchor="rest")
+    assert tr.anchor == "contact" and rest.anchor == "rest"
+    assert not tr.update(f0.copy()).any() and tr.anchor_index is None  # no contact: zero
+    at_press = tr.update(press)  # a new contact: the direct flow, and the anchor
+    np.testing.assert_array_equal(at_press,
+                                  flow_motion(press, f0, grid, suppress_imprint=True))
+    assert tr.anchor_index == 1
+    tp = sample_field(fp, grid)
+    for step, shift in enumerate([(3.0, -2.0), (5.0, 0.0), (0.0, 4.0)]):
+        sheared, g = _moved(press, shift)
+        got = tr.update(sheared)
+        np.testing.assert_array_equal(
+            got, at_press + flow_motion(sheared, press, grid + at_press))
+        assert tr.anchor_index == 1  # the contact did not grow: the anchor stays
+        # The stuck motion since the press, read in full (the flow from the no-contact frame
+        # smooths the imprint away and reads about 0.8 of it on this gel).
+        true_since = sample_field(g, grid + tp)
+        moved = np.linalg.norm(true_since, axis=1) >= 1.0
+        ratio, cos = _ratio_and_cos(got - at_press, true_since, moved)
+        assert 0.9 < ratio < 1.1 and cos > 0.99, (shift, ratio, cos)
+        rest.update(press)
+        err = np.linalg.norm(got - at_press - true_since, axis=1).mean()
+        err_rest = np.linalg.norm(rest.update(sheared) - rest.update(press) - true_since,
+                                  axis=1).mean()
+        assert err < 0.5 * err_rest, (shift, err, err_rest)
+        assert step == 0 or tr.anchor_index == 1
+    # The contact grows: read from rest again, anchored anew.
+    np.testing.assert_array_equal(tr.update(spread),
+                                  flow_motion(spread, f0, grid, suppress_imprint=True))
+    assert tr.anchor_index == 5
+    # The contact recedes (the second imprint lifts): read from rest again, anchored anew.
+    np.testing.assert_array_equal(tr.update(press),
+                                  flow_motion(press, f0, grid, suppress_imprint=True))
+    assert tr.anchor_index == 6
+    # Released: no anchor, back to the no-contact frame (exactly zero).
+    assert not tr.update(f0.copy()).any() and tr.anchor_index is None
+    with pytest.raises(ValueError, match=r"^anchor: unknown 'first'"):
+        MarkerlessTracker(f0, grid, anchor="first")
+
+
 def test_the_flow_preset_is_the_default_unless_given(mini, grid) -> None:
     from tacswitch.grasp.detector import SCORER_FLOW_PRESET
     from tacswitch.motion.flow import DEFAULT_PRESET, flow_motion
@@ -62,7 +118,7 @@ def test_the_flow_preset_is_the_default_unless_given(mini, grid) -> None:
     img = mini.imgs[4]
     assert MarkerlessTracker(mini.f0, grid).preset == DEFAULT_PRESET
     for preset in (DEFAULT_PRESET, SCORER_FLOW_PRESET):
-        tr = MarkerlessTracker(mini.f0, grid, preset=preset)
+        tr = MarkerlessTracker(mini.f0, grid, preset=preset, anchor="rest")
         np.testing.assert_array_equal(
             tr.update(img), flow_motion(img, mini.f0, grid, preset=preset,
                                         suppress_imprint=True))
@@ -83,6 +139,7 @@ def test_markerless_slip_reads_the_flow_its_scorer_learned(monkeypatch, mini, gr
     args = argparse.Namespace(ref=None, centres=None, model=None)
     src = MarkerlessSequence(mini.f0, args)
     assert src._tracker.preset == SCORER_FLOW_PRESET and not src._tracker.suppress_imprint
+    assert src._tracker.anchor == "rest"
 
     from tacswitch.grasp import dataset
 
@@ -104,7 +161,6 @@ def test_markerless_slip_reads_the_flow_its_scorer_learned(monkeypatch, mini, gr
 def test_reset_and_bad_inputs(mini, grid) -> None:
     tr = MarkerlessTracker(mini.f0, grid)
     tr.update(mini.imgs[3])
-    assert tr.anchor_index is None  # with a no-contact frame there is no anchor
     tr.reset()
     assert tr.anchor_index is None
     with pytest.raises(ValueError, match=r"^frame: shape \(120, 320, 3\) does not match"):

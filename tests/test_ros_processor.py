@@ -146,7 +146,9 @@ def test_markerless_motion_matches_markerless_tracker() -> None:
     # trained on.
     from tacswitch.grasp.detector import SCORER_FLOW_PRESET
 
-    tracker = ts.MarkerlessTracker(frames[0], suppress_imprint=False, preset=SCORER_FLOW_PRESET)
+    tracker = ts.MarkerlessTracker(frames[0], suppress_imprint=False, preset=SCORER_FLOW_PRESET,
+                                   anchor="rest")
+    assert p.tracker.anchor == "rest"  # type: ignore[attr-defined]
     motions = by_name(out, "motion")
     assert [o.stamp_ns for o in motions] == [T0 + i * DT for i in range(10)]
     assert len(by_name(out, "slip")) == 10
@@ -163,8 +165,8 @@ def test_markerless_motion_alone_suppresses_the_imprint() -> None:
     p = TactileProcessor(motion="markerless", outputs=["motion"])
     motions = by_name(process_all(p, [message(f, i, "bgr8") for i, f in enumerate(frames)]),
                       "motion")
-    tracker = ts.MarkerlessTracker(frames[0])  # the default: imprint suppressed
-    assert tracker.suppress_imprint
+    tracker = ts.MarkerlessTracker(frames[0])  # the defaults: imprint suppressed, contact anchor
+    assert tracker.suppress_imprint and tracker.anchor == "contact"
     for f, m in zip(frames, motions, strict=True):
         c = cloud(m.msg)
         np.testing.assert_array_equal(np.stack([c["dx"], c["dy"]], 1), tracker.update(f))

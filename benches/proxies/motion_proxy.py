@@ -542,6 +542,37 @@ def contact_fields(sensor: str, centre: tuple[float, float], radius_px: float, k
     return press, other, st, params
 
 
+def _stuck_load(data: RealPresses, i: int, kind: str, rng: np.random.Generator,
+                rest: NDArray[np.float32]
+                ) -> tuple[NDArray[np.float32], NDArray[np.float32] | None,
+                           NDArray[np.float32], dict[str, float]]:
+    """Press ``i``'s modelled fields for ``kind``: ``(u_p at rest, dense stuck field v or None
+    for a press, v's motion at the pressed markers v(X + u_p), params)``; ``v`` is scaled down
+    where its gradient would make the backward warp no contraction."""
+    from tacswitch.sim.grain import dense_field
+
+    if kind not in CONTACT_KINDS:
+        raise ValueError(f"kinds: unknown {kind!r}; choose from {list(CONTACT_KINDS)}")
+    h, w = data.f0.shape[:2]
+    c = (float(data.centres[i, 0]), float(data.centres[i, 1]))
+    press, other, st, params = contact_fields(
+        data.sensor, c, float(data.radii[i]), kind, rng,
+        ball_radius_mm=REAL_BALL_RADIUS_MM[data.sensor])
+    up = _sample_coarse(press, st, rest)
+    if kind == "press":
+        return up, None, np.zeros_like(up), params
+    v = dense_field(other, st, h, w)
+    gy = np.gradient(v, axis=0)
+    gx = np.gradient(v, axis=1)
+    jac = np.stack([gx, gy], -1)  # jac[..., i, j] = d v_i / d x_j
+    g = float(np.linalg.norm(jac, ord=2, axis=(-2, -1)).max())
+    if g > MAX_GRADIENT:  # keep the backward map a contraction
+        other = other * np.float32(MAX_GRADIENT / g)
+        v = v * np.float32(MAX_GRADIENT / g)
+        params["scaled"] = MAX_GRADIENT / g
+    return up, v, _sample_coarse(other, st, rest + up), params
+
+
 def make_contact_proxy(sensor: str = "gelsight", *, kinds: tuple[str, ...] = CONTACT_KINDS,
                        seed: int = 0, presses: RealPresses | None = None,
                        capture: bool = True) -> Iterator[ContactSample]:
@@ -553,37 +584,69 @@ def make_contact_proxy(sensor: str = "gelsight", *, kinds: tuple[str, ...] = CON
     real press frame is then warped by ``v`` (its imprint and grain move with the stuck zone).
     The real press's own lateral motion is unknown: the modelled ``u_p`` stands for it.
     Deterministic given ``seed``; ``capture`` as in :func:`make_proxy`."""
-    from tacswitch.sim.grain import dense_field
-
     data = presses if presses is not None else load_real_presses(sensor)
     rest, _ = marker_grid(data.sensor)
-    h, w = data.f0.shape[:2]
     for i in range(len(data.imgs)):
         for kind in kinds:
-            if kind not in CONTACT_KINDS:
-                raise ValueError(f"kinds: unknown {kind!r}; choose from {list(CONTACT_KINDS)}")
-            rng = np.random.default_rng([seed, i, CONTACT_KINDS.index(kind), 17])
-            c = (float(data.centres[i, 0]), float(data.centres[i, 1]))
-            press, other, st, params = contact_fields(
-                data.sensor, c, float(data.radii[i]), kind, rng,
-                ball_radius_mm=REAL_BALL_RADIUS_MM[data.sensor])
-            up = _sample_coarse(press, st, rest)
+            rng = np.random.default_rng([seed, i, CONTACT_KINDS.index(kind)
+                                         if kind in CONTACT_KINDS else 0, 17])
+            up, v, vs, params = _stuck_load(data, i, kind, rng, rest)
             img = data.imgs[i]
-            motion = up
-            if kind != "press":
-                v = dense_field(other, st, h, w)
-                gy = np.gradient(v, axis=0)
-                gx = np.gradient(v, axis=1)
-                jac = np.stack([gx, gy], -1)  # jac[..., i, j] = d v_i / d x_j
-                g = float(np.linalg.norm(jac, ord=2, axis=(-2, -1)).max())
-                if g > MAX_GRADIENT:  # keep the backward map a contraction
-                    other = other * np.float32(MAX_GRADIENT / g)
-                    v = v * np.float32(MAX_GRADIENT / g)
-                    params["scaled"] = MAX_GRADIENT / g
-                motion = up + _sample_coarse(other, st, rest + up)
+            motion = up + vs
+            if v is not None:
                 img = warp_dense(img, v)
             refs = {"no_contact": data.f0}
             if capture:
                 img = _capture(img, rng, drift=True)
                 refs = {"no_contact": _capture(data.f0, rng, drift=False)}
             yield ContactSample(img, refs, rest, motion.astype(np.float32), i, kind, params)
+
+
+#: Press depths (fractions of the recorded press) and shear fractions of :func:`make_ramp_proxy`.
+RAMP_PRESS = (1 / 3, 2 / 3, 1.0)
+RAMP_SHEAR = (0.25, 0.5, 0.75, 1.0)
+
+
+@dataclass
+class RampSequence:
+    """One recording of :func:`make_ramp_proxy`: ``frames`` after the no-contact frame
+    ``no_contact``, ``truths`` (motion from rest per frame, ``N x 2`` px) at ``rest``, and
+    ``pressed`` (index of the frame with the full press, before the shear)."""
+
+    frames: list[NDArray[np.uint8]]
+    no_contact: NDArray[np.uint8]
+    rest: NDArray[np.float32]
+    truths: list[NDArray[np.float32]]
+    pressed: int
+    press: int
+    kind: str
+
+
+def make_ramp_proxy(sensor: str = "gelsight", *, kinds: tuple[str, ...] = ("shear", "twist",
+                                                                           "shear_twist"),
+                    seed: int = 0, presses: RealPresses | None = None) -> Iterator[RampSequence]:
+    """Yields a press-then-shear recording per real press of ``sensor`` and case of ``kinds``:
+    the no-contact frame; the press built up over :data:`RAMP_PRESS` (the real press's colour
+    change scaled, truth ``s u_p``: a stand-in for a deepening contact); then the full press
+    warped by growing fractions :data:`RAMP_SHEAR` of its stuck field (truth
+    ``u_p + r v(X + u_p)``, as :func:`make_contact_proxy`). All frames go through one capture,
+    as one recording (:func:`_capture_stream`). Real texture and imprint, modelled motion; the
+    motion after the full press is the warp alone, known exactly."""
+    data = presses if presses is not None else load_real_presses(sensor)
+    rest, _ = marker_grid(data.sensor)
+    f0 = data.f0.astype(np.float32)
+    for i in range(len(data.imgs)):
+        for kind in kinds:
+            rng = np.random.default_rng([seed, i, CONTACT_KINDS.index(kind)
+                                         if kind in CONTACT_KINDS else 0, 17])
+            up, v, vs, _ = _stuck_load(data, i, kind, rng, rest)
+            pi = data.imgs[i].astype(np.float32)
+            frames = [np.clip(np.rint(f0 + s * (pi - f0)), 0, 255).astype(np.uint8)
+                      for s in RAMP_PRESS]
+            truths = [(s * up).astype(np.float32) for s in RAMP_PRESS]
+            for r in RAMP_SHEAR:
+                frames.append(data.imgs[i] if v is None
+                              else warp_dense(data.imgs[i], (r * v).astype(np.float32)))
+                truths.append((up + r * vs).astype(np.float32))
+            cap = _capture_stream([data.f0, *frames], rng)
+            yield RampSequence(cap[1:], cap[0], rest, truths, len(RAMP_PRESS) - 1, i, kind)

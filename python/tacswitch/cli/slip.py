@@ -518,10 +518,10 @@ class MarkerlessSequence:
                           load_model_option(load_model, args.model).centres_for(
                               *first.shape[:2]))
         self.positions = self.reference.copy()
-        # The plain flow of the preset the markerless scorer was trained on (MarkerlessTracker's
-        # doc).
+        # The plain flow from rest, of the preset the markerless scorer was trained on
+        # (MarkerlessTracker's doc).
         self._tracker = ts.MarkerlessTracker(ref, self.reference, suppress_imprint=False,
-                                             preset=SCORER_FLOW_PRESET)
+                                             preset=SCORER_FLOW_PRESET, anchor="rest")
 
     def __len__(self) -> int:
         return len(self.reference)

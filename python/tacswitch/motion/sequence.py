@@ -1,11 +1,12 @@
 """Marker motion from rest over a markerless video: the no-contact frame, then the contact.
 
-With the no-contact frame, every frame's motion is the optical flow from that frame, read at
-the rest centres (:func:`tacswitch.motion.flow.flow_motion`; exactly zero for an identical
-frame), with the imprint suppressed (``suppress_imprint=True``, the default): the shading of a
-contact the no-contact frame lacks is not motion, so the flow is trusted less where an imprint
-appeared and filled there from the gel around it. Measured on real GelSight Mini videos with
-tracked markers (29 objects, markers removed,
+With the no-contact frame, a frame's motion is the optical flow from that frame (every frame's
+with ``anchor="rest"``; with the default ``anchor="contact"`` while no contact or a new one
+shows, see below), read at the rest centres (:func:`tacswitch.motion.flow.flow_motion`;
+exactly zero for an identical frame), with the imprint suppressed (``suppress_imprint=True``,
+the default): the shading of a contact the no-contact frame lacks is not motion, so the flow is
+trusted less where an imprint appeared and filled there from the gel around it. Measured on
+real GelSight Mini videos with tracked markers (29 objects, markers removed,
 ``benches/bench_motion_video_real.py``, BENCHMARKS.md "Markerless motion on real GelSight Mini
 videos"), the direct flow from the no-contact frame beat every chained estimate tried on the
 development objects: e_rmse 1.35 px (zero 1.72) against 1.38 for anchoring at the first contact
@@ -17,7 +18,7 @@ design lost the press: over all 29 objects, ghost control, e_rmse 1.44 px, cosin
 magnitude ratio 0.50, against the direct flow's 1.25 / 0.62 / 0.90 (zero 1.14; the rule
 predicts little press motion on these gels, which move several px). On the simulator's grasps
 and on real frames with the modelled press field (the rule's own physics) the earlier design
-was better (``benches/studies/bench_motion_sequence.py``); the real markers decided.
+was better (``benches/bench_motion_sequence.py``); the real markers decided.
 
 Suppressing the imprint then lowered the error on the 14 held-out objects under every
 removal: 0.67x -> 0.57x zero motion with the default removal, 0.51x -> 0.47x with the mask grown
@@ -26,6 +27,31 @@ magnitude ratio 0.93 -> 0.80), as it did on real texture warped by known fields 
 markerless real presses (a Mini gel that does not move: 0.55 -> 0.29 px of false motion). The
 flow's DIS preset ``refined`` (the default since 2026-11-30, :mod:`tacswitch.motion.flow`) then
 took the held-out default removal from 0.56x to 0.53x.
+
+Within a steady contact (``anchor="contact"``, the default since 2026-11-30) the motion is read
+from the frame where the contact settled instead:
+
+    motion(t) = motion(anchor) + flow(anchor -> frame t) at (centres + motion(anchor))
+
+A frame that shows a contact the no-contact frame lacks (:func:`~tacswitch.motion.reference.
+is_new_contact`) anchors the tracker when there is no anchor yet or when its contact changed
+against the anchor's (it shows a contact the anchor lacks, or the anchor one it lacks: the
+contact grew or receded; its changed shading is read by the direct flow above, and the anchor
+moves to it); a frame without a contact drops the anchor. Both
+frames of the anchored flow show the imprint, which moves with the gel while the contact
+sticks, so the flow follows the contact's shear in full, where the flow from the no-contact
+frame smooths the imprint away. On real GelSight texture warped by a stuck shear (taxim's
+presses as one recording of a press, then a shear, ``benches/bench_motion_sequence.py``)
+the motion since the full press is 0.38 px off against 1.22 px with ``anchor="rest"`` and 0.72
+for zero motion (cosine 0.65 against 0.37); on simulated GelSight grasps 0.90 px against 1.20
+(zero 2.59; held contacts 0.90 against 1.90). Its cost: a contact that slides over the gel (a
+slip) moves the imprint without the gel, and the anchored flow follows the object: simulated
+GelSight slips 1.89 px against 0.79 (zero 2.17), and on the real GelSight Mini videos the frames
+with a new contact, mostly in clips that slip, 0.84x zero motion against 0.76x (markers removed
+for motion; over all scored frames of the 14 held-out objects 0.44x both). Where the gel barely
+moves under its noise (taxim's real Mini presses, the simulator's Mini) both are above zero
+motion, the anchored flow more so. ``anchor="rest"`` keeps the direct flow from the no-contact
+frame on every frame, at the same cost per frame.
 
 A video that starts in contact has no no-contact frame (``no_contact=None``): the first frame
 is the anchor and the mechanics rule runs on it alone (single frame; ``predict_motion(img)``
@@ -50,7 +76,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["MarkerlessTracker"]
+__all__ = ["ANCHORS", "MarkerlessTracker"]
+
+#: ``MarkerlessTracker(anchor=...)`` with a no-contact frame: ``"contact"`` (default) reads a
+#: steady contact's motion as the flow from the frame where it settled; ``"rest"`` reads every
+#: frame's motion as the flow from the no-contact frame (module doc).
+ANCHORS = ("contact", "rest")
 
 
 class MarkerlessTracker:
@@ -74,19 +105,25 @@ class MarkerlessTracker:
         preset: the flow's DIS preset (:data:`tacswitch.motion.flow.DIS_PRESETS`; None: the
             default, ``"refined"``). The markerless slip scorer reads ``"balanced"``, the flow
             it was trained on.
+        anchor: with a no-contact frame, ``"contact"`` (default) reads a steady contact's
+            motion from the frame where it settled, ``"rest"`` every frame's from the
+            no-contact frame (:data:`ANCHORS`, module doc). Unused without a no-contact frame.
 
     Attributes:
         centres: the rest centres used (None until the first frame when both ``no_contact``
             and ``centres`` were None).
+        anchor: the ``anchor`` option.
         anchor_index: index (0-based count of :meth:`update` calls since the last reset) of the
-            anchor frame of a video that starts in contact, or None (always None with a
-            no-contact frame).
+            anchor frame: the first frame of a video that starts in contact, or with a
+            no-contact frame and ``anchor="contact"`` the frame where the current contact
+            settled; None while there is none.
     """
 
     def __init__(self, no_contact: Any = None, centres: Any = None, *,
                  gain: float | str | None = None,
                  model: str | os.PathLike[str] | None = None,
-                 suppress_imprint: bool = True, preset: str | None = None) -> None:
+                 suppress_imprint: bool = True, preset: str | None = None,
+                 anchor: str = "contact") -> None:
         from tacswitch._checks import as_points, check_model_arg
         from tacswitch.motion.flow import DEFAULT_PRESET, check_flow_options
         from tacswitch.motion.infer import _bgr, _rule_gain
@@ -96,6 +133,9 @@ class MarkerlessTracker:
         check_model_arg(model)
         self.preset = DEFAULT_PRESET if preset is None else preset
         check_flow_options("dis", self.preset, suppress_imprint)
+        if anchor not in ANCHORS:
+            raise ValueError(f"anchor: unknown {anchor!r}; choose from {list(ANCHORS)}")
+        self.anchor = anchor
         self.suppress_imprint = bool(suppress_imprint)
         self._model = model
         self.no_contact: NDArray[np.uint8] | None = None
@@ -127,7 +167,8 @@ class MarkerlessTracker:
     def reset(self) -> None:
         """Forgets the anchor: the next frame is judged against the no-contact frame again
         (without one, the next frame becomes the new anchor)."""
-        # (anchor frame, its motion from rest by the rule), from the first frame of a contact.
+        # (anchor frame, its motion from rest): by the rule on the first frame of a video that
+        # starts in contact, else by the direct flow where the contact settled.
         self._anchor: tuple[NDArray[np.uint8], NDArray[np.float32]] | None = None
         self.anchor_index: int | None = None
         self._count = 0
@@ -151,9 +192,7 @@ class MarkerlessTracker:
         if len(c) == 0:
             return np.zeros((0, 2), np.float32)
         if self.no_contact is not None:
-            # The direct flow from rest (module doc: chaining through anchors adds error).
-            return flow_motion(img, self.no_contact, c, preset=self.preset,
-                               suppress_imprint=self.suppress_imprint)
+            return self._from_rest(img, c, index)
         if self._anchor is None:
             # Starts in contact: the first frame is the anchor, the rule on it alone.
             self._anchor = (img.copy(), mechanics_motion(img, None, c, gain=self.gain))
@@ -162,3 +201,34 @@ class MarkerlessTracker:
         anchor, pressed = self._anchor
         at = (c + pressed).astype(np.float32)
         return (pressed + flow_motion(img, anchor, at, preset=self.preset)).astype(np.float32)
+
+    def _from_rest(self, img: NDArray[np.uint8], c: NDArray[np.float32],
+                   index: int) -> NDArray[np.float32]:
+        """Motion from rest with a no-contact frame (module doc): the direct flow from it, or,
+        with ``anchor="contact"`` inside a steady contact, the motion at the frame where the
+        contact last grew plus the flow from that frame."""
+        from tacswitch.motion.flow import flow_motion
+        from tacswitch.motion.reference import is_new_contact
+
+        rest = self.no_contact
+        assert rest is not None
+
+        def direct() -> NDArray[np.float32]:
+            return flow_motion(img, rest, c, preset=self.preset,
+                               suppress_imprint=self.suppress_imprint)
+
+        if self.anchor == "rest" or not is_new_contact(img, rest):
+            # No contact (or not asked for): nothing to anchor on.
+            self._anchor, self.anchor_index = None, None
+            return direct()
+        if (self._anchor is None or is_new_contact(img, self._anchor[0])
+                or is_new_contact(self._anchor[0], img)):
+            # A contact appeared, grew or receded: its shading changed, so read it from rest
+            # and anchor here.
+            motion = direct()
+            self._anchor, self.anchor_index = (img.copy(), motion), index
+            return motion.copy()
+        # Both frames show the contact: the flow follows the imprint and the gel under it.
+        anchor, at_anchor = self._anchor
+        at = (c + at_anchor).astype(np.float32)
+        return (at_anchor + flow_motion(img, anchor, at, preset=self.preset)).astype(np.float32)

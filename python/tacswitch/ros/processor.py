@@ -493,7 +493,8 @@ class TactileProcessor:
             scorer = "slip" in cfg.outputs and cfg.rule == "learned"
             self.tracker = MarkerlessTracker(
                 frame, suppress_imprint=not scorer,
-                preset=SCORER_FLOW_PRESET if scorer else None)
+                preset=SCORER_FLOW_PRESET if scorer else None,
+                anchor="rest" if scorer else "contact")
             points = self.tracker.centres
         self.points = np.asarray(points, np.float32)
         self.detector = None

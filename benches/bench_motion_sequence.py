@@ -19,9 +19,10 @@ Data:
    motion from rest, per phase (measured only in simulation).
 
 Methods, each given only the no-contact frame as reference: zero, the outward rule, flow from
-the no-contact frame, ``predict_motion(frame, no_contact)`` (auto: the ensemble, its mechanics
-rule against the no-contact frame), the mechanics rule alone against it, and the tracker (which
-also sees the earlier frames), with its default ``anchor="contact"`` and with ``anchor="rest"``.
+the no-contact frame, ``predict_motion(frame, no_contact)`` (auto: with a reference, the flow
+from it; the ensemble before 2026-11-27), the mechanics rule alone against it, and the tracker
+(which also sees the earlier frames), with its default ``anchor="contact"`` and with
+``anchor="rest"``.
 
     python benches/bench_motion_sequence.py [--every N] [--grasps N] [--update]
 """
@@ -68,7 +69,7 @@ METHODS: dict[str, Method] = {
     "zero": lambda frames, f0, c, s: [np.zeros((len(c), 2), np.float32) for _ in frames],
     "outward rule": _per_frame(outward_motion),
     "flow from the no-contact frame": _per_frame(flow_motion),
-    "predict_motion pair (auto: ensemble)": _per_frame(
+    "predict_motion pair (auto: the flow, with a reference)": _per_frame(
         lambda f, f0, c: predict_motion(f, f0, c)),
     "mechanics rule pair": _per_frame(lambda f, f0, c: mechanics_motion(f, f0, c)),
     "MarkerlessTracker": _tracker(False),

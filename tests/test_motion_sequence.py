@@ -107,8 +107,9 @@ def test_a_steady_contact_is_read_from_the_frame_where_it_settled(grid) -> None:
     assert tr.anchor_index == 6
     # Released: no anchor, back to the no-contact frame (exactly zero).
     assert not tr.update(f0.copy()).any() and tr.anchor_index is None
-    with pytest.raises(ValueError, match=r"^anchor: unknown 'first'"):
-        MarkerlessTracker(f0, grid, anchor="first")
+    for bad in ("first", ["rest"], np.array(["rest", "contact"])):
+        with pytest.raises(ValueError, match=r"^anchor: unknown"):
+            MarkerlessTracker(f0, grid, anchor=bad)  # type: ignore[arg-type]
 
 
 def test_the_flow_preset_is_the_default_unless_given(mini, grid) -> None:

@@ -133,7 +133,7 @@ class MarkerlessTracker:
         check_model_arg(model)
         self.preset = DEFAULT_PRESET if preset is None else preset
         check_flow_options("dis", self.preset, suppress_imprint)
-        if anchor not in ANCHORS:
+        if not isinstance(anchor, str) or anchor not in ANCHORS:
             raise ValueError(f"anchor: unknown {anchor!r}; choose from {list(ANCHORS)}")
         self.anchor = anchor
         self.suppress_imprint = bool(suppress_imprint)

@@ -326,7 +326,8 @@ def test_motion_command_matches_predict_motion(tmp_path: Path, motion_pair: dict
                  "--centres", str(centres), "-o", str(out), "-q"]) == 2  # names --centres
 
 
-def test_motion_sequence_is_the_markerless_tracker(tmp_path: Path, mini) -> None:
+def test_motion_sequence_is_the_markerless_tracker(tmp_path: Path, mini,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
     from tacswitch.motion.sequence import MarkerlessTracker
 
     frames = tmp_path / "video"
@@ -338,10 +339,10 @@ def test_motion_sequence_is_the_markerless_tracker(tmp_path: Path, mini) -> None
     # --ref; without it the first frame is the no-contact frame, or with --starts-in-contact
     # the anchor (the rule on it).
     for k, (opts, first) in enumerate([(["--ref", str(tmp_path / "ref.png")], mini.f0),
-                                       ([], video[0]), (["--starts-in-contact"], None)]):
+                                       ([], video[0]),
+                                       (["--starts-in-contact", "--gain", "gelsight"], None)]):
         out = tmp_path / f"o{k}"
-        assert main(["motion", str(frames), *opts, "--sequence", "--gain", "gelsight", "-o",
-                     str(out), "-q"]) == 0
+        assert main(["motion", str(frames), *opts, "--sequence", "-o", str(out), "-q"]) == 0
         tr = MarkerlessTracker(first, gain="gelsight")
         for k, f in enumerate(video):
             pts, motion = _read_motion_csv(out / f"{k:03d}.csv")
@@ -350,10 +351,18 @@ def test_motion_sequence_is_the_markerless_tracker(tmp_path: Path, mini) -> None
             np.testing.assert_allclose(pts, tr.centres, atol=1e-3)
     assert main(["motion", str(frames), "--sequence", "--method", "flow", "--ref",
                  str(tmp_path / "ref.png"), "-o", str(tmp_path / "x"), "-q"]) == 2
-    for opts in (["--starts-in-contact", "--ref", str(tmp_path / "ref.png")],
-                 ["--starts-in-contact", "--anchor", "rest"]):
-        assert main(["motion", str(frames), "--sequence", *opts, "-o", str(tmp_path / "x"),
-                     "-q"]) == 2
+    # Options that would be ignored are refused, naming themselves.
+    for src, opts, flag in (
+            (frames, ["--sequence", "--starts-in-contact", "--ref", str(tmp_path / "ref.png")],
+             "--starts-in-contact"),
+            (frames, ["--sequence", "--starts-in-contact", "--anchor", "rest"], "--anchor"),
+            (frames, ["--sequence", "--gain", "gelsight"], "--gain"),
+            (frames, ["--sequence", "--ref", str(tmp_path / "ref.png"), "--gain", "0.3"],
+             "--gain"),
+            (frames / "001.png", ["--starts-in-contact"], "--starts-in-contact")):
+        capsys.readouterr()
+        assert main(["motion", str(src), *opts, "-o", str(tmp_path / "x"), "-q"]) == 2
+        assert capsys.readouterr().err.startswith(f"tacswitch motion: error: {flag}:")
 
 
 def test_motion_anchor_reaches_the_tracker(tmp_path: Path, capsys: pytest.CaptureFixture[str]

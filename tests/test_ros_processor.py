@@ -160,6 +160,14 @@ def test_markerless_motion_matches_markerless_tracker() -> None:
 
 
 
+def test_markerless_slip_by_the_paper_rule_reads_the_flow_from_rest() -> None:
+    # The contact anchor follows an object that slides over the gel: slip reads from rest.
+    frames = grasp("slip")[:3]
+    p = TactileProcessor(motion="markerless", outputs=["motion", "slip"], rule="paper")
+    process_all(p, [message(f, i, "bgr8") for i, f in enumerate(frames)])
+    assert p.tracker.anchor == "rest" and p.tracker.suppress_imprint  # type: ignore[attr-defined]
+
+
 def test_markerless_motion_alone_suppresses_the_imprint() -> None:
     frames = grasp("slip")[:6]
     p = TactileProcessor(motion="markerless", outputs=["motion"])

@@ -78,8 +78,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "(settled) frame is the anchor, the mechanics rule on it, then the flow "
                         "from it. Without this, the first settled frame is the no-contact frame")
     p.add_argument("--anchor", choices=ANCHORS, default=None,
-                   help="over a video or --sequence from the no-contact frame (--ref, or the "
-                        "first settled frame): contact (default) reads a "
+                   help="over a video, a bag or --sequence from the no-contact frame (--ref, "
+                        "or the first frame; of a video, the first after the camera settled): "
+                        "contact (default) reads a "
                         "steady contact's motion from the frame where it settled (the flow "
                         "follows the imprint with the gel; on a contact that slides over the "
                         "gel it follows the object), rest the flow from the no-contact frame "
@@ -141,6 +142,19 @@ def _gain_option(text: str | None, method: str) -> float | str | None:
     return gain
 
 
+def _check_sequence_gain(args: argparse.Namespace, ref) -> None:  # type: ignore[no-untyped-def]
+    """:class:`UsageError` naming ``--gain`` when only sequences are tracked from a no-contact
+    frame (``--ref`` or the first frame): the tracker runs the flow there, and the gain is the
+    mechanics rule's, which runs only on the first frame with ``--starts-in-contact``."""
+    from tacswitch.cli.options import UsageError
+
+    if args.gain is not None and args.method == "auto" and not args.starts_in_contact:
+        src = "--ref" if ref is not None else "the first frame"
+        raise UsageError(f"--gain: a sequence is read by the flow from the no-contact frame "
+                         f"({src}), which has no gain; it sets the mechanics rule's with "
+                         f"--starts-in-contact; drop --gain")
+
+
 def _flow_preset_option(args: argparse.Namespace) -> str | None:
     """The DIS preset of the trackers and the pairwise flow (``--flow-preset``; None: the
     library's default); :class:`UsageError` naming the option when it was given and nothing of
@@ -175,7 +189,7 @@ def run(args: argparse.Namespace) -> int:
                          "markerless no-contact frame")
     if args.sequence and args.method != "auto":
         raise UsageError(f"--sequence: the tracker chooses its own methods (flow from the "
-                         f"--ref no-contact frame; without --ref the mechanics rule on the "
+                         f"no-contact frame; with --starts-in-contact the mechanics rule on the "
                          f"first frame, flow from it); drop --method {args.method}")
     device = device_option(args.device)
     model = load_model_option(lambda m: load_model(m, device), args.model)
@@ -192,9 +206,11 @@ def run(args: argparse.Namespace) -> int:
     if args.anchor is not None and args.starts_in_contact:
         raise UsageError("--anchor: applies from a no-contact frame; with --starts-in-contact "
                          "the first frame is the anchor")
-    if args.anchor is not None and args.method == "model":
-        raise UsageError("--anchor: MarkerlessTracker's option; --method model reads each frame "
-                         "from --ref itself; drop --anchor")
+    for flag, given in (("--anchor", args.anchor is not None),
+                        ("--starts-in-contact", args.starts_in_contact)):
+        if given and args.method == "model":
+            raise UsageError(f"{flag}: MarkerlessTracker's option; --method model reads each "
+                             f"frame from --ref (else the first frame) itself; drop {flag}")
     anchor = args.anchor or "contact"
     # "auto" runs the ensemble without --ref and flow with one (which ignores the gain):
     # check --gain as the ensemble's.
@@ -204,6 +220,7 @@ def run(args: argparse.Namespace) -> int:
 
     bag = only_bag(args.inputs, args)
     if bag is not None:
+        _check_sequence_gain(args, ref)
         if args.method != "auto":
             raise UsageError(f"--method: a bag is one sequence, tracked by MarkerlessTracker "
                              f"(the flow from rest); drop --method {args.method}")
@@ -213,9 +230,13 @@ def run(args: argparse.Namespace) -> int:
                          preset=preset, anchor=anchor)
         return 0
     files, videos = collect_inputs(args.inputs)
-    if args.anchor is not None and not (videos or args.sequence):
-        raise UsageError("--anchor: applies to a video, a bag or --sequence (single images are "
-                         "each read from --ref); drop --anchor")
+    for flag, given in (("--anchor", args.anchor is not None),
+                        ("--starts-in-contact", args.starts_in_contact)):
+        if given and not (videos or args.sequence):
+            raise UsageError(f"{flag}: applies to a video, a bag or --sequence (single images "
+                             f"are each read on their own); drop {flag}")
+    if args.sequence or (videos and not files):
+        _check_sequence_gain(args, ref)
     if videos and args.method not in ("auto", "model"):
         raise UsageError(f"--method: a video is one sequence, tracked by MarkerlessTracker "
                          f"(the flow from rest) or, with --method model, by the model from "
@@ -346,8 +367,8 @@ def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # ty
                  out: Path, stream=None, sink=None, model=None, preset=None,
                  anchor: str = "contact") -> None:
     """Every frame of the video ``path`` through one :class:`_SequenceTracker` (``ref``: the
-    no-contact frame, or None: the first settled frame is, or with ``--starts-in-contact`` the
-    anchor), or with ``model`` (``--method
+    no-contact frame, or None: the first frame is (of a video, the first after the camera
+    settled), or with ``--starts-in-contact`` the anchor), or with ``model`` (``--method
     model``) through :class:`_ModelFromAnchor`; ``<stem>.csv`` with a row per
     frame and marker, ``<stem>_motion.png`` the last frame's arrows. Frames that do not decode
     are skipped (their rows are absent); a video with none raises ``ValueError``. ``stream``:

@@ -51,7 +51,8 @@ with a new contact, mostly in clips that slip, 0.84x zero motion against 0.76x (
 for motion; over all scored frames of the 14 held-out objects 0.44x both). Where the gel barely
 moves under its noise (taxim's real Mini presses, the simulator's Mini) both are above zero
 motion, the anchored flow more so. ``anchor="rest"`` keeps the direct flow from the no-contact
-frame on every frame, at the same cost per frame.
+frame on every frame; both run one flow a frame, the anchor adds up to three contact tests of
+about 1 ms at 640 x 480.
 
 A video that starts in contact has no no-contact frame (``no_contact=None``): the first frame
 is the anchor and the mechanics rule runs on it alone (single frame; ``predict_motion(img)``

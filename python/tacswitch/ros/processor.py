@@ -489,12 +489,13 @@ class TactileProcessor:
             points = self.tracker.reference
         else:
             # The learned markerless scorer was trained on the plain flow of one preset: keep
-            # its inputs so.
+            # its inputs so. Slip (either rule) reads the flow from rest on every frame: the
+            # contact anchor follows an object that slides over the gel.
             scorer = "slip" in cfg.outputs and cfg.rule == "learned"
             self.tracker = MarkerlessTracker(
                 frame, suppress_imprint=not scorer,
                 preset=SCORER_FLOW_PRESET if scorer else None,
-                anchor="rest" if scorer else "contact")
+                anchor="rest" if "slip" in cfg.outputs else "contact")
             points = self.tracker.centres
         self.points = np.asarray(points, np.float32)
         self.detector = None

@@ -52,12 +52,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "the contact); mechanics: the simulator's elastic press law applied to "
                         "the imprint (no learning; with or without --ref)")
     p.add_argument("--gain", default=None, metavar="SENSOR|G",
-                   help="mechanics / ensemble / outward / auto (when it runs the ensemble): "
-                        "how far a "
-                        "press moves your gel: a sensor "
-                        "name (gelsight, gelsight_mini: fitted on real presses) or a number "
-                        ">= 0, e.g. from tacswitch.motion.calibration.calibrate_press_gain "
-                        "(default: the rule's own)")
+                   help="mechanics / ensemble / outward / auto (when it runs the ensemble; "
+                        "a sequence: with --starts-in-contact, the rule on its first frame): "
+                        "how far a press moves your gel: a sensor name (gelsight, "
+                        "gelsight_mini: fitted on real presses) or a number >= 0, e.g. from "
+                        "tacswitch.motion.calibration.calibrate_press_gain (default: the "
+                        "rule's own)")
     from tacswitch.motion.flow import DEFAULT_PRESET, DIS_PRESETS
 
     p.add_argument("--flow-preset", choices=DIS_PRESETS, default=None,

@@ -168,6 +168,22 @@ def test_markerless_slip_by_the_paper_rule_reads_the_flow_from_rest() -> None:
     assert p.tracker.anchor == "rest" and p.tracker.suppress_imprint  # type: ignore[attr-defined]
 
 
+def test_the_anchor_parameter_reaches_the_markerless_tracker() -> None:
+    frames = grasp("slip")[:3]
+    for outputs, anchor, want in ((["motion"], "auto", "contact"), (["motion"], "rest", "rest"),
+                                  (["motion", "slip"], "auto", "rest"),
+                                  (["motion", "slip"], "rest", "rest")):
+        p = TactileProcessor(motion="markerless", outputs=outputs, anchor=anchor)
+        process_all(p, [message(f, i, "bgr8") for i, f in enumerate(frames)])
+        assert p.tracker.anchor == want, (outputs, anchor)  # type: ignore[attr-defined]
+    with pytest.raises(ValueError, match=r"^anchor: applies to motion 'markerless' only$"):
+        TactileProcessor(motion="markers", anchor="rest")
+    with pytest.raises(ValueError, match=r"^anchor: the slip output reads the motion"):
+        TactileProcessor(motion="markerless", outputs=["motion", "slip"], anchor="contact")
+    with pytest.raises(ValueError, match=r"^anchor: one of auto, contact, rest; got 'first'$"):
+        TactileProcessor(motion="markerless", anchor="first")
+
+
 def test_markerless_motion_alone_suppresses_the_imprint() -> None:
     frames = grasp("slip")[:6]
     p = TactileProcessor(motion="markerless", outputs=["motion"])

@@ -41,6 +41,7 @@ PARAMETERS: dict[str, Any] = {
     "image_type": "image",
     "motion": "markers",
     "method": "telea",
+    "anchor": "auto",
     "reference": "first",
     "reference_frame": 0,
     "look_ahead": 30,

@@ -91,6 +91,8 @@ from tacswitch.tracking import (
 MOTION_MODES = ("markers", "markerless")
 REFERENCE_MODES = ("first", "frame", "service")
 RULES = ("learned", "paper")
+#: ``ProcessorConfig.anchor``: ``"auto"`` and :data:`tacswitch.motion.sequence.ANCHORS`.
+ANCHOR_MODES = ("auto", "contact", "rest")
 REMOVAL_METHODS = ("telea", "biharmonic", "ns", "tacdiff", "hybrid")
 OUTPUTS = ("markerless", "motion", "slip")
 #: The rest-frame rule of ``tacswitch track`` / ``slip``
@@ -117,6 +119,11 @@ class ProcessorConfig:
             ``slip`` output, without its imprint suppression, as the markerless slip scorer
             was trained).
         method: marker removal for the ``markerless`` output (:func:`tacswitch.remove_markers`).
+        anchor: ``motion="markerless"``: :class:`tacswitch.MarkerlessTracker`'s ``anchor``,
+            ``"contact"`` (a steady contact read from the frame where it settled) or ``"rest"``
+            (the flow from the reference frame on every frame); ``"auto"`` (default):
+            ``"rest"`` with the ``slip`` output (what the slip rules read), else
+            ``"contact"``.
         reference: ``"first"``, ``"frame"`` or ``"service"`` (module doc).
         reference_frame: ``reference="frame"``: the readable frame (0-based).
         look_ahead: ``reference="first"`` with markers: frames held to choose it (1-300).
@@ -135,6 +142,7 @@ class ProcessorConfig:
 
     motion: str = "markers"
     method: str = "telea"
+    anchor: str = "auto"
     reference: str = "first"
     reference_frame: int = 0
     look_ahead: int = LOOK_AHEAD
@@ -154,6 +162,9 @@ class ProcessorConfig:
         one_of("method", self.method, REMOVAL_METHODS)
         one_of("reference", self.reference, REFERENCE_MODES)
         one_of("rule", self.rule, RULES)
+        one_of("anchor", self.anchor, ANCHOR_MODES)
+        if self.anchor != "auto" and self.motion != "markerless":
+            raise ValueError("anchor: applies to motion 'markerless' only")
         one_of("device", self.device, ("auto", "cpu", "cuda"))
         _integer("reference_frame", self.reference_frame, 0, 1_000_000)
         _integer("look_ahead", self.look_ahead, 1, 300)
@@ -165,6 +176,10 @@ class ProcessorConfig:
         if not outs:
             raise ValueError(f"outputs: name at least one of {', '.join(OUTPUTS)}")
         object.__setattr__(self, "outputs", tuple(dict.fromkeys(outs)))
+        if self.anchor == "contact" and "slip" in self.outputs:
+            raise ValueError("anchor: the slip output reads the motion from the reference on "
+                             "every frame (anchor 'rest'); use 'auto' or 'rest', or drop slip "
+                             "from outputs")
         if self.score_threshold is not None:
             if self.rule != "learned":
                 raise ValueError("score_threshold: applies to rule 'learned' only")
@@ -492,10 +507,11 @@ class TactileProcessor:
             # its inputs so. Slip (either rule) reads the flow from rest on every frame: the
             # contact anchor follows an object that slides over the gel.
             scorer = "slip" in cfg.outputs and cfg.rule == "learned"
+            anchor = cfg.anchor if cfg.anchor != "auto" else (
+                "rest" if "slip" in cfg.outputs else "contact")
             self.tracker = MarkerlessTracker(
                 frame, suppress_imprint=not scorer,
-                preset=SCORER_FLOW_PRESET if scorer else None,
-                anchor="rest" if "slip" in cfg.outputs else "contact")
+                preset=SCORER_FLOW_PRESET if scorer else None, anchor=anchor)
             points = self.tracker.centres
         self.points = np.asarray(points, np.float32)
         self.detector = None

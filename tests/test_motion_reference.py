@@ -31,6 +31,17 @@ def test_the_no_contact_frame_is_told_from_a_reference_of_the_same_contact(mini)
         assert not reference.is_new_contact(mini.f0, mini.imgs[i]), i
 
 
+def test_contact_changed_is_the_new_contact_test_both_ways(mini) -> None:
+    frames = [mini.f0, *mini.imgs[::4], _sheared(mini, 6)]
+    seen = set()
+    for a in frames:
+        for b in frames:
+            either = reference.is_new_contact(a, b) or reference.is_new_contact(b, a)
+            assert reference.contact_changed(a, b) == either
+            seen.add(either)
+    assert seen == {True, False}  # both answers occur
+
+
 def test_real_gelsight_presses_against_the_no_contact_frame() -> None:
     gs = proxy.load_real_presses("gelsight")
     ratios = [reference.contact_energy_ratio(im, gs.f0) for im in gs.imgs[::6]]

@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ["CHANGE", "CONTACT_REACH", "MIN_NEAR_MARKERS", "NEW_CONTACT_RATIO", "WORK_WIDTH",
-           "contact_energy_ratio", "is_new_contact", "near_contact"]
+           "contact_changed", "contact_energy_ratio", "is_new_contact", "near_contact"]
 
 #: Width (px) the frames are area-downsampled to before the test (a coarse, cheap statistic).
 WORK_WIDTH = 160
@@ -81,23 +81,46 @@ def _gradient_energy(b: NDArray[np.float32], region: NDArray[np.float32]) -> flo
     return float(np.vdot(gx * gx + gy * gy, region))
 
 
+def _blurred(img: NDArray[np.uint8], k: int) -> NDArray[np.float32]:
+    """``img`` grey, area-downsampled by ``k`` and blurred for the comparison."""
+    import cv2
+
+    g = _grey_small(img, k)
+    s = max(1.0, g.shape[1] / 80.0)
+    return np.asarray(cv2.GaussianBlur(g, (0, 0), s, borderType=cv2.BORDER_REFLECT), np.float32)
+
+
+def _compare(bi: NDArray[np.float32], br: NDArray[np.float32]
+             ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """``bi`` gain-matched to ``br`` (a new array) and the region where they differ (0 / 1
+    float mask)."""
+    # Median gain (on every 4th pixel each way: the blurred frames are smooth at that scale): a
+    # contact changes a small part of the frame, a drift all of it.
+    gain = float(np.median(bi[::4, ::4])) / max(float(np.median(br[::4, ::4])), 1.0)
+    bi = bi * np.float32(1.0 / max(gain, 1e-3))
+    region = (np.abs(bi - br) > np.float32(CHANGE) * np.maximum(br, 4.0)).astype(np.float32)
+    return bi, region
+
+
 def _changed(img: NDArray[np.uint8], ref: NDArray[np.uint8]
              ) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32], int]:
     """``(img, ref)`` grey, area-downsampled by ``k`` to about :data:`WORK_WIDTH`, blurred and
     gain-matched, the region where they differ (0 / 1 float mask at that size), and ``k``."""
-    import cv2
-
     k = max(1, round(img.shape[1] / WORK_WIDTH))
-    gi, gr = _grey_small(img, k), _grey_small(ref, k)
-    s = max(1.0, gi.shape[1] / 80.0)
-    bi = np.asarray(cv2.GaussianBlur(gi, (0, 0), s, borderType=cv2.BORDER_REFLECT), np.float32)
-    br = np.asarray(cv2.GaussianBlur(gr, (0, 0), s, borderType=cv2.BORDER_REFLECT), np.float32)
-    # Median gain (on every 4th pixel each way: the blurred frames are smooth at that scale): a
-    # contact changes a small part of the frame, a drift all of it.
-    gain = float(np.median(bi[::4, ::4])) / max(float(np.median(br[::4, ::4])), 1.0)
-    bi *= np.float32(1.0 / max(gain, 1e-3))
-    region = (np.abs(bi - br) > np.float32(CHANGE) * np.maximum(br, 4.0)).astype(np.float32)
+    br = _blurred(ref, k)
+    bi, region = _compare(_blurred(img, k), br)
     return bi, br, region, k
+
+
+def _energy_ratio(bi: NDArray[np.float32], br: NDArray[np.float32],
+                  region: NDArray[np.float32]) -> float:
+    """:func:`contact_energy_ratio` of the compared frames."""
+    if float(region.sum()) < max(4.0, MIN_CHANGED_FRAC * region.size):
+        return 1.0
+    e_img = _gradient_energy(bi, region)
+    if e_img <= 0:
+        return 1.0
+    return _gradient_energy(br, region) / e_img
 
 
 def near_contact(img: Any, no_contact: Any, centres: Any, reach: float = CONTACT_REACH, *,
@@ -158,15 +181,22 @@ def contact_energy_ratio(img: NDArray[np.uint8], ref: NDArray[np.uint8]) -> floa
     if ref.shape != img.shape:
         raise ValueError(f"ref: shape {ref.shape} does not match img {img.shape}")
     bi, br, region, _ = _changed(img, ref)
-    if float(region.sum()) < max(4.0, MIN_CHANGED_FRAC * region.size):
-        return 1.0
-    e_img = _gradient_energy(bi, region)
-    if e_img <= 0:
-        return 1.0
-    return _gradient_energy(br, region) / e_img
+    return _energy_ratio(bi, br, region)
 
 
 def is_new_contact(img: NDArray[np.uint8], ref: NDArray[np.uint8]) -> bool:
     """True when ``img`` shows a contact that ``ref`` lacks (``ref`` is a no-contact frame for
     it): :func:`contact_energy_ratio` below :data:`NEW_CONTACT_RATIO`."""
     return contact_energy_ratio(img, ref) < NEW_CONTACT_RATIO
+
+
+def contact_changed(img: NDArray[np.uint8], ref: NDArray[np.uint8]) -> bool:
+    """True when either frame shows a contact the other lacks: ``is_new_contact(img, ref) or
+    is_new_contact(ref, img)`` (validated uint8 frames of one shape), reading each frame once."""
+    k = max(1, round(img.shape[1] / WORK_WIDTH))
+    bi, br = _blurred(img, k), _blurred(ref, k)
+    for a, b in ((bi, br), (br, bi)):
+        a_matched, region = _compare(a, b)
+        if _energy_ratio(a_matched, b, region) < NEW_CONTACT_RATIO:
+            return True
+    return False

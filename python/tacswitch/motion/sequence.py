@@ -209,7 +209,7 @@ class MarkerlessTracker:
         with ``anchor="contact"`` inside a steady contact, the motion at the frame where the
         contact last grew plus the flow from that frame."""
         from tacswitch.motion.flow import flow_motion
-        from tacswitch.motion.reference import is_new_contact
+        from tacswitch.motion.reference import contact_changed, is_new_contact
 
         rest = self.no_contact
         assert rest is not None
@@ -222,8 +222,7 @@ class MarkerlessTracker:
             # No contact (or not asked for): nothing to anchor on.
             self._anchor, self.anchor_index = None, None
             return direct()
-        if (self._anchor is None or is_new_contact(img, self._anchor[0])
-                or is_new_contact(self._anchor[0], img)):
+        if self._anchor is None or contact_changed(img, self._anchor[0]):
             # A contact appeared, grew or receded: its shading changed, so read it from rest
             # and anchor here.
             motion = direct()

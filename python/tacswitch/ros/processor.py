@@ -79,6 +79,7 @@ from tacswitch.bags import (
     header_stamp_ns,
 )
 from tacswitch.grasp.timebase import check_fps, fps_from_intervals
+from tacswitch.motion.sequence import ANCHORS
 from tacswitch.tracking import (
     REST_LOOK_AHEAD,
     REST_USABLE_FRACTION,
@@ -92,7 +93,7 @@ MOTION_MODES = ("markers", "markerless")
 REFERENCE_MODES = ("first", "frame", "service")
 RULES = ("learned", "paper")
 #: ``ProcessorConfig.anchor``: ``"auto"`` and :data:`tacswitch.motion.sequence.ANCHORS`.
-ANCHOR_MODES = ("auto", "contact", "rest")
+ANCHOR_MODES = ("auto", *ANCHORS)
 REMOVAL_METHODS = ("telea", "biharmonic", "ns", "tacdiff", "hybrid")
 OUTPUTS = ("markerless", "motion", "slip")
 #: The rest-frame rule of ``tacswitch track`` / ``slip``

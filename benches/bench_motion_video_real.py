@@ -158,6 +158,7 @@ def methods() -> dict[str, tuple[Method, bool]]:
         "zero": (lambda frames, f0, c: [np.zeros((len(c), 2), np.float32) for _ in frames],
                  False),
         "MarkerlessTracker (default)": (_tracker(), True),
+        "MarkerlessTracker, rest_frames=16": (_tracker(rest_frames=16), True),
         "MarkerlessTracker, anchor='rest'": (_tracker(anchor="rest"), True),
         "MarkerlessTracker, anchor='rest', suppress_imprint=False": (
             _tracker(anchor="rest", suppress_imprint=False), True),

@@ -5,14 +5,16 @@ from __future__ import annotations
 import numpy as np
 
 
-def _gel(seed: int = 0, shape: tuple[int, int] = (240, 320)) -> np.ndarray:
-    """A generated markerless gel frame: smooth shading plus a faint grain (BGR uint8)."""
+def _gel(seed: int = 0, shape: tuple[int, int] = (240, 320), grain_sd: float = 6.0
+         ) -> np.ndarray:
+    """A generated markerless gel frame: smooth shading plus a faint grain of standard deviation
+    ``grain_sd`` grey levels (BGR uint8)."""
     import cv2
 
     rng = np.random.default_rng(seed)
     h, w = shape
     grain = cv2.GaussianBlur(rng.normal(0, 1, (h, w)).astype(np.float32), (0, 0), 1.5)
-    grain *= 6.0 / grain.std()
+    grain *= grain_sd / grain.std()
     yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
     shade = 120 + 30 * np.exp(-((xx - 0.4 * w) ** 2 + (yy - 0.5 * h) ** 2) / (0.3 * w) ** 2)
     g = np.clip(shade + grain, 0, 255)

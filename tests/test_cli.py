@@ -400,6 +400,48 @@ def test_motion_anchor_reaches_the_tracker(tmp_path: Path, capsys: pytest.Captur
         assert "--anchor" in err and says in err, err
 
 
+def test_motion_rest_frames_reaches_the_tracker(tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    from gel_fixtures import _gel, _pressed_and_sheared
+
+    from tacswitch.motion.sequence import MarkerlessTracker
+
+    clean = _gel(3, grain_sd=2.0)
+    rng = np.random.default_rng(1)
+    noisy = [np.clip(np.rint(f + rng.normal(0, 4.0, f.shape)), 0, 255).astype(np.uint8)
+             for f in [clean] * 6 + [_pressed_and_sheared(clean, 3.0)[0]]]
+    frames = tmp_path / "video"
+    frames.mkdir()
+    for k, f in enumerate(noisy):
+        cv2.imwrite(str(frames / f"{k:03d}.png"), f)
+    got = {}
+    for n in (None, 16):
+        out = tmp_path / f"n{n}"
+        extra = [] if n is None else ["--rest-frames", str(n)]
+        assert main(["motion", str(frames), "--sequence", *extra, "-o", str(out), "-q"]) == 0
+        pts, got[n] = _read_motion_csv(out / f"{len(noisy) - 1:03d}.csv")
+        tr = MarkerlessTracker(noisy[0], pts, **({} if n is None else {"rest_frames": n}))
+        for f in noisy[:-1]:
+            tr.update(f)
+        # Still frames 1-5 of 6: the three followed by two more still frames are averaged in.
+        assert tr.rest_count == (1 if n is None else 4)
+        np.testing.assert_allclose(got[n], tr.update(noisy[-1]), atol=1e-3)
+    assert np.abs(got[None] - got[16]).max() > 0.01  # the averaged reference changed the motion
+    for extra, says in ((["--sequence", "--starts-in-contact"], "with --starts-in-contact"),
+                        ([], "applies to a video, a bag or --sequence")):
+        src = str(frames) if "--sequence" in extra else str(frames / "001.png")
+        capsys.readouterr()
+        assert main(["motion", src, *extra, "--rest-frames", "4", "-o", str(tmp_path / "x"),
+                     "-q"]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("tacswitch motion: error: --rest-frames:") and says in err, err
+    with pytest.raises(SystemExit):
+        main(["motion", str(frames), "--sequence", "--rest-frames", "0", "-o",
+              str(tmp_path / "x"), "-q"])
+    err = capsys.readouterr().err
+    assert "--rest-frames" in err and "expected a whole number >= 1" in err, err
+
+
 def test_motion_flow_preset_reaches_the_tracker_and_the_pairwise_flow(
         tmp_path: Path, mini, capsys: pytest.CaptureFixture[str]) -> None:
     import tacswitch as ts

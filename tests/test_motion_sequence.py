@@ -119,6 +119,63 @@ def test_a_steady_contact_is_read_from_the_frame_where_it_settled(grid) -> None:
             MarkerlessTracker(f0, grid, anchor=bad)  # type: ignore[arg-type]
 
 
+def test_the_no_contact_frame_averages_the_noise_of_still_frames(grid) -> None:
+    """With ``rest_frames=n``, before anything changes, the frames fed are averaged into the
+    no-contact frame (each once two more still frames followed it, up to n in all): its noise,
+    a fixed error of every later flow, falls by about sqrt(n)."""
+    from gel_fixtures import _gel, _pressed_and_sheared
+
+    from tacswitch.motion.flow import sample_field
+    from tacswitch.motion.reference import is_unchanged
+
+    clean = _gel(3, grain_sd=2.0)  # a faint grain, as a GelSight Mini's gel shows
+    rng = np.random.default_rng(7)
+
+    def noisy(img: np.ndarray) -> np.ndarray:
+        return np.clip(np.rint(img + rng.normal(0, 4.0, img.shape)), 0, 255).astype(np.uint8)
+
+    still = [noisy(clean) for _ in range(22)]
+    press, fld = _pressed_and_sheared(clean, 3.0)
+    presses = [noisy(press) for _ in range(3)]
+    assert is_unchanged(still[1], still[0]) and not is_unchanged(presses[0], still[0])
+    true = sample_field(fld, grid)
+    errors = {}
+    for n in (1, 16):
+        tr = MarkerlessTracker(still[0], grid, rest_frames=n)
+        assert tr.rest_frames == n
+        tr.update(still[0])  # the no-contact frame fed again is not counted twice
+        for f in still[1:]:
+            tr.update(f)
+        assert tr.rest_count == n  # 21 still frames offered, n taken
+        residual = np.abs(tr.no_contact.astype(np.float32) - clean).mean()
+        assert residual < (1.3 if n == 16 else 3.6), (n, residual)  # 4 sqrt(2/pi) / sqrt(n)
+        pressed = [np.linalg.norm(tr.update(p) - true, axis=1).mean() for p in presses]
+        # Released, the gel still again: nothing more is averaged in after the first change,
+        # and the motion read is the false motion of the noise.
+        released = [np.linalg.norm(tr.update(noisy(clean)), axis=1).mean() for _ in range(3)]
+        assert tr.rest_count == n
+        errors[n] = (float(np.mean(pressed)), float(np.mean(released)))
+    assert errors[16][0] < errors[1][0], errors
+    assert errors[16][1] < 0.9 * errors[1][1], errors
+    # The first change ends the averaging, and drops the still frames not yet confirmed.
+    tr = MarkerlessTracker(still[0], grid, rest_frames=16)
+    for f in [*still[1:4], presses[0], *still[4:8]]:
+        tr.update(f)
+    assert tr.rest_count == 2  # still[1], confirmed by still[2] and still[3]
+    mean = np.rint((still[0].astype(np.float32) + still[1]) / 2).astype(np.uint8)
+    np.testing.assert_array_equal(tr.no_contact, mean)
+    # The default: the no-contact frame as given.
+    tr = MarkerlessTracker(still[0], grid)
+    assert tr.rest_frames == 1
+    for f in still[1:6]:
+        tr.update(f)
+    assert tr.rest_count == 1 and tr.no_contact is not still[0]
+    np.testing.assert_array_equal(tr.no_contact, still[0])
+    for bad, err in ((0, ValueError), (1.5, TypeError), (True, TypeError)):
+        with pytest.raises(err, match=r"^rest_frames: expected an integer"):
+            MarkerlessTracker(still[0], grid, rest_frames=bad)  # type: ignore[arg-type]
+
+
 def test_the_flow_preset_is_the_default_unless_given(mini, grid) -> None:
     from tacswitch.grasp.detector import SCORER_FLOW_PRESET
     from tacswitch.motion.flow import DEFAULT_PRESET, flow_motion
@@ -147,7 +204,7 @@ def test_markerless_slip_reads_the_flow_its_scorer_learned(monkeypatch, mini, gr
     args = argparse.Namespace(ref=None, centres=None, model=None)
     src = MarkerlessSequence(mini.f0, args)
     assert src._tracker.preset == SCORER_FLOW_PRESET and not src._tracker.suppress_imprint
-    assert src._tracker.anchor == "rest"
+    assert src._tracker.anchor == "rest" and src._tracker.rest_frames == 1
 
     from tacswitch.grasp import dataset
 

@@ -85,6 +85,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "follows the imprint with the gel; on a contact that slides over the "
                         "gel it follows the object), rest the flow from the no-contact frame "
                         "on every frame (docs/markerless-motion.md)")
+    from tacswitch.cli.options import positive_count
+
+    p.add_argument("--rest-frames", type=positive_count, default=None, metavar="N",
+                   help="over a video, a bag or --sequence from the no-contact frame: average "
+                        "it with the still frames after it, up to N in all, until anything "
+                        "changes, to average a noisy camera's noise out of every motion (e.g. "
+                        "16; default 1: the frame as given; docs/markerless-motion.md)")
     from tacswitch.cli.options import add_device_option
 
     add_device_option(p, "the learned model (--method model, ensemble, auto without --ref)")
@@ -203,10 +210,13 @@ def run(args: argparse.Namespace) -> int:
     preset = _flow_preset_option(args)
     if args.starts_in_contact and ref is not None:
         raise UsageError("--starts-in-contact: --ref is the no-contact frame; drop one of them")
-    if args.anchor is not None and args.starts_in_contact:
-        raise UsageError("--anchor: applies from a no-contact frame; with --starts-in-contact "
-                         "the first frame is the anchor")
     for flag, given in (("--anchor", args.anchor is not None),
+                        ("--rest-frames", args.rest_frames is not None)):
+        if given and args.starts_in_contact:
+            raise UsageError(f"{flag}: applies from a no-contact frame; with "
+                             "--starts-in-contact the first frame is the anchor")
+    for flag, given in (("--anchor", args.anchor is not None),
+                        ("--rest-frames", args.rest_frames is not None),
                         ("--starts-in-contact", args.starts_in_contact)):
         if given and args.method == "model":
             raise UsageError(f"{flag}: MarkerlessTracker's option; --method model reads each "
@@ -231,6 +241,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     files, videos = collect_inputs(args.inputs)
     for flag, given in (("--anchor", args.anchor is not None),
+                        ("--rest-frames", args.rest_frames is not None),
                         ("--starts-in-contact", args.starts_in_contact)):
         if given and not (videos or args.sequence):
             raise UsageError(f"{flag}: applies to a video, a bag or --sequence (single images "
@@ -326,6 +337,8 @@ class _SequenceTracker:
                  preset: str | None, anchor: str) -> None:
         self._options = {"centres": centres, "gain": gain, "model": args.model,
                          "preset": preset, "anchor": anchor}
+        if args.rest_frames is not None:
+            self._options["rest_frames"] = args.rest_frames
         self._first_is_rest = not args.starts_in_contact
         self._tracker = None if ref is None else self._make(ref)
 

@@ -37,7 +37,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ["CHANGE", "CONTACT_REACH", "MIN_NEAR_MARKERS", "NEW_CONTACT_RATIO", "WORK_WIDTH",
-           "contact_changed", "contact_energy_ratio", "is_new_contact", "near_contact"]
+           "contact_changed", "contact_energy_ratio", "is_new_contact", "is_unchanged",
+           "near_contact"]
 
 #: Width (px) the frames are area-downsampled to before the test (a coarse, cheap statistic).
 WORK_WIDTH = 160
@@ -112,10 +113,15 @@ def _changed(img: NDArray[np.uint8], ref: NDArray[np.uint8]
     return bi, br, region, k
 
 
+def _too_small(region: NDArray[np.float32]) -> bool:
+    """Whether a changed region (0 / 1 float mask) is too small to hold a contact."""
+    return float(region.sum()) < max(4.0, MIN_CHANGED_FRAC * region.size)
+
+
 def _energy_ratio(bi: NDArray[np.float32], br: NDArray[np.float32],
                   region: NDArray[np.float32]) -> float:
     """:func:`contact_energy_ratio` of the compared frames."""
-    if float(region.sum()) < max(4.0, MIN_CHANGED_FRAC * region.size):
+    if _too_small(region):
         return 1.0
     e_img = _gradient_energy(bi, region)
     if e_img <= 0:
@@ -154,7 +160,7 @@ def near_contact(img: Any, no_contact: Any, centres: Any, reach: float = CONTACT
     reach = as_number(reach, "reach", 0.0)
     n = len(pts)
     _, _, region, k = _changed(a, b)
-    if float(region.sum()) < max(4.0, MIN_CHANGED_FRAC * region.size):
+    if _too_small(region):
         return np.ones(n, bool) if fallback else None
     if n == 0:
         return np.zeros(0, bool)
@@ -188,6 +194,15 @@ def is_new_contact(img: NDArray[np.uint8], ref: NDArray[np.uint8]) -> bool:
     """True when ``img`` shows a contact that ``ref`` lacks (``ref`` is a no-contact frame for
     it): :func:`contact_energy_ratio` below :data:`NEW_CONTACT_RATIO`."""
     return contact_energy_ratio(img, ref) < NEW_CONTACT_RATIO
+
+
+def is_unchanged(img: NDArray[np.uint8], ref: NDArray[np.uint8]) -> bool:
+    """True when nothing in ``img`` differs from ``ref`` (validated uint8 frames of one shape):
+    the region whose blurred grey level changed by more than :data:`CHANGE` (after matching the
+    median gain) is under :data:`MIN_CHANGED_FRAC` of the frame. Stricter than ``not
+    is_new_contact``: a contact that grew or receded, or any imprint, counts as a change."""
+    _, _, region, _ = _changed(img, ref)
+    return _too_small(region)
 
 
 def contact_changed(img: NDArray[np.uint8], ref: NDArray[np.uint8]) -> bool:

@@ -435,11 +435,12 @@ def test_motion_rest_frames_reaches_the_tracker(tmp_path: Path,
                      "-q"]) == 2
         err = capsys.readouterr().err
         assert err.startswith("tacswitch motion: error: --rest-frames:") and says in err, err
-    with pytest.raises(SystemExit):
-        main(["motion", str(frames), "--sequence", "--rest-frames", "0", "-o",
-              str(tmp_path / "x"), "-q"])
-    err = capsys.readouterr().err
-    assert "--rest-frames" in err and "expected a whole number >= 1" in err, err
+    for bad in ("0", "99999999999"):
+        with pytest.raises(SystemExit):
+            main(["motion", str(frames), "--sequence", "--rest-frames", bad, "-o",
+                  str(tmp_path / "x"), "-q"])
+        err = capsys.readouterr().err
+        assert "--rest-frames" in err and "expected a whole number in [1, " in err, err
 
 
 def test_motion_flow_preset_reaches_the_tracker_and_the_pairwise_flow(

@@ -180,10 +180,13 @@ def count(text: str) -> int:
 
 
 def positive_count(text: str) -> int:
-    """A whole number >= 1."""
+    """A whole number in [1, MAX_COUNT]."""
+    from tacswitch._checks import MAX_COUNT
+
     value = count(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    if not 1 <= value <= MAX_COUNT:
+        raise argparse.ArgumentTypeError(f"expected a whole number in [1, {MAX_COUNT}], "
+                                         f"got {text!r}")
     return value
 
 

@@ -145,6 +145,8 @@ class MarkerlessTracker:
             anchor frame: the first frame of a video that starts in contact, or with a
             no-contact frame and ``anchor="contact"`` the frame where the current contact
             settled; None while there is none.
+        no_contact: the no-contact frame in use (with ``rest_frames > 1``, the average of
+            ``rest_count`` frames), or None.
         rest_count: how many frames the no-contact frame in use averages (1: as given).
     """
 
@@ -203,7 +205,8 @@ class MarkerlessTracker:
 
     def reset(self) -> None:
         """Forgets the anchor: the next frame is judged against the no-contact frame again
-        (without one, the next frame becomes the new anchor)."""
+        (without one, the next frame becomes the new anchor). The no-contact frame stays as
+        averaged so far (``rest_frames``), and an averaging still open goes on."""
         # (anchor frame, its motion from rest): by the rule on the first frame of a video that
         # starts in contact, else by the direct flow where the contact settled.
         self._anchor: tuple[NDArray[np.uint8], NDArray[np.float32]] | None = None

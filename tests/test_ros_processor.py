@@ -178,6 +178,12 @@ def test_the_anchor_parameter_reaches_the_markerless_tracker() -> None:
         assert p.tracker.anchor == want, (outputs, anchor)  # type: ignore[attr-defined]
     with pytest.raises(ValueError, match=r"^anchor: applies to motion 'markerless' only$"):
         TactileProcessor(motion="markers", anchor="rest")
+    # rest_frames reaches the tracker too (without the slip output, which reads the frame as
+    # given).
+    for n in (1, 16):
+        p = TactileProcessor(motion="markerless", outputs=["motion"], rest_frames=n)
+        process_all(p, [message(f, i, "bgr8") for i, f in enumerate(frames)])
+        assert p.tracker.rest_frames == n  # type: ignore[attr-defined]
     with pytest.raises(ValueError, match=r"^anchor: the slip output reads the motion"):
         TactileProcessor(motion="markerless", outputs=["motion", "slip"], anchor="contact")
     with pytest.raises(ValueError, match=r"^anchor: one of auto, contact, rest; got 'first'$"):
@@ -290,6 +296,10 @@ def test_an_unreadable_encoding_is_one_line_naming_msg() -> None:
     ({"reference_frame": 3}, "reference_frame"),
     ({"reference": "frame", "reference_frame": -1}, "reference_frame"),
     ({"look_ahead": 0}, "look_ahead"),
+    ({"rest_frames": 0, "motion": "markerless"}, "rest_frames"),
+    ({"rest_frames": 1.5, "motion": "markerless"}, "rest_frames"),
+    ({"rest_frames": 16}, "rest_frames"),
+    ({"rest_frames": 16, "motion": "markerless"}, "rest_frames"),
     ({"rule": "magic"}, "rule"),
     ({"score_threshold": 1.0, "rule": "paper"}, "score_threshold"),
     ({"score_threshold": float("inf")}, "score_threshold"),

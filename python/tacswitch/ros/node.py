@@ -42,6 +42,7 @@ PARAMETERS: dict[str, Any] = {
     "motion": "markers",
     "method": "telea",
     "anchor": "auto",
+    "rest_frames": 1,
     "reference": "first",
     "reference_frame": 0,
     "look_ahead": 30,

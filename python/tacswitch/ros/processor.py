@@ -125,6 +125,11 @@ class ProcessorConfig:
             (the flow from the reference frame on every frame); ``"auto"`` (default):
             ``"rest"`` with the ``slip`` output (what the slip rules read), else
             ``"contact"``.
+        rest_frames: ``motion="markerless"``: :class:`tacswitch.MarkerlessTracker`'s
+            ``rest_frames``, how many frames (the reference included) the reference frame may
+            average: the still frames after it, until anything changes, to average a noisy
+            camera's noise out (1, default: the frame as given; not with the ``slip`` output,
+            whose figures were measured from the frame as given).
         reference: ``"first"``, ``"frame"`` or ``"service"`` (module doc).
         reference_frame: ``reference="frame"``: the readable frame (0-based).
         look_ahead: ``reference="first"`` with markers: frames held to choose it (1-300).
@@ -144,6 +149,7 @@ class ProcessorConfig:
     motion: str = "markers"
     method: str = "telea"
     anchor: str = "auto"
+    rest_frames: int = 1
     reference: str = "first"
     reference_frame: int = 0
     look_ahead: int = LOOK_AHEAD
@@ -169,6 +175,9 @@ class ProcessorConfig:
         one_of("device", self.device, ("auto", "cpu", "cuda"))
         _integer("reference_frame", self.reference_frame, 0, 1_000_000)
         _integer("look_ahead", self.look_ahead, 1, 300)
+        _integer("rest_frames", self.rest_frames, 1, 1000)
+        if self.rest_frames != 1 and self.motion != "markerless":
+            raise ValueError("rest_frames: applies to motion 'markerless' only")
         outs = self.outputs
         if isinstance(outs, str) or not all(isinstance(o, str) for o in outs):
             raise ValueError(f"outputs: a list of names from {', '.join(OUTPUTS)}; got {outs!r}")
@@ -181,6 +190,9 @@ class ProcessorConfig:
             raise ValueError("anchor: the slip output reads the motion from the reference on "
                              "every frame (anchor 'rest'); use 'auto' or 'rest', or drop slip "
                              "from outputs")
+        if self.rest_frames != 1 and "slip" in self.outputs:
+            raise ValueError("rest_frames: the slip output reads the motion from the reference "
+                             "frame as given (1); drop slip from outputs or set 1")
         if self.score_threshold is not None:
             if self.rule != "learned":
                 raise ValueError("score_threshold: applies to rule 'learned' only")
@@ -512,7 +524,8 @@ class TactileProcessor:
                 "rest" if "slip" in cfg.outputs else "contact")
             self.tracker = MarkerlessTracker(
                 frame, suppress_imprint=not scorer,
-                preset=SCORER_FLOW_PRESET if scorer else None, anchor=anchor)
+                preset=SCORER_FLOW_PRESET if scorer else None, anchor=anchor,
+                rest_frames=cfg.rest_frames)
             points = self.tracker.centres
         self.points = np.asarray(points, np.float32)
         self.detector = None

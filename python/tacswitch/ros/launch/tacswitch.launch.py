@@ -20,6 +20,7 @@ ARGUMENTS = [
     ("motion", "markers", str, "markers (tracked) or markerless (a markerless sensor)"),
     ("method", "telea", str, "marker removal: telea, biharmonic, ns, tacdiff, hybrid"),
     ("anchor", "auto", str, "markerless motion: auto, contact or rest (MarkerlessTracker)"),
+    ("rest_frames", "1", int, "markerless motion: frames the reference may average (1: as is)"),
     ("reference", "first", str, "reference frame: first, frame, service"),
     ("reference_frame", "0", int, "reference:=frame: the readable frame (0-based)"),
     ("look_ahead", "30", int, "reference:=first: frames held to choose it"),

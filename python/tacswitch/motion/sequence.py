@@ -242,28 +242,29 @@ class MarkerlessTracker:
         at = (c + pressed).astype(np.float32)
         return (pressed + flow_motion(img, anchor, at, preset=self.preset)).astype(np.float32)
 
-    def _fold_rest(self, img: NDArray[np.uint8]) -> None:
+    def _fold_rest(self, img: NDArray[np.uint8]) -> bool:
         """Averages ``img`` into the no-contact frame once :data:`REST_CONFIRM` more frames
         have followed it with nothing changed against the no-contact frame (module doc). The
         first change drops the frames still waiting and ends the averaging, as does the last
-        of ``rest_frames``."""
+        of ``rest_frames``. Returns whether nothing changed (then ``img`` shows no contact)."""
         from tacswitch.motion.reference import is_unchanged
 
         rest, total = self.no_contact, self._rest_sum
         assert rest is not None and total is not None
         if np.array_equal(img, rest):
-            return  # the no-contact frame fed again (often the video's first frame)
+            return True  # the no-contact frame fed again (often the video's first frame)
         if not is_unchanged(img, rest):
             self._rest_sum, self._rest_waiting = None, []
-            return
+            return False
         self._rest_waiting.append(img.copy())
         if len(self._rest_waiting) <= REST_CONFIRM:
-            return
+            return True
         total += self._rest_waiting.pop(0)
         self.rest_count += 1
         self.no_contact = np.rint(total / np.float32(self.rest_count)).astype(np.uint8)
         if self.rest_count >= self.rest_frames:
             self._rest_sum, self._rest_waiting = None, []
+        return True
 
     def _from_rest(self, img: NDArray[np.uint8], c: NDArray[np.float32],
                    index: int) -> NDArray[np.float32]:
@@ -275,13 +276,16 @@ class MarkerlessTracker:
 
         rest = self.no_contact
         assert rest is not None
-        if self._rest_sum is not None:
-            self._fold_rest(img)  # the frame is read against the frame before the fold
+        # While averaging, a frame with nothing changed shows no contact (is_new_contact's own
+        # region test), so the contact test is not run again. The frame is read against the
+        # no-contact frame before the fold.
+        still = self._rest_sum is not None and self._fold_rest(img)
 
         def direct() -> NDArray[np.float32]:
             return flow_motion(img, rest, c, preset=self.preset,
                                suppress_imprint=self.suppress_imprint)
-        if self.anchor == "rest" or not is_new_contact(img, rest):
+
+        if self.anchor == "rest" or still or not is_new_contact(img, rest):
             # No contact (or not asked for): nothing to anchor on.
             self._anchor, self.anchor_index = None, None
             return direct()

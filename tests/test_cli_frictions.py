@@ -309,6 +309,7 @@ def test_track_options_have_help() -> None:
 
 @pytest.mark.parametrize("argv, option", [
     (["demo", "--frames", "3"], "--frames"),
+    (["demo", "--frames", "100000000"], "--frames"),
     (["demo", "--preset", "nope"], "--preset"),
     (["track", "IMG", "--max-dist", "-1"], "--max-dist"),
     (["track", "IMG", "--max-dist", "nan"], "--max-dist"),
@@ -338,6 +339,16 @@ def test_usage_errors_exit_2_naming_the_option(
     code, _, err = run([*args, flag, str(target)], capsys)
     usage_error(code, err, argv[0], option)
     assert not out.exists()  # refused before any work
+
+
+def test_demo_checks_its_folder_before_rendering(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    blocker = tmp_path / "report.png"
+    blocker.write_bytes(b"not a folder")
+    code, _, err = run(["demo", "-q", "-o", str(blocker / "sub")], capsys)
+    usage_error(code, err, "demo", "-o/--out")
+    code, _, err = run(["demo", "-q", "-o", str(blocker)], capsys)
+    usage_error(code, err, "demo", "-o/--out")
 
 
 @pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux /proc")
@@ -415,3 +426,58 @@ def test_package_metadata_names_home_page_and_authors() -> None:
     # pip show prints the "Homepage" project URL as Home-page when there is no home-page field.
     assert urls["Homepage"].startswith("https://")
     assert {"Repository", "Issues"} <= set(urls)
+
+
+@pytest.mark.parametrize("command", ["markers", "motion"])
+def test_two_inputs_with_one_name_are_refused_before_any_work(
+        tmp_path: Path, image: Path, capsys: pytest.CaptureFixture[str], command: str) -> None:
+    other = tmp_path / "b" / image.name
+    other.parent.mkdir()
+    other.write_bytes(image.read_bytes())
+    out = tmp_path / "out"
+    code, _, err = run([command, str(image), str(other), "-o", str(out), "-q"], capsys)
+    assert code == 1 and "Traceback" not in err, err
+    last = err.strip().splitlines()[-1]
+    assert "would both write" in last and str(other) in last, err
+    assert not list(out.glob("*.csv"))
+
+
+def test_motion_skips_an_image_it_cannot_read_as_asked_and_names_it(
+        tmp_path: Path, image: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    tiny = tmp_path / "tiny.png"
+    cv2.imwrite(str(tiny), np.zeros((1, 1, 3), np.uint8))
+    out = tmp_path / "out"
+    code, _, err = run(["motion", str(image), str(tiny), "-o", str(out), "-q"], capsys)
+    assert code == 0, err
+    assert "skipped 1 unreadable input" in err and str(tiny) in err, err
+    assert (out / f"{image.stem}.csv").is_file()
+
+
+def test_motion_names_ref_when_its_size_differs(
+        tmp_path: Path, image: Path, grasp: sim.GraspSequence,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    small = tmp_path / "small.png"
+    cv2.imwrite(str(small), cv2.resize(grasp.frames[0], None, fx=0.5, fy=0.5))
+    video = tmp_path / "clip.avi"
+    h, w = grasp.frames[0].shape[:2]
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 25, (w, h))
+    for f in grasp.frames:
+        writer.write(f)
+    writer.release()
+    for inputs in ([str(image)], [str(video)]):
+        code, _, err = run(["motion", *inputs, "--ref", str(small), "-o",
+                            str(tmp_path / "out"), "-q"], capsys)
+        assert code == 1 and "Traceback" not in err, err
+        assert err.strip().splitlines()[-1].startswith("tacswitch motion: error: --ref: shape"), err
+
+
+@pytest.mark.parametrize("extra, flag", [
+    (["--threshold", "1e9"], "--threshold"),
+    (["--block-size", "301"], "--block-size"),
+    (["--min-area", "100", "--max-area", "10"], "--max-area"),
+])
+def test_extraction_values_the_library_refuses_name_the_flag(
+        tmp_path: Path, image: Path, capsys: pytest.CaptureFixture[str], extra: list[str],
+        flag: str) -> None:
+    code, _, err = run(["markers", str(image), "-o", str(tmp_path / "out"), *extra], capsys)
+    usage_error(code, err, "markers", flag)

@@ -150,6 +150,14 @@ def test_errors_name_the_argument(labelled: Path, tmp_path: Path,
     bad.write_text("object,experiment,slip\ncup,exp_0,maybe\n")
     assert main(["evaluate", "slip", str(labelled), "--labels", str(bad), "-q"]) != 0
     assert "--labels: line 2: slip must be 0 or 1" in capsys.readouterr().err
+    binary = tmp_path / "binary.csv"
+    binary.write_bytes(bytes(range(256)))
+    assert main(["evaluate", "slip", str(labelled), "--labels", str(binary), "-q"]) != 0
+    assert "--labels: " in capsys.readouterr().err.strip().splitlines()[-1]
+    blocker = tmp_path / "a-file"
+    blocker.write_text("x")
+    assert main(["evaluate", "slip", str(labelled), "--cache", str(blocker / "sub"), "-q"]) == 2
+    assert "--cache: " in capsys.readouterr().err.strip().splitlines()[-1]
     cols = tmp_path / "cols.csv"
     cols.write_text("object,slip\ncup,1\n")
     assert main(["evaluate", "slip", str(labelled), "--labels", str(cols), "-q"]) != 0

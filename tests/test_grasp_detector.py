@@ -3,6 +3,8 @@ the shipped scorer, folds grouped by object, experiment scores and training/expo
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given
@@ -156,6 +158,23 @@ def test_detector_errors_name_the_argument() -> None:
         det.update(np.zeros((3, 2), np.float32))
     with pytest.raises(ValueError, match="image_width"):
         GraspSlipDetector(pts, image_width=0)
+    with pytest.raises(ValueError, match=r"^rigid_only: True needs rigid_threshold_px"):
+        GraspSlipDetector(pts, rule="paper", rigid_only=True)
+
+
+def test_a_scorer_with_unreadable_metadata_is_named(tmp_path: Path) -> None:
+    onnx = pytest.importorskip("onnx")
+
+    from tacswitch.grasp.detector import OnnxScorer, slip_model_path
+
+    proto = onnx.load(str(slip_model_path()))
+    for prop in proto.metadata_props:
+        if prop.key == "tacswitch.threshold":
+            prop.value = "not json"
+    bad = tmp_path / "bad.onnx"
+    onnx.save(proto, str(bad))
+    with pytest.raises(ValueError, match=r"^model: .*tacswitch.threshold is not a float"):
+        OnnxScorer(bad)
 
 
 def test_a_tacdiff_model_is_refused_as_a_slip_scorer() -> None:

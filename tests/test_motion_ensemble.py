@@ -76,8 +76,14 @@ def test_bad_inputs_name_the_argument(mini, grid) -> None:
     img = mini.imgs[2]
     with pytest.raises(ValueError, match=r"^gain: unknown sensor 'digit'"):
         predict_motion(img, None, grid, method="ensemble", gain="digit")
-    with pytest.raises(ValueError, match=r"^gain: must be a finite number >= 0"):
+    with pytest.raises(ValueError, match=r"^gain: must be a number in \[0, 1000\]"):
         predict_motion(img, None, grid, method="ensemble", gain=float("nan"))
+    for method in ("ensemble", "mechanics", "outward"):
+        with pytest.raises(ValueError,
+                           match=r"^gain: must be a number in \[0, 1000\]; got 1e\+300"):
+            predict_motion(img, None, grid, method=method, gain=1e300)
+    big = predict_motion(img, None, grid, method="ensemble", gain=1000.0)
+    assert np.isfinite(big).all()
     with pytest.raises(ValueError, match=r"^algorithm: applies to method='flow' only"):
         predict_motion(img, None, grid, method="ensemble", algorithm="dis")
     with pytest.raises(ValueError, match=r"^ref: shape"):

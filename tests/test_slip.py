@@ -176,6 +176,16 @@ def test_smooth_frames_bad_values_are_named() -> None:
         ts.SlipDetector(smooth_frames=True)
 
 
+@pytest.mark.parametrize("smooth", [1, 2])
+def test_a_changed_marker_count_is_named_smoothed_or_not(smooth: int) -> None:
+    det = ts.SlipDetector(1.0, smooth_frames=smooth)
+    det.update(np.zeros((10, 2), np.float32))
+    with pytest.raises(ValueError, match=r"^motion(_or_img)?: has 8 rows .* call reset\(\)"):
+        det.update(np.zeros((8, 2), np.float32))
+    det.reset()
+    assert not det.update(np.zeros((8, 2), np.float32)).slip
+
+
 def test_markerless_slip_evaluation_checks_smooth_frames_first() -> None:
     from tacswitch.motion.evaluate import evaluate_slip, slip_on_grasps
 

@@ -183,6 +183,14 @@ def test_bad_inputs_name_the_argument() -> None:
     for r in (0, 101, float("nan")):
         with pytest.raises(ValueError, match="radius"):
             inpaint_telea(img, mask, r)
+    # Without a mask the markers are extracted, which needs uint8: the advice says so (the
+    # generic check's float32 would be refused next).
+    import tacswitch as ts
+
+    for dtype in (np.float64, np.float32):
+        with pytest.raises(TypeError, match=r"^img: without a mask .* needs dtype uint8"):
+            ts.remove_markers(img.astype(dtype))
+    assert ts.remove_markers(img.astype(np.float32), mask).dtype == np.float32
     with pytest.raises(TypeError, match="radius"):
         inpaint_telea(img, mask, "3")  # type: ignore[arg-type]
     f = img.astype(np.float32)

@@ -147,5 +147,13 @@ def test_tracker_errors_name_the_argument() -> None:
         tracker.update(np.array([[np.nan, 1.0]]))
     with pytest.raises(TypeError, match="unknown option"):
         ts.MarkerTracker(seq.reference, thresh=3)
+    # A float or 16-bit frame is named as an image of the wrong dtype, not as bad points.
+    for frame in (seq.reference.astype(np.float32), seq.reference[..., 0].astype(np.uint16)):
+        with pytest.raises(TypeError, match=r"^ref_img_or_pts: expected dtype uint8"):
+            ts.MarkerTracker(frame)
+        with pytest.raises(TypeError, match=r"^img_or_pts: expected dtype uint8"):
+            tracker.update(frame)
+        with pytest.raises(TypeError, match=r"^motion_or_img: expected dtype uint8"):
+            ts.SlipDetector().update(frame)
     with pytest.raises(ValueError, match="max_dist"):
         ts.MarkerTracker(seq.reference, max_dist=-2)

@@ -309,10 +309,15 @@ def check_downsampled_size(shape: tuple[int, ...], factor: int, minimum: int,
                          f"sides must be at least {minimum} px")
 
 
+#: Largest ``gain`` of the motion rules and models: 4000x the measured press gains (0.04-0.25), yet
+#: small enough that the motions it scales stay finite in float32.
+MAX_GAIN = 1000.0
+
+
 def check_gain(gain: Any) -> float:
     """``gain`` of the training-free motion rules (:mod:`tacswitch.motion.mechanics`,
     :mod:`~tacswitch.motion.heuristic`) as a float; ``ValueError`` naming it unless a finite
-    number >= 0."""
+    number in [0, :data:`MAX_GAIN`]."""
     if isinstance(gain, (bool, np.bool_)) or not isinstance(gain, (int, float, np.integer,
                                                                     np.floating)):
         raise ValueError(f"gain: expected a number >= 0 or a sensor name; got "
@@ -321,6 +326,6 @@ def check_gain(gain: Any) -> float:
         value = float(gain)
     except OverflowError:  # an integer beyond float range (10**400): out of range, not a crash
         value = float("inf")
-    if not (np.isfinite(value) and value >= 0):
-        raise ValueError(f"gain: must be a finite number >= 0; got {short_repr(gain)}")
+    if not (np.isfinite(value) and 0 <= value <= MAX_GAIN):
+        raise ValueError(f"gain: must be a number in [0, {MAX_GAIN:g}]; got {short_repr(gain)}")
     return value

@@ -144,6 +144,11 @@ def remove_markers(
         raise ValueError("method: must be 'telea', 'biharmonic', 'ns', 'tacdiff' or 'hybrid'; "
                          f"got {method!r}")
     _check_extract_keywords(extract_opts)
+    if mask is None and isinstance(img, np.ndarray) and img.dtype != np.uint8:
+        # Checked first: the generic check would advise float32, which extraction refuses too.
+        raise TypeError(f"img: without a mask the markers are extracted, which needs dtype "
+                        f"uint8; got {img.dtype}; convert explicitly (e.g. "
+                        "np.clip(img, 0, 255).astype(np.uint8)) or pass mask=")
     arr = _as_image(img)
     if method in _MODEL_METHODS:
         check_model_arg(model)

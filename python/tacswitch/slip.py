@@ -19,7 +19,7 @@ from tacswitch._checks import (
     as_valid,
     positive_or_none,
 )
-from tacswitch.tracking import MarkerTracker
+from tacswitch.tracking import MarkerTracker, _is_image, check_tracker_options
 
 #: The paper's threshold (pixels) on 640-pixel-wide frames.
 PAPER_THRESHOLD_PX = 3.25
@@ -150,6 +150,9 @@ class SlipDetector:
         self._points = None if points is None else as_points(points, "points")
         self._image_width = None if image_width is None else as_count(
             image_width, "image_width", 1)
+        if not isinstance(use_displacement, (bool, np.bool_)):
+            raise TypeError(f"use_displacement: expected True or False; got "
+                            f"{type(use_displacement).__name__}")
         self._use_displacement = bool(use_displacement)
         if not self._use_displacement and self._rigid is None and not self._rigid_auto:
             raise ValueError("use_displacement: False needs rigid_threshold_px, or nothing is "
@@ -157,6 +160,9 @@ class SlipDetector:
         self._smooth = as_count(smooth_frames, "smooth_frames", 1, 1000)
         self._history: deque[tuple[NDArray[np.float32], NDArray[np.bool_]]] = deque(
             maxlen=self._smooth)
+        # Checked now, though only image input uses them: a typo is named, not ignored.
+        check_tracker_options({k: v for k, v in tracker_opts.items() if k != "max_dist"},
+                              "SlipDetector")
         self._tracker_opts = tracker_opts
         self.tracker: MarkerTracker | None = None
         self._native: Any = None
@@ -212,7 +218,7 @@ class SlipDetector:
                 aligned with fixed reference markers (NaN rows = lost).
             valid: ``N`` bool flags for a motion field; default: rows without NaN.
         """
-        if isinstance(motion_or_img, np.ndarray) and motion_or_img.dtype == np.uint8:
+        if _is_image(motion_or_img):
             # Checked here so that the error names this argument, not the tracker's.
             motion_or_img = as_image_u8(motion_or_img, "motion_or_img")
             if self.tracker is None:
@@ -233,6 +239,10 @@ class SlipDetector:
                                  "marker centres (SlipDetector(points=...))")
         self._ensure_native(points)
         if self._smooth > 1:
+            if self._history and len(motion) != len(self._history[-1][0]):
+                raise ValueError(f"motion_or_img: has {len(motion)} rows but earlier frames of "
+                                 f"this grasp had {len(self._history[-1][0])}; call reset() "
+                                 "for a new grasp")
             # Copies: a tracker may hand back buffers it reuses next frame.
             self._history.append((np.array(motion, np.float32), np.array(valid_arr, bool)))
             motion, valid_arr = _window_mean(self._history)

@@ -251,7 +251,27 @@ def match_markers(
 
 
 def _is_image(x: Any) -> bool:
-    return isinstance(x, np.ndarray) and x.dtype == np.uint8
+    """A frame rather than points: any uint8 array, or one shaped like a frame (colour, or grey
+    at least 8 px a side), so that a float or 16-bit frame gets the image check's dtype error
+    rather than a points error."""
+    if not isinstance(x, np.ndarray):
+        return False
+    return x.dtype == np.uint8 or x.ndim == 3 or (x.ndim == 2 and min(x.shape) >= 8)
+
+
+#: Marker extraction options a :class:`MarkerTracker` accepts (``**extract_opts``).
+TRACKER_OPTIONS = frozenset({"polarity", "block_size", "threshold", "min_area", "max_area",
+                             "min_fill", "max_aspect", "exclude_border"})
+
+
+def check_tracker_options(opts: dict[str, Any], owner: str = "MarkerTracker") -> dict[str, Any]:
+    """``opts`` checked as :class:`MarkerTracker` extraction options: ``TypeError`` naming an
+    unknown one (a typo would otherwise be ignored), else the checked values."""
+    unknown = set(opts) - TRACKER_OPTIONS
+    if unknown:
+        raise TypeError(f"{owner}: unknown option(s) {sorted(unknown)}; "
+                        f"allowed: {sorted(TRACKER_OPTIONS)}")
+    return check_extract_options(opts)
 
 
 class MarkerTracker:
@@ -284,13 +304,7 @@ class MarkerTracker:
     """
 
     def __init__(self, ref_img_or_pts: Any, max_dist: float | None = None, **extract_opts: Any):
-        allowed = {"polarity", "block_size", "threshold", "min_area", "max_area", "min_fill",
-                   "max_aspect", "exclude_border"}
-        unknown = set(extract_opts) - allowed
-        if unknown:
-            raise TypeError(f"MarkerTracker: unknown option(s) {sorted(unknown)}; "
-                            f"allowed: {sorted(allowed)}")
-        extract_opts = check_extract_options(extract_opts)
+        extract_opts = check_tracker_options(extract_opts)
         # The native tracker is mutably borrowed during a call (with the GIL released), so a
         # second thread would get "Already borrowed": serialise calls instead.
         self._lock = threading.Lock()

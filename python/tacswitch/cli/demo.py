@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 
 import numpy as np
+
+#: Frames per rendered grasp: the slip rule needs a few after the grasp start, and every frame
+#: of both grasps is held in memory (about 1 MB each at 640x480), so the count is bounded.
+MIN_FRAMES, MAX_FRAMES = 8, 2000
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -21,7 +24,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--out", default="tacswitch-demo",
                    help="output folder (default: %(default)s)")
     p.add_argument("--preset", default="gelsight", help="sensor preset (default: %(default)s)")
-    p.add_argument("--frames", type=int, default=40, help="frames per grasp (default: %(default)s)")
+    p.add_argument("--frames", type=int, default=40,
+                   help=f"frames per grasp, {MIN_FRAMES}-{MAX_FRAMES} (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
     p.add_argument("-q", "--quiet", action="store_true", help="print only the report path")
     p.set_defaults(run=run)
@@ -170,15 +174,16 @@ def run(args: argparse.Namespace) -> int:
     import tacswitch as ts
     from tacswitch import sim, viz
     from tacswitch._io import write_image
-    from tacswitch.cli.options import UsageError, preset_option
+    from tacswitch.cli.options import UsageError, output_dir, preset_option
 
-    if args.frames < 8:
-        raise UsageError(f"--frames: must be >= 8; got {args.frames}")
+    if not MIN_FRAMES <= args.frames <= MAX_FRAMES:
+        raise UsageError(f"--frames: must be in [{MIN_FRAMES}, {MAX_FRAMES}]; got {args.frames}")
     if args.seed < 0:
         raise UsageError(f"--seed: must be >= 0; got {args.seed}")
     preset = sim.get_preset(preset_option(args.preset))
     say = (lambda *a: None) if args.quiet else print
-    out = Path(args.out)
+    # Checked before rendering: a bad folder fails at once, not after the whole demo.
+    out = output_dir(args.out, "-o/--out")
 
     def factory() -> ts.SlipDetector:
         return ts.SlipDetector(image_width=preset.width)

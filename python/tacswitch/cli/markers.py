@@ -78,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
     from tacswitch._io import write_image
     from tacswitch.cli.options import UsageError, extraction_options, output_dir
     from tacswitch.cli.progress import progress, say, warn
-    from tacswitch.cli.sources import read_quiet, report_unreadable
+    from tacswitch.cli.sources import check_distinct_outputs, read_quiet, report_unreadable
 
     if args.frame < 0:
         raise UsageError(f"--frame: must be >= 0; got {args.frame}")
@@ -91,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
     out = output_dir(args.out, "--out")
     opts = extraction_options(args)
     inputs = [(p, False) for p in images] + [(p, True) for p in videos]
+    check_distinct_outputs([(p, out / f"{p.stem}.{args.format}") for p, _ in inputs])
     failed: list[tuple[Path, str]] = []
     done = 0
     with progress(inputs, desc="markers", unit="file", quiet=args.quiet) as bar:

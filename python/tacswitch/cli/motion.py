@@ -188,7 +188,12 @@ def run(args: argparse.Namespace) -> int:
         output_dir,
     )
     from tacswitch.cli.progress import progress, say
-    from tacswitch.cli.sources import collect_inputs, read_quiet, report_unreadable
+    from tacswitch.cli.sources import (
+        check_distinct_outputs,
+        collect_inputs,
+        read_quiet,
+        report_unreadable,
+    )
     from tacswitch.motion.infer import load_model, predict_motion
 
     if args.method == "flow" and not args.ref:
@@ -253,6 +258,7 @@ def run(args: argparse.Namespace) -> int:
                          f"(the flow from rest) or, with --method model, by the model from "
                          f"--ref (else the first settled frame); drop --method {args.method}")
     out = output_dir(args.out, "--out")
+    check_distinct_outputs([(p, out / f"{p.stem}.csv") for p in [*files, *videos]])
     if centres is None:
         say("centres: the default grid (the GelSight Mini's 9 x 11 markers scaled to the "
             "frame); pass --centres for your sensor's own", quiet=args.quiet)
@@ -281,16 +287,24 @@ def run(args: argparse.Namespace) -> int:
             if img is None:
                 failed.append((path, f"inputs: cannot read an image from {str(path)!r}"))
                 continue
-            if tracker is not None:
-                motion = tracker.update(img)
-                assert tracker.centres is not None  # set by the first update
-                pts = tracker.centres
-            else:
-                pts = model.centres_for(*img.shape[:2]) if centres is None else centres
-                motion = (model(img, ref=ref, centres=pts) if args.method == "model" else
-                          predict_motion(img, ref, pts, method=args.method, gain=gain,
-                                         model=args.model if args.method in LEARNED_PART
-                                         else None, device=device, preset=pair_preset))
+            if ref is not None and img.shape != ref.shape:
+                failed.append((path, f"--ref: shape {ref.shape} does not match "
+                                     f"{str(path)!r} {img.shape}"))
+                continue
+            try:
+                if tracker is not None:
+                    motion = tracker.update(img)
+                    assert tracker.centres is not None  # set by the first update
+                    pts = tracker.centres
+                else:
+                    pts = model.centres_for(*img.shape[:2]) if centres is None else centres
+                    motion = (model(img, ref=ref, centres=pts) if args.method == "model" else
+                              predict_motion(img, ref, pts, method=args.method, gain=gain,
+                                             model=args.model if args.method in LEARNED_PART
+                                             else None, device=device, preset=pair_preset))
+            except ValueError as exc:  # this image cannot be read as asked (too small, ...)
+                failed.append((path, f"inputs: {str(path)!r}: {exc}"))
+                continue
             buf = io.StringIO()
             w = csv.writer(buf)
             w.writerow(["x", "y", "dx", "dy"])
@@ -415,6 +429,9 @@ def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # ty
     for t, img in enumerate(frames):
         if img is None:
             continue
+        if ref is not None and img.shape != ref.shape:
+            raise ValueError(f"--ref: shape {ref.shape} does not match the frames of "
+                             f"{str(path)!r} {img.shape}")
         readable += 1
         if readable <= skip:
             continue

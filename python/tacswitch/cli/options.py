@@ -297,5 +297,19 @@ def add_extraction_options(p: argparse.ArgumentParser, *, border_default: str,
 
 
 def extraction_options(args: argparse.Namespace) -> dict[str, Any]:
-    """The extraction keyword arguments the user set (``x_*`` attributes that are not None)."""
-    return {k[2:]: v for k, v in vars(args).items() if k.startswith("x_") and v is not None}
+    """The extraction keyword arguments the user set (``x_*`` attributes that are not None),
+    checked before any input is read: :class:`UsageError` naming the flag for a value the
+    library refuses (a threshold above 255, an even or huge block size, min above max area)."""
+    import numpy as np
+
+    from tacswitch.markers import extract_markers
+
+    opts = {k[2:]: v for k, v in vars(args).items() if k.startswith("x_") and v is not None}
+    try:
+        # A tiny blank frame: extraction checks every option (the ranges do not depend on the
+        # image), and it costs microseconds.
+        extract_markers(np.zeros((16, 16, 3), np.uint8), **opts)
+    except (TypeError, ValueError) as exc:
+        name, _, reason = str(exc).partition(": ")
+        raise UsageError(f"--{name.replace('_', '-')}: {reason}") from None
+    return opts

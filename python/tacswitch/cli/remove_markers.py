@@ -153,16 +153,14 @@ def _targets(images: list[Path], videos: list[Path], out: Path,
     """``ValueError`` if two inputs would write the same output (same stem, same kind), or an
     output would replace its own input (a :class:`UsageError` of ``--out``)."""
     from tacswitch.cli.options import UsageError
+    from tacswitch.cli.sources import check_distinct_outputs
 
-    seen: dict[Path, Path] = {}
-    for path, target, _ in _jobs(images, videos, out, args):
+    jobs = _jobs(images, videos, out, args)
+    for path, target, _ in jobs:
         if target.resolve() == path.resolve():
             raise UsageError(f"--out: writing {str(target)!r} would replace its input; choose "
                              "another output folder")
-        if target in seen:
-            raise ValueError(f"inputs: {str(seen[target])!r} and {str(path)!r} would both "
-                             f"write {str(target)!r}; give them different names")
-        seen[target] = path
+    check_distinct_outputs([(path, target) for path, target, _ in jobs])
 
 
 def _check_options(args: argparse.Namespace) -> None:

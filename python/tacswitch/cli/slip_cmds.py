@@ -147,8 +147,11 @@ def _paired_marker_clips(args: argparse.Namespace, exps):  # type: ignore[no-unt
 
 
 def _cache_dir(args: argparse.Namespace) -> Path:
-    """``--cache``, or ``DATA/.tacswitch-cache``: where the tracked clips are kept."""
-    return Path(args.cache) if args.cache else Path(args.data) / ".tacswitch-cache"
+    """``--cache``, or ``DATA/.tacswitch-cache``: where the tracked clips are kept (created;
+    :class:`UsageError` naming ``--cache`` where it cannot be written)."""
+    from tacswitch.cli.options import output_dir
+
+    return output_dir(args.cache or Path(args.data) / ".tacswitch-cache", "--cache")
 
 
 def _load(args: argparse.Namespace, folds: int = 0):  # type: ignore[no-untyped-def]

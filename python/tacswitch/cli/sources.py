@@ -106,6 +106,18 @@ def collect_images(inputs: list[str]) -> list[Path]:
     return files
 
 
+def check_distinct_outputs(jobs: list[tuple[Path, Path]]) -> None:
+    """``ValueError`` naming both inputs when two ``(input, output)`` pairs of ``jobs`` write
+    the same output file (``a/x.png`` and ``b/x.png`` into one folder), before any work: one
+    result would silently replace the other."""
+    seen: dict[Path, Path] = {}
+    for path, target in jobs:
+        if target in seen:
+            raise ValueError(f"inputs: {str(seen[target])!r} and {str(path)!r} would both "
+                             f"write {str(target)!r}; give them different names")
+        seen[target] = path
+
+
 def collect_inputs(inputs: list[str]) -> tuple[list[Path], list[Path]]:
     """Images and videos named or found (natural order) in the named folders, told apart by suffix
     (:data:`VIDEO_SUFFIXES`; any other named file counts as an image). ``FileNotFoundError``

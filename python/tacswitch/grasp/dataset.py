@@ -65,32 +65,40 @@ def read_labels(root: str | os.PathLike[str], labels: str | os.PathLike[str] | N
     path = Path(labels) if labels is not None else base / "labels.csv"
     if not path.is_file():
         raise ValueError(f"labels: no such file: {str(path)!r}")
-    with open(path, newline="") as fh:
-        reader = csv.DictReader(fh)
-        # Spaces around the header's names and the cells are a spreadsheet's, not meaning.
-        fields = [f.strip() for f in (reader.fieldnames or [])]
-        reader.fieldnames = fields
-        missing = {"object", "experiment", "slip"} - set(fields)
-        if missing:
-            raise ValueError(f"labels: {str(path)!r} lacks column(s) {sorted(missing)} "
-                             f"(needs object, experiment, slip; found {fields})")
-        out = []
-        seen: dict[tuple[str, str], int] = {}
-        for line, row in enumerate(reader, start=2):
-            label = (row["slip"] or "").strip()
-            if label not in ("0", "1"):
-                raise ValueError(f"labels: line {line}: slip must be 0 or 1; got {label!r}")
-            obj, exp = (row["object"] or "").strip(), (row["experiment"] or "").strip()
-            if (obj, exp) in seen:
-                raise ValueError(f"labels: line {line}: {obj}/{exp} is listed again (first on "
-                                 f"line {seen[(obj, exp)]})")
-            seen[(obj, exp)] = line
-            folder = base / obj / exp
-            videos = sorted(p for p in folder.glob("*") if p.suffix.lower() in VIDEO_SUFFIXES)
-            if not videos:
-                raise ValueError(f"labels: line {line}: no video (*.avi, *.mp4, ...) in "
-                                 f"{str(folder)!r}")
-            out.append(Experiment(obj, exp, label == "1", videos))
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            return _labelled_experiments(base, path, csv.DictReader(fh))
+    except UnicodeDecodeError:
+        raise ValueError(f"labels: {str(path)!r} is not a UTF-8 text CSV") from None
+
+
+def _labelled_experiments(base: Path, path: Path, reader: csv.DictReader[str]
+                          ) -> list[Experiment]:
+    """The experiments ``reader`` (rows of the labels file ``path``) lists under ``base``."""
+    # Spaces around the header's names and the cells are a spreadsheet's, not meaning.
+    fields = [f.strip() for f in (reader.fieldnames or [])]
+    reader.fieldnames = fields
+    missing = {"object", "experiment", "slip"} - set(fields)
+    if missing:
+        raise ValueError(f"labels: {str(path)!r} lacks column(s) {sorted(missing)} "
+                         f"(needs object, experiment, slip; found {fields})")
+    out = []
+    seen: dict[tuple[str, str], int] = {}
+    for line, row in enumerate(reader, start=2):
+        label = (row["slip"] or "").strip()
+        if label not in ("0", "1"):
+            raise ValueError(f"labels: line {line}: slip must be 0 or 1; got {label!r}")
+        obj, exp = (row["object"] or "").strip(), (row["experiment"] or "").strip()
+        if (obj, exp) in seen:
+            raise ValueError(f"labels: line {line}: {obj}/{exp} is listed again (first on "
+                             f"line {seen[(obj, exp)]})")
+        seen[(obj, exp)] = line
+        folder = base / obj / exp
+        videos = sorted(p for p in folder.glob("*") if p.suffix.lower() in VIDEO_SUFFIXES)
+        if not videos:
+            raise ValueError(f"labels: line {line}: no video (*.avi, *.mp4, ...) in "
+                             f"{str(folder)!r}")
+        out.append(Experiment(obj, exp, label == "1", videos))
     if not out:
         raise ValueError(f"labels: {str(path)!r} lists no experiment")
     return out

@@ -70,18 +70,29 @@ class OnnxScorer:
 
         self.session, meta = open_session(path, threads=1, kind="slip", device=device)
         self.path = path
-        self.threshold = float(json.loads(meta.get("tacswitch.threshold", "0")))
-        self.warmup = int(json.loads(meta.get("tacswitch.warmup", "3")))
-        self.committee = int(json.loads(meta.get("tacswitch.committee", "1")))
-        self.votes = int(json.loads(meta.get("tacswitch.votes", "1")))
+
+        def value(key: str, default: str, kind: type) -> Any:
+            """Metadata ``tacswitch.<key>`` as ``kind``; ``ValueError`` naming the model."""
+            text = meta.get(f"tacswitch.{key}", default)
+            try:
+                return kind(json.loads(text))
+            except (ValueError, TypeError):
+                raise ValueError(f"model: {str(path)!r}: metadata tacswitch.{key} is not a "
+                                 f"{kind.__name__} ({text[:40]!r}); re-export it with "
+                                 "`tacswitch train slip`") from None
+
+        self.threshold = value("threshold", "0", float)
+        self.warmup = value("warmup", "3", int)
+        self.committee = value("committee", "1", int)
+        self.votes = value("votes", "1", int)
         # Whether its features read tracked markers through the still-marker hysteresis
         # (:class:`~tacswitch.grasp.features.FieldFeatures`; files before this key: no).
-        self.still_filter = bool(json.loads(meta.get("tacswitch.still_filter", "false")))
+        self.still_filter = value("still_filter", "false", bool)
         # The frame rate its features were computed at (files before this key: 25 frames/s).
-        self.fps = float(json.loads(meta.get("tacswitch.fps", str(TRAINED_FPS))))
+        self.fps = value("fps", str(TRAINED_FPS), float)
         # "markers" or "markerless": what its features came from (files before this key: None).
         self.motion: str | None = meta.get("tacswitch.motion")
-        n = int(json.loads(meta.get("tacswitch.n_features", str(N_FEATURES))))
+        n = value("n_features", str(N_FEATURES), int)
         # A scorer trained before the snap-back features reads the vector's first values.
         if n not in (N_FEATURES, N_BASE_FEATURES):
             raise ValueError(f"model: {str(path)!r} takes {n} features; this tacswitch "
@@ -225,6 +236,9 @@ class GraspSlipDetector:
                 raise ValueError("votes: applies to rule='learned' only")
             if still_filter is not None:
                 raise ValueError("still_filter: applies to rule='learned' only")
+            if rigid_only and rigid_threshold_px is None:
+                raise ValueError("rigid_only: True needs rigid_threshold_px (a number of pixels "
+                                 "or 'auto'), or nothing is checked")
             self._paper = SlipDetector(epsilon, rigid_threshold_px=rigid_threshold_px,
                                        use_displacement=not rigid_only, points=self.points,
                                        image_width=self.image_width,

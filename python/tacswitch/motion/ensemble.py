@@ -94,8 +94,10 @@ def learned_model(model: str | os.PathLike[str] | None, device: str = "auto") ->
 
 def _learned(net: MotionModel, img: NDArray[np.uint8], centres: NDArray[np.float32],
              gain: float) -> NDArray[np.float32]:
-    return net(img, centres=centres, gain=net.single_frame_gain * gain
-               / MECHANICS_GAINS["gelsight"])
+    # The model's single-frame output is linear in its gain: its own gain scaled here, so the
+    # product (beyond the range a user's gain is checked against) is never checked as a gain.
+    out = net(img, centres=centres) * np.float32(gain / MECHANICS_GAINS["gelsight"])
+    return np.asarray(out, np.float32)
 
 
 def learned_part(img: NDArray[np.uint8], centres: NDArray[np.float32], gain: float,

@@ -101,7 +101,7 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             press moves this sensor's gel, which one image does not show. A sensor name,
             ``"gelsight"`` or ``"gelsight_mini"`` (gains fitted on that sensor's real presses:
             :data:`tacswitch.sim.presets.MECHANICS_GAINS` / ``OUTWARD_GAINS``; the real Mini's
-            gel barely moves, so its gains predict ~zero), a number >= 0 (mechanics: the
+            gel barely moves, so its gains predict ~zero), a number in [0, 1000] (mechanics: the
             dimensionless gain, e.g. ``tacswitch.motion.calibration.calibrate_press_gain(
             no_contact, presses).gain`` measured on your own sensor; outward: the largest
             motion as a fraction of the marker pitch), or ``None``: the rule's default
@@ -111,7 +111,7 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             simulated presses). The direction does not depend on it. The ensemble scales its
             learned part by the same gain (relative to the GelSight's, where both were
             fitted). ``method="model"``: a
-            number >= 0 that replaces the model's recorded single-frame scale
+            number in [0, 1000] that replaces the model's recorded single-frame scale
             (``MotionModel.single_frame_gain``, measured on real GelSight presses; 0.48 for the
             shipped model); single frame only.
         device: where the learned model runs (``method="model"`` and the ensemble's learned

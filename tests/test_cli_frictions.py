@@ -320,6 +320,7 @@ def test_track_options_have_help() -> None:
     (["simulate", "--seed", "-1"], "--seed"),
     (["simulate", "--jpeg", "101"], "--jpeg"),
     (["simulate", "--jpeg", "-1"], "--jpeg"),
+    (["simulate", "--frames", "5"], "--frames"),
     (["motion", "IMG", "--centres", "BAD"], "--centres"),
     (["motion", "IMG", "--scale", "1e308"], "--scale"),
     (["motion", "IMG", "--scale", "nan"], "--scale"),

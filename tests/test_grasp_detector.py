@@ -143,6 +143,18 @@ def test_paper_rule_matches_the_slip_detector_from_the_grasp_start() -> None:
     assert not any(s.slip for s in states[:start])
 
 
+@pytest.mark.parametrize("output, message", [
+    (lambda x: np.full(len(x), np.nan), "not finite"),
+    (lambda x: np.zeros(0), "returned 0 logits"),
+    (lambda x: "x", "not numbers"),
+])
+def test_a_callable_scorer_with_bad_output_is_named(output, message: str) -> None:
+    frames = press_recording(4)
+    motion, valid, pts = tracked(frames)
+    with pytest.raises(ValueError, match=f"^model: .*{message}"):
+        run_clip(motion, valid, pts, image_width=frames[0].shape[1], model=output)
+
+
 def test_detector_errors_name_the_argument() -> None:
     pts = np.array([[10, 10], [40, 10], [10, 40], [40, 40]], np.float32)
     with pytest.raises(ValueError, match="rule"):

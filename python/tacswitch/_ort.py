@@ -54,8 +54,11 @@ def session_options(threads: int | None = None) -> Any:
     threads would steal the cores the camera and control loops run on between frames)."""
     import onnxruntime as ort
 
+    from tacswitch._checks import as_count
+
     so = ort.SessionOptions()
-    so.intra_op_num_threads = int(threads or os.cpu_count() or 1)
+    so.intra_op_num_threads = (os.cpu_count() or 1) if threads is None else as_count(
+        threads, "threads", 1, 1024)
     so.inter_op_num_threads = 1
     so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
     so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL

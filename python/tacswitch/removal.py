@@ -176,6 +176,10 @@ def remove_markers(
         m = _as_mask(mask, arr.shape)
     if radius is None:
         radius = NS_RADIUS if method == "ns" else DEFAULT_RADIUS
+    else:
+        # Checked for every method, so a bad value is named even where the fill has no radius
+        # (biharmonic solves over the whole hole; the CLI warns that --radius is ignored there).
+        _as_radius(radius)
     if method == "telea":
         return inpaint_telea(arr, m, radius)
     if method == "biharmonic":

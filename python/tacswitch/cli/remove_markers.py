@@ -181,9 +181,11 @@ def _check_options(args: argparse.Namespace) -> None:
         ("--separation", args.separation, MODEL_METHODS),
         ("--orientations", args.orientations, MODEL_METHODS),
         ("--device", None if args.device == "auto" else args.device, MODEL_METHODS),
-        ("--ref", args.ref, ("hybrid",))) if value is not None and args.method not in used_by]
+        ("--ref", args.ref, ("hybrid",)),
+        ("--radius", args.radius, ("telea", "ns", "hybrid"))) if value is not None
+        and args.method not in used_by]
     if ignored:
-        users = {"--ref": "hybrid"}
+        users = {"--ref": "hybrid", "--radius": "telea, ns and hybrid"}
         warn("remove-markers", "; ".join(
             f"{flag} is ignored by --method {args.method} (used by "
             f"{users.get(flag, 'tacdiff and hybrid')})" for flag in ignored))

@@ -24,7 +24,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="dataset seed, a whole number >= 0 (default: %(default)s)")
     p.add_argument("--sequences", action="store_true",
                    help="grasp sequences (press, shear, hold/slip/vibration) instead of samples")
-    p.add_argument("--frames", type=int, default=30, help="frames per sequence (default: 30)")
+    p.add_argument("--frames", type=int, default=None,
+                   help="frames per sequence, with --sequences (default: 30)")
     p.add_argument("--optics", choices=("auto", "taxim", "phong"), default="auto",
                    help="shading: taxim (the real calibration; needs one in the preset), phong, "
                         "or auto (taxim when the preset has a calibration; default)")
@@ -45,6 +46,10 @@ def run(args: argparse.Namespace) -> int:
     from tacswitch.sim.dataset import generate_dataset
 
     preset_option(args.preset)
+    if args.frames is not None and not args.sequences:
+        raise UsageError("--frames: applies to --sequences only (samples are single frames)")
+    if args.frames is None:
+        args.frames = 30
     if args.frames < 1:
         raise UsageError(f"--frames: must be >= 1; got {args.frames}")
     if args.workers is not None and args.workers < 1:

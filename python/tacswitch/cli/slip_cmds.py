@@ -199,6 +199,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
                                  "scorers)")
     if args.rule == "paper" and args.score_threshold is not None:
         raise UsageError("--score-threshold: applies to --rule learned only")
+    if args.score_threshold is not None and not math.isfinite(args.score_threshold):
+        raise UsageError(f"--score-threshold: must be finite; got {args.score_threshold}")
     if args.rule == "paper" and args.model is not None:
         raise UsageError("--model: applies to --rule learned only")
     seeds, votes = _committee(args)

@@ -318,6 +318,22 @@ class GraspSlipDetector:
         start = None if state.grasp_start is None else tb.frame_of(state.grasp_start)
         return replace(state, frame=self.frame, grasp_start=start, n_valid=n_valid)
 
+    def _logits(self, feats: NDArray[np.float32]) -> NDArray[np.float64]:
+        """The scorer's logits for one frame's features: one per committee member, checked
+        (a user's callable may return anything): ``ValueError`` naming ``model``."""
+        assert self._scorer is not None
+        try:
+            logits = np.asarray(self._scorer(feats[None, :]), np.float64).reshape(-1)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"model: the scorer's output is not numbers ({exc})") from None
+        if len(logits) == 0 or (self._fired is not None and len(logits) != len(self._fired)):
+            raise ValueError(f"model: the scorer returned {len(logits)} logits; expected "
+                             f"{'at least 1' if self._fired is None else len(self._fired)} "
+                             "(one per committee member, every frame)")
+        if not np.isfinite(logits).all():
+            raise ValueError("model: the scorer returned a logit that is not finite")
+        return logits
+
     def _tick(self, m: NDArray[np.float32], v: NDArray[np.bool_]) -> GraspSlipState:
         """One step of the time base (a fed frame at the scorer's rate)."""
         self.tick += 1
@@ -333,7 +349,7 @@ class GraspSlipDetector:
         slip = False
         if contact and self.tick >= self.warmup:
             # The scene decides: the scorer runs only while a contact is on the gel.
-            logits = np.asarray(self._scorer(feats[None, :]), np.float64).reshape(-1)
+            logits = self._logits(feats)
             if self._fired is None:
                 check_votes(self.votes, len(logits))
                 self._fired = np.zeros(len(logits), bool)

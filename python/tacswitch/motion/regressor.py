@@ -111,6 +111,9 @@ class MotionModel:
     def centres_for(self, height: int, width: int) -> NDArray[np.float32]:
         """The default centres (the training preset's grid) scaled to a ``height x width``
         frame: the right grid for the same sensor at any resolution, only a guess for others."""
+        from tacswitch._checks import as_count
+
+        height, width = as_count(height, "height", 1), as_count(width, "width", 1)
         sx, sy = width / self.work_width, height / self.work_height
         # Pixel centres at integers: scale about the image's outer edge (x + 0.5).
         c = (self.default_centres + 0.5) * np.array([sx, sy], np.float32) - 0.5

@@ -17,7 +17,8 @@ against the issue's 0.2 px bound. Accuracy: the real-texture proxy (:mod:`proxie
 taxim's real presses warped by known press / shear / twist / mixed fields, exposure drift and
 compression; seed 0): e_rmse, e_mag, cosine and share within 30 degrees over markers that moved
 >= 0.168 mm, with the no-contact frame and the unwarped press as reference. Variants: the DIS
-presets and the default with ``suppress_imprint=True`` (meant for a no-contact reference).
+presets, ``accurate`` (DeepFlow) and the default with ``suppress_imprint=True`` (meant for a
+no-contact reference).
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ from tacswitch.motion.evaluate import motion_metrics
 
 SECTION = "## Markerless motion: flow presets (speed, brightness, real-texture accuracy)"
 SENSORS = ("gelsight_mini", "gelsight")
-PRESETS = ("refined", "balanced", "medium", "fast", "ultrafast")
+PRESETS = ("refined", "balanced", "medium", "fast", "ultrafast", "accurate")
 BRIGHTNESS = ((1.15, 5.0), (0.85, -5.0), (1.15, 0.0), (0.85, 0.0), (1.0, 8.0))
 #: Flow variants of the brightness and accuracy tables: name -> predict_motion keywords.
 VARIANTS = {p: {"preset": p} for p in PRESETS}
@@ -45,7 +46,8 @@ SUPPRESS = f"flow, DIS {flow.DEFAULT_PRESET}, suppress_imprint"
 
 
 def speed_methods() -> dict[str, dict[str, str]]:
-    out = {f"flow, DIS {p}" + (" (default)" if p == flow.DEFAULT_PRESET else ""):
+    out = {f"flow, {'DeepFlow' if p == flow.ACCURATE else 'DIS'} {p}"
+           + (" (default)" if p == flow.DEFAULT_PRESET else ""):
            {"method": "flow", "preset": p} for p in PRESETS}
     out[SUPPRESS] = {"method": "flow", "preset": flow.DEFAULT_PRESET, "suppress_imprint": True}
     out["outward rule"] = {"method": "outward"}

@@ -165,6 +165,10 @@ def methods() -> dict[str, tuple[Method, bool]]:
         "pairwise from the first frame, auto": (_pairwise(), False),
         "pairwise from the first frame, flow, suppress_imprint": (
             _pairwise(method="flow", suppress_imprint=True), False),
+        # The same flow as MarkerlessTracker(anchor="rest", preset="accurate"), which reads each
+        # frame from the first alone: scored frames only (DeepFlow is ~30x slower).
+        "pairwise from the first frame, flow, suppress_imprint, preset='accurate'": (
+            _pairwise(method="flow", suppress_imprint=True, preset="accurate"), False),
         "single frame (ensemble)": (_single, False),
         **_model_methods(),
     }

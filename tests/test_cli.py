@@ -471,6 +471,11 @@ def test_motion_flow_preset_reaches_the_tracker_and_the_pairwise_flow(
     pts, got = _read_motion_csv(pair / "001.csv")
     np.testing.assert_allclose(got, ts.predict_motion(video[1], mini.f0, pts, method="flow",
                                                       preset="medium"), atol=1e-3)
+    assert main(["motion", str(frames / "001.png"), "--ref", str(ref), "--method", "flow",
+                 "--flow-preset", "accurate", "-o", str(pair), "-q"]) == 0
+    pts, got = _read_motion_csv(pair / "001.csv")
+    np.testing.assert_allclose(got, ts.predict_motion(video[1], mini.f0, pts, method="flow",
+                                                      preset="accurate"), atol=1e-3)
     capsys.readouterr()
     assert main(["motion", str(frames / "001.png"), "--method", "mechanics", "--flow-preset",
                  "balanced", "-o", str(pair), "-q"]) == 2

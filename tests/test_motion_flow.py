@@ -146,6 +146,36 @@ def test_other_flow_algorithms_follow_a_shift(mini, algorithm: str) -> None:
     assert np.linalg.norm(m - np.array([1.5, 2.0]), axis=1).mean() < 0.8
 
 
+def test_accurate_preset_follows_real_texture_and_works_on_the_callers_pixels() -> None:
+    """``preset="accurate"`` (DeepFlow on the work-width frames) recovers a known shear of real
+    GelSight texture at 640 x 480 (downsampled to 320 px wide and back to the caller's pixels)
+    as closely as the default, and a brightness change stays under the 0.2 px bound."""
+    gs = proxy.load_real_presses("gelsight")
+    grid = proxy.marker_grid("gelsight")[0]
+    src = gs.imgs[3]
+    fld = proxy.Field("shear", (320.0, 240.0), [("shear", {"amp": 4.0, "rs": 1e6, "ex": 0.6,
+                                                            "ey": 0.8, "k": 0.0})])
+    img = proxy.warp(src, fld)
+    true = fld.at(grid)
+    err = {p: np.linalg.norm(predict_motion(img, src, grid, preset=p) - true, axis=1).mean()
+           for p in ("refined", "accurate")}
+    assert err["accurate"] < 0.25 * np.linalg.norm(true, axis=1).mean(), err
+    assert err["accurate"] < err["refined"] + 0.3, err
+    m = predict_motion(_brighter(src, 0.85, 0.0), src, grid, preset="accurate")
+    assert np.hypot(m[:, 0], m[:, 1]).max() < 0.2
+    assert flow.work_factor(640, "dis", "accurate") == 2
+
+
+def test_accurate_preset_refuses_what_it_cannot_do(mini, grid) -> None:
+    small = np.ascontiguousarray(mini.imgs[2][:24, :40])
+    with pytest.raises(ValueError, match=r"^preset: 'accurate' needs frames at least 32 px"):
+        predict_motion(small, np.roll(small, 1, axis=1), np.array([[10.0, 10.0]], np.float32),
+                       preset="accurate")
+    with pytest.raises(ValueError, match=r"^preset: 'accurate' is its own flow"):
+        flow.flow_motion(mini.imgs[2], mini.f0, grid, algorithm="farneback", preset="accurate")
+    assert "accurate" in flow.FLOW_PRESETS and "accurate" not in flow.DIS_PRESETS
+
+
 def test_outward_rule_points_away_from_the_contact(mini, grid) -> None:
     i = 4
     c = mini.centres[i]

@@ -184,7 +184,7 @@ def test_the_flow_preset_is_the_default_unless_given(mini, grid) -> None:
 
     img = mini.imgs[4]
     assert MarkerlessTracker(mini.f0, grid).preset == DEFAULT_PRESET
-    for preset in (DEFAULT_PRESET, SCORER_FLOW_PRESET):
+    for preset in (DEFAULT_PRESET, SCORER_FLOW_PRESET, "accurate"):
         tr = MarkerlessTracker(mini.f0, grid, preset=preset, anchor="rest")
         np.testing.assert_array_equal(
             tr.update(img), flow_motion(img, mini.f0, grid, preset=preset,

@@ -55,17 +55,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="mechanics / ensemble / outward / auto (when it runs the ensemble; "
                         "a sequence: with --starts-in-contact, the rule on its first frame): "
                         "how far a press moves your gel: a sensor name (gelsight, "
-                        "gelsight_mini: fitted on real presses) or a number >= 0, e.g. from "
-                        "tacswitch.motion.calibration.calibrate_press_gain (default: the "
+                        "gelsight_mini: fitted on real presses) or a number in [0, 1000], e.g. "
+                        "from tacswitch.motion.calibration.calibrate_press_gain (default: the "
                         "rule's own)")
-    from tacswitch.motion.flow import DEFAULT_PRESET, DIS_PRESETS
+    from tacswitch.motion.flow import DEFAULT_PRESET, FLOW_PRESETS
 
-    p.add_argument("--flow-preset", choices=DIS_PRESETS, default=None,
-                   help="the optical flow's DIS preset wherever flow runs (--method flow, auto "
+    p.add_argument("--flow-preset", choices=FLOW_PRESETS, default=None,
+                   help="the optical flow's preset wherever flow runs (--method flow, auto "
                         f"with --ref, videos, bags, --sequence); default {DEFAULT_PRESET} "
-                        "(lowest error on real frames); balanced is ~15 %% faster and follows "
-                        "large motions from a frame of the same contact further; medium is "
-                        "~2x slower")
+                        "(camera rate; lower error on real frames than balanced, which is "
+                        "~15 %% faster and follows large motions from a frame of the same "
+                        "contact further); medium is ~2x slower; accurate (DeepFlow, ~30x "
+                        "slower, a few frames/s) is for recordings: fewer clips worse than zero "
+                        "motion, less false motion on a still gel")
     p.add_argument("--sequence", action="store_true",
                    help="the inputs are the frames of one video, in name order: each frame's "
                         "motion from rest by tacswitch.MarkerlessTracker from the no-contact "

@@ -62,6 +62,17 @@ modelled fields up to a marker pitch it is worse from a frame of the same contac
 GelSight (2.69 -> 2.96 px; fewer descent steps follow a large shift less far) and better from
 the no-contact frame. It costs 1.17-1.19x ``balanced``'s time. ``balanced`` stays for the
 learned markerless slip scorer, which was trained on its flow.
+
+``accurate`` is not DIS: OpenCV's DeepFlow (a coarse-to-fine variational flow over a fine
+pyramid, no patch search) on the same work-width frames, for offline analysis of recordings
+(about 30x ``refined``'s time: some 4 frames/s at 320 x 240 on 2 cores). Measured on real
+frames (scratch replays, BENCHMARKS.md "An accurate flow for recordings"): on the real GelSight
+Mini videos (markers removed, 14 held-out objects, the tracker's suppressed flow from the
+no-contact frame) 0.533x -> 0.497x zero motion with the default removal and no clip worse than
+zero (one before), 0.436x -> 0.443x with the removal for motion, but 0.73x -> 0.79x under the
+static-mask control (its smoother field is pulled towards holes that do not move); the false
+motion of taxim's real Mini gel, which does not move, 0.47 -> 0.12 px; GelSight's grain-matched
+gel motion level (1.69 -> 1.68 px plain, 1.69 -> 1.71 suppressed).
 """
 
 from __future__ import annotations
@@ -71,17 +82,40 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["ALGORITHMS", "BALANCED_WORK_WIDTH", "DEFAULT_PRESET", "DIS_PRESETS",
-           "IMPRINT_CHANGE", "IMPRINT_SIGMA_REL", "IMPRINT_SMOOTH_REL", "PAD_REL", "REFINED",
-           "SMOOTH_REL",
-           "check_flow_options", "dense_flow", "flow_motion", "imprint_weight", "normalise_pair",
-           "sample_field", "work_factor"]
+__all__ = [
+    "ACCURATE",
+    "ACCURATE_MIN_SIDE",
+    "ALGORITHMS",
+    "BALANCED_WORK_WIDTH",
+    "DEFAULT_PRESET",
+    "DIS_PRESETS",
+    "FLOW_PRESETS",
+    "IMPRINT_CHANGE",
+    "IMPRINT_SIGMA_REL",
+    "IMPRINT_SMOOTH_REL",
+    "PAD_REL",
+    "REFINED",
+    "SMOOTH_REL",
+    "check_flow_options",
+    "dense_flow",
+    "flow_motion",
+    "imprint_weight",
+    "normalise_pair",
+    "sample_field",
+    "work_factor",
+]
 
 #: Flow algorithms accepted by :func:`flow_motion`.
 ALGORITHMS = ("dis", "farneback", "deepflow", "pcaflow", "rlof")
 #: DIS presets (``preset=``); only DIS has presets. ``refined`` and ``balanced`` are this
 #: module's own (see the module doc), the others are OpenCV's.
 DIS_PRESETS = ("refined", "balanced", "ultrafast", "fast", "medium")
+#: The variational preset for recordings (module doc): OpenCV's DeepFlow, not DIS.
+ACCURATE = "accurate"
+#: Smallest frame side (px) :data:`ACCURATE` accepts (DeepFlow's coarsest level is 25 px).
+ACCURATE_MIN_SIDE = 32
+#: Every ``preset=`` of the flow: the DIS presets and :data:`ACCURATE`.
+FLOW_PRESETS = (*DIS_PRESETS, ACCURATE)
 #: The preset used when none is given.
 DEFAULT_PRESET = "refined"
 #: ``balanced``: OpenCV's ``fast`` preset with these DIS settings changed: finest scale 1 (half
@@ -260,7 +294,7 @@ def dense_flow(ref8: NDArray[np.uint8], img8: NDArray[np.uint8], algorithm: str 
     pixels) between two 8-bit grey frames of the same size, computed on both frames
     mirror-padded by ``pad`` px (the padding is cropped off the result). ``finest_scale``
     overrides the ``balanced`` / ``refined`` presets' (pyramid level where DIS stops; 0 = full
-    size)."""
+    size). ``algorithm="dis"`` with ``preset="accurate"`` runs DeepFlow."""
     import cv2 as _cv2
 
     cv2: Any = _cv2  # OpenCV's stubs reject None as the flow argument
@@ -268,7 +302,9 @@ def dense_flow(ref8: NDArray[np.uint8], img8: NDArray[np.uint8], algorithm: str 
     if pad > 0:
         ref8 = cv2.copyMakeBorder(ref8, pad, pad, pad, pad, cv2.BORDER_REFLECT_101)
         img8 = cv2.copyMakeBorder(img8, pad, pad, pad, pad, cv2.BORDER_REFLECT_101)
-    if algorithm == "dis":
+    if algorithm == "dis" and preset == ACCURATE:
+        flow = cv2.optflow.createOptFlow_DeepFlow().calc(ref8, img8, None)
+    elif algorithm == "dis":
         flow = _dis(preset, finest_scale).calc(ref8, img8, None)
     elif algorithm == "farneback":
         # A 15 px Gaussian window, 5 levels: smooth gel fields, motions up to a marker pitch.
@@ -359,7 +395,8 @@ def flow_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8], centres: NDArray
     """Motion ``N x 2`` float32 ``(dx, dy)`` px of markers at rest ``centres`` (``(x, y)`` px in
     ``ref``) from ``ref`` to ``img`` (validated uint8 frames of one shape, BGR or grey).
 
-    Exactly zero for identical frames. ``preset`` applies to DIS only (:data:`DIS_PRESETS`).
+    Exactly zero for identical frames. ``preset`` applies to ``algorithm="dis"`` only
+    (:data:`FLOW_PRESETS`; ``"accurate"`` runs DeepFlow in DIS's place, module doc).
     ``suppress_imprint``: for a reference without the contact (the no-contact frame), trust the
     flow less where an imprint appeared (:func:`imprint_weight`) and fill it from the
     surrounding gel, smoothing over :data:`IMPRINT_SMOOTH_REL` of the width (see the module doc).
@@ -367,6 +404,10 @@ def flow_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8], centres: NDArray
     check_flow_options(algorithm, preset, suppress_imprint)
     if len(centres) == 0 or np.array_equal(img, ref):
         return np.zeros((len(centres), 2), np.float32)
+    if preset == ACCURATE and min(img.shape[:2]) < ACCURATE_MIN_SIDE:
+        # DeepFlow's pyramid stops at 25 px: on smaller frames it returns almost no motion.
+        raise ValueError(f"preset: {ACCURATE!r} needs frames at least {ACCURATE_MIN_SIDE} px a "
+                         f"side; got {img.shape[1]} x {img.shape[0]} (use 'refined')")
     k = work_factor(img.shape[1], algorithm, preset, height=img.shape[0])
     gi = _shrink(_grey(img), k)
     ref8, scale, gr = _prepared_ref(ref, k)
@@ -404,8 +445,11 @@ def check_flow_options(algorithm: Any, preset: Any, suppress_imprint: Any) -> No
         raise TypeError(f"suppress_imprint: expected a bool, got {type(suppress_imprint).__name__}")
     if algorithm not in ALGORITHMS:
         raise ValueError(f"algorithm: unknown {algorithm!r}; choose from {list(ALGORITHMS)}")
-    if preset not in DIS_PRESETS:
-        raise ValueError(f"preset: unknown {preset!r}; choose from {list(DIS_PRESETS)}")
+    if preset not in FLOW_PRESETS:
+        raise ValueError(f"preset: unknown {preset!r}; choose from {list(FLOW_PRESETS)}")
+    if preset == ACCURATE and algorithm != "dis":
+        raise ValueError(f"preset: {ACCURATE!r} is its own flow (DeepFlow); it goes with "
+                         f"algorithm='dis' (the default), not {algorithm!r}")
 
 
 def imprint_weight(gi: NDArray[np.float32], gr: NDArray[np.float32]) -> NDArray[np.float32]:
@@ -433,10 +477,11 @@ def imprint_weight(gi: NDArray[np.float32], gr: NDArray[np.float32]) -> NDArray[
 def work_factor(width: int, algorithm: str = "dis", preset: str = DEFAULT_PRESET, *,
                 height: int | None = None) -> int:
     """Integer area-downsampling factor :func:`flow_motion` applies to a frame ``width`` px wide
-    before the flow (1 = none): ``round(width / BALANCED_WORK_WIDTH)`` for DIS ``balanced`` or
-    ``refined`` on frames at least 1.5x that wide, lowered so that a frame ``height`` px high
-    keeps at least :data:`DIS_SMALL_SIDE` px a side."""
-    if algorithm != "dis" or preset not in _OWN_PRESETS or width < 1.5 * BALANCED_WORK_WIDTH:
+    before the flow (1 = none): ``round(width / BALANCED_WORK_WIDTH)`` for the ``balanced``,
+    ``refined`` and ``accurate`` presets on frames at least 1.5x that wide, lowered so that a
+    frame ``height`` px high keeps at least :data:`DIS_SMALL_SIDE` px a side."""
+    if (algorithm != "dis" or (preset not in _OWN_PRESETS and preset != ACCURATE)
+            or width < 1.5 * BALANCED_WORK_WIDTH):
         return 1
     k = max(1, round(width / BALANCED_WORK_WIDTH))
     if height is not None:

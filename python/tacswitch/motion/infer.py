@@ -90,7 +90,9 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
             ``"refined"`` (default: within the speed budgets; lower error than ``"balanced"``
             on real frames), ``"balanced"`` (the earlier default, what the markerless slip
             scorer reads), ``"ultrafast"``, ``"fast"`` or ``"medium"`` (OpenCV's; ``"medium"``
-            is ~2x slower, a little more accurate with a reference of the same capture).
+            is ~2x slower, a little more accurate with a reference of the same capture), or
+            ``"accurate"`` (DeepFlow on the same work-width frames, ~30x slower, for
+            recordings; :mod:`tacswitch.motion.flow`).
         suppress_imprint: ``method="flow"`` (or ``"auto"`` when it runs flow): ``True`` when
             ``ref`` is the no-contact frame: the flow is trusted less where an imprint
             appeared (its shading is not motion) and filled from the gel around it

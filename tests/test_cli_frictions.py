@@ -443,6 +443,24 @@ def test_two_inputs_with_one_name_are_refused_before_any_work(
     assert not list(out.glob("*.csv"))
 
 
+def test_the_same_input_twice_is_named_as_such(
+        tmp_path: Path, image: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = run(["markers", str(image), str(image), "-o", str(tmp_path / "o")], capsys)
+    assert code == 1 and f"inputs: {str(image)!r} is given twice" in err, err
+
+
+def test_when_no_input_can_be_read_the_first_reason_is_given(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    tiny = []
+    for k in range(2):
+        tiny.append(tmp_path / f"tiny{k}.png")
+        cv2.imwrite(str(tiny[-1]), np.zeros((1, 1, 3), np.uint8))
+    code, _, err = run(["motion", *map(str, tiny), "-o", str(tmp_path / "o"), "-q"], capsys)
+    last = err.strip().splitlines()[-1]
+    assert code == 1 and "none of the 2 inputs could be read" in last, err
+    assert "the first: inputs: " in last and "too small" in last, err
+
+
 def test_motion_skips_an_image_it_cannot_read_as_asked_and_names_it(
         tmp_path: Path, image: Path, capsys: pytest.CaptureFixture[str]) -> None:
     tiny = tmp_path / "tiny.png"

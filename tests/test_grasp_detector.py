@@ -143,6 +143,17 @@ def test_paper_rule_matches_the_slip_detector_from_the_grasp_start() -> None:
     assert not any(s.slip for s in states[:start])
 
 
+def test_a_callable_scorer_that_fails_keeps_its_own_error() -> None:
+    frames = press_recording(4)
+    motion, valid, pts = tracked(frames)
+
+    def broken(x: np.ndarray) -> np.ndarray:
+        raise ValueError("my scorer's own bug")
+
+    with pytest.raises(ValueError, match=r"^my scorer's own bug$"):
+        run_clip(motion, valid, pts, image_width=frames[0].shape[1], model=broken)
+
+
 @pytest.mark.parametrize("output, message", [
     (lambda x: np.full(len(x), np.nan), "not finite"),
     (lambda x: np.zeros(0), "returned 0 logits"),

@@ -167,9 +167,14 @@ def test_accurate_preset_follows_real_texture_and_works_on_the_callers_pixels() 
 
 
 def test_accurate_preset_refuses_what_it_cannot_do(mini, grid) -> None:
-    small = np.ascontiguousarray(mini.imgs[2][:24, :40])
-    with pytest.raises(ValueError, match=r"^preset: 'accurate' needs frames at least 32 px"):
+    small = np.ascontiguousarray(mini.imgs[2][:40, :60])
+    with pytest.raises(ValueError, match=r"^preset: 'accurate' needs frames at least 48 px"):
         predict_motion(small, np.roll(small, 1, axis=1), np.array([[10.0, 10.0]], np.float32),
+                       preset="accurate")
+    # A wide, low frame is downsampled to the work width: the limit is on the work frame.
+    wide = np.ascontiguousarray(np.tile(mini.imgs[2][:80], (1, 2, 1)))  # 640 x 80 -> 320 x 40
+    with pytest.raises(ValueError, match=r"^preset: 'accurate' needs frames at least 96 px"):
+        predict_motion(wide, np.roll(wide, 1, axis=1), np.array([[10.0, 10.0]], np.float32),
                        preset="accurate")
     with pytest.raises(ValueError, match=r"^preset: 'accurate' is its own flow"):
         flow.flow_motion(mini.imgs[2], mini.f0, grid, algorithm="farneback", preset="accurate")

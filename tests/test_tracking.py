@@ -147,6 +147,9 @@ def test_tracker_errors_name_the_argument() -> None:
         tracker.update(np.array([[np.nan, 1.0]]))
     with pytest.raises(TypeError, match="unknown option"):
         ts.MarkerTracker(seq.reference, thresh=3)
+    # OpenCV's N x 1 x 2 point layout is points of the wrong shape, not an image.
+    with pytest.raises(ValueError, match=r"^ref_img_or_pts: expected an N x 2"):
+        ts.MarkerTracker(np.zeros((20, 1, 2), np.float32))
     # A float or 16-bit frame is named as an image of the wrong dtype, not as bad points.
     for frame in (seq.reference.astype(np.float32), seq.reference[..., 0].astype(np.uint16)):
         with pytest.raises(TypeError, match=r"^ref_img_or_pts: expected dtype uint8"):

@@ -57,8 +57,9 @@ def session_options(threads: int | None = None) -> Any:
     from tacswitch._checks import as_count
 
     so = ort.SessionOptions()
-    so.intra_op_num_threads = (os.cpu_count() or 1) if threads is None else as_count(
-        threads, "threads", 1, 1024)
+    # None or 0: every core (0 is onnxruntime's own "default").
+    n = 0 if threads is None else as_count(threads, "threads", 0, 1024)
+    so.intra_op_num_threads = n or os.cpu_count() or 1
     so.inter_op_num_threads = 1
     so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
     so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL

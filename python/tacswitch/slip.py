@@ -161,8 +161,7 @@ class SlipDetector:
         self._history: deque[tuple[NDArray[np.float32], NDArray[np.bool_]]] = deque(
             maxlen=self._smooth)
         # Checked now, though only image input uses them: a typo is named, not ignored.
-        check_tracker_options({k: v for k, v in tracker_opts.items() if k != "max_dist"},
-                              "SlipDetector")
+        check_tracker_options(tracker_opts, "SlipDetector", extra=("max_dist",))
         self._tracker_opts = tracker_opts
         self.tracker: MarkerTracker | None = None
         self._native: Any = None

@@ -256,7 +256,8 @@ def _is_image(x: Any) -> bool:
     rather than a points error."""
     if not isinstance(x, np.ndarray):
         return False
-    return x.dtype == np.uint8 or x.ndim == 3 or (x.ndim == 2 and min(x.shape) >= 8)
+    return (x.dtype == np.uint8 or (x.ndim == 3 and x.shape[2] in (1, 3, 4))
+            or (x.ndim == 2 and min(x.shape) >= 8))
 
 
 #: Marker extraction options a :class:`MarkerTracker` accepts (``**extract_opts``).
@@ -264,14 +265,17 @@ TRACKER_OPTIONS = frozenset({"polarity", "block_size", "threshold", "min_area", 
                              "min_fill", "max_aspect", "exclude_border"})
 
 
-def check_tracker_options(opts: dict[str, Any], owner: str = "MarkerTracker") -> dict[str, Any]:
-    """``opts`` checked as :class:`MarkerTracker` extraction options: ``TypeError`` naming an
-    unknown one (a typo would otherwise be ignored), else the checked values."""
-    unknown = set(opts) - TRACKER_OPTIONS
+def check_tracker_options(opts: dict[str, Any], owner: str = "MarkerTracker", *,
+                          extra: tuple[str, ...] = ()) -> dict[str, Any]:
+    """``opts`` checked as :class:`MarkerTracker` extraction options (and the ``extra`` names
+    the owner passes on unchecked): ``TypeError`` naming an unknown one (a typo would otherwise
+    be ignored), else the checked extraction values."""
+    allowed = TRACKER_OPTIONS | set(extra)
+    unknown = set(opts) - allowed
     if unknown:
         raise TypeError(f"{owner}: unknown option(s) {sorted(unknown)}; "
-                        f"allowed: {sorted(TRACKER_OPTIONS)}")
-    return check_extract_options(opts)
+                        f"allowed: {sorted(allowed)}")
+    return check_extract_options({k: v for k, v in opts.items() if k not in extra})
 
 
 class MarkerTracker:

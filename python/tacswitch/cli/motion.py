@@ -65,8 +65,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         f"with --ref, videos, bags, --sequence); default {DEFAULT_PRESET} "
                         "(camera rate; lower error on real frames than balanced, which is "
                         "~15 %% faster and follows large motions from a frame of the same "
-                        "contact further); medium is ~2x slower; accurate (DeepFlow, ~30x "
-                        "slower, a few frames/s) is for recordings: fewer clips worse than zero "
+                        "contact further); medium is ~2x slower; accurate (DeepFlow, 10-30x "
+                        "slower, 5 frames/s) is for recordings: fewer clips worse than zero "
                         "motion, less false motion on a still gel")
     p.add_argument("--sequence", action="store_true",
                    help="the inputs are the frames of one video, in name order: each frame's "

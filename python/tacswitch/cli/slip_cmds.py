@@ -147,11 +147,15 @@ def _paired_marker_clips(args: argparse.Namespace, exps):  # type: ignore[no-unt
 
 
 def _cache_dir(args: argparse.Namespace) -> Path:
-    """``--cache``, or ``DATA/.tacswitch-cache``: where the tracked clips are kept (created;
-    :class:`UsageError` naming ``--cache`` where it cannot be written)."""
+    """``--cache``, or ``DATA/.tacswitch-cache``: where the tracked clips are kept, created if
+    missing (:class:`UsageError` naming ``--cache`` where it is a file or cannot be made). An
+    existing folder is used as it is: a read-only cache of a read-only dataset is still read."""
     from tacswitch.cli.options import output_dir
 
-    return output_dir(args.cache or Path(args.data) / ".tacswitch-cache", "--cache")
+    folder = Path(args.cache) if args.cache else Path(args.data) / ".tacswitch-cache"
+    if folder.is_dir():
+        return folder
+    return output_dir(folder, "--cache")
 
 
 def _load(args: argparse.Namespace, folds: int = 0):  # type: ignore[no-untyped-def]

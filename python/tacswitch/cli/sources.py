@@ -84,7 +84,7 @@ def report_unreadable(command: str, failed: list[tuple[Path, str]], done: int) -
     if done == 0:
         raise ValueError(failed[0][1] if len(failed) == 1 else
                          f"inputs: none of the {len(failed)} inputs could be read "
-                         f"({quoted_names(failed)})")
+                         f"({quoted_names(failed)}); the first: {failed[0][1]}")
     warn(command, f"skipped {len(failed)} unreadable input"
          f"{'s' if len(failed) > 1 else ''}: {quoted_names(failed)}")
 
@@ -112,6 +112,8 @@ def check_distinct_outputs(jobs: list[tuple[Path, Path]]) -> None:
     result would silently replace the other."""
     seen: dict[Path, Path] = {}
     for path, target in jobs:
+        if target in seen and seen[target] == path:
+            raise ValueError(f"inputs: {str(path)!r} is given twice")
         if target in seen:
             raise ValueError(f"inputs: {str(seen[target])!r} and {str(path)!r} would both "
                              f"write {str(target)!r}; give them different names")

@@ -322,8 +322,9 @@ class GraspSlipDetector:
         """The scorer's logits for one frame's features: one per committee member, checked
         (a user's callable may return anything): ``ValueError`` naming ``model``."""
         assert self._scorer is not None
+        out = self._scorer(feats[None, :])  # its own errors stay its own, traceback and all
         try:
-            logits = np.asarray(self._scorer(feats[None, :]), np.float64).reshape(-1)
+            logits = np.asarray(out, np.float64).reshape(-1)
         except (TypeError, ValueError) as exc:
             raise ValueError(f"model: the scorer's output is not numbers ({exc})") from None
         if len(logits) == 0 or (self._fired is not None and len(logits) != len(self._fired)):

@@ -65,14 +65,15 @@ learned markerless slip scorer, which was trained on its flow.
 
 ``accurate`` is not DIS: OpenCV's DeepFlow (a coarse-to-fine variational flow over a fine
 pyramid, no patch search) on the same work-width frames, for offline analysis of recordings
-(about 30x ``refined``'s time: some 4 frames/s at 320 x 240 on 2 cores). Measured on real
-frames (scratch replays, BENCHMARKS.md "An accurate flow for recordings"): on the real GelSight
-Mini videos (markers removed, 14 held-out objects, the tracker's suppressed flow from the
-no-contact frame) 0.533x -> 0.497x zero motion with the default removal and no clip worse than
-zero (one before), 0.436x -> 0.443x with the removal for motion, but 0.73x -> 0.79x under the
-static-mask control (its smoother field is pulled towards holes that do not move); the false
-motion of taxim's real Mini gel, which does not move, 0.47 -> 0.12 px; GelSight's grain-matched
-gel motion level (1.69 -> 1.68 px plain, 1.69 -> 1.71 suppressed).
+(185 ms a pair, 5 frames/s, on 2 cores: 29x ``refined``'s time at 320 x 240, 10x at 640 x 480).
+Measured on real frames (scratch replays, BENCHMARKS.md "An accurate flow for recordings"): on
+the real GelSight Mini videos (markers removed, 14 held-out objects, the tracker's suppressed
+flow from the no-contact frame, ``anchor="rest"``) 0.533x -> 0.497x zero motion with the default
+removal and no clip worse than zero (one before), 0.436x -> 0.443x with the removal for motion,
+but 0.73x -> 0.79x under the static-mask control (its smoother field is pulled towards holes
+that do not move); the false motion of taxim's real Mini gel, which does not move, 0.47 -> 0.12
+px (0.27 -> 0.11 with the imprint suppressed); GelSight's grain-matched gel motion level (1.69 ->
+1.68 px plain, 1.69 -> 1.71 suppressed).
 """
 
 from __future__ import annotations
@@ -112,8 +113,9 @@ ALGORITHMS = ("dis", "farneback", "deepflow", "pcaflow", "rlof")
 DIS_PRESETS = ("refined", "balanced", "ultrafast", "fast", "medium")
 #: The variational preset for recordings (module doc): OpenCV's DeepFlow, not DIS.
 ACCURATE = "accurate"
-#: Smallest frame side (px) :data:`ACCURATE` accepts (DeepFlow's coarsest level is 25 px).
-ACCURATE_MIN_SIDE = 32
+#: Smallest side (px) of the work frame :data:`ACCURATE` accepts: DeepFlow's coarsest level is
+#: 25 px, and a uniform 2 px shift reads 1.2 px at 32 px, 1.9 at 40, 2.0 from 48 up.
+ACCURATE_MIN_SIDE = 48
 #: Every ``preset=`` of the flow: the DIS presets and :data:`ACCURATE`.
 FLOW_PRESETS = (*DIS_PRESETS, ACCURATE)
 #: The preset used when none is given.
@@ -404,11 +406,11 @@ def flow_motion(img: NDArray[np.uint8], ref: NDArray[np.uint8], centres: NDArray
     check_flow_options(algorithm, preset, suppress_imprint)
     if len(centres) == 0 or np.array_equal(img, ref):
         return np.zeros((len(centres), 2), np.float32)
-    if preset == ACCURATE and min(img.shape[:2]) < ACCURATE_MIN_SIDE:
-        # DeepFlow's pyramid stops at 25 px: on smaller frames it returns almost no motion.
-        raise ValueError(f"preset: {ACCURATE!r} needs frames at least {ACCURATE_MIN_SIDE} px a "
-                         f"side; got {img.shape[1]} x {img.shape[0]} (use 'refined')")
     k = work_factor(img.shape[1], algorithm, preset, height=img.shape[0])
+    if preset == ACCURATE and min(img.shape[:2]) // k < ACCURATE_MIN_SIDE:
+        # DeepFlow's pyramid stops at 25 px: on smaller work frames it under-reads the motion.
+        raise ValueError(f"preset: {ACCURATE!r} needs frames at least {ACCURATE_MIN_SIDE * k} px "
+                         f"a side here; got {img.shape[1]} x {img.shape[0]} (use 'refined')")
     gi = _shrink(_grey(img), k)
     ref8, scale, gr = _prepared_ref(ref, k)
     img8 = _to8(_local_contrast(gi, _bg_sigma(gi.shape[1])), scale)

@@ -158,8 +158,8 @@ def predict_motion(img: Any, ref: Any = None, centres: Any = None, *, method: st
                            False if suppress_imprint is None else suppress_imprint)
     if method == "model":
         if isinstance(gain, str):
-            raise ValueError("gain: applies to method='model' as a number >= 0 (its single-frame "
-                             f"scale), not a sensor name; got {gain!r}")
+            raise ValueError("gain: applies to method='model' as a number in [0, 1000] (its "
+                             f"single-frame scale), not a sensor name; got {gain!r}")
         if centres is not None:
             shape = np.shape(img)
             if len(shape) >= 2:
@@ -233,6 +233,6 @@ def _rule_gain(method: str, gain: Any) -> float:
         table = OUTWARD_GAINS if method == "outward" else MECHANICS_GAINS
         if gain not in table:
             raise ValueError(f"gain: unknown sensor {gain!r}; choose from {sorted(table)} or "
-                             "pass a number >= 0")
+                             "pass a number in [0, 1000]")
         return table[gain]
     return check_gain(gain)

@@ -408,9 +408,9 @@ def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # ty
     import numpy as np
 
     from tacswitch._io import atomic_open, write_image
-    from tacswitch.cli.progress import say
+    from tacswitch.cli.progress import progress, say
     from tacswitch.cli.rest_frame import choose_rest_frame
-    from tacswitch.cli.sources import video_frames
+    from tacswitch.cli.sources import frame_count, video_frames
 
     tracker = (_SequenceTracker(ref, centres, gain, args, preset, anchor)
                if model is None else _ModelFromAnchor(model, ref, centres))
@@ -428,29 +428,33 @@ def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # ty
         rest, frames = choose_rest_frame(frames, None, source=str(path))
         skip = 0 if rest is None else rest.index
     readable = 0
-    for t, img in enumerate(frames):
-        if img is None:
-            continue
-        if ref is not None and img.shape != ref.shape:
-            raise ValueError(f"--ref: shape {ref.shape} does not match the frames of "
-                             f"{str(path)!r} {img.shape}")
-        readable += 1
-        if readable <= skip:
-            continue
-        if n == 0 and skip:
-            say(f"{path}: frames 0-{t - 1} come before the camera settled (exposure "
-                "changing, or frames left from before), so motion is measured from frame "
-                f"{t}; those frames get no rows (pass --ref to choose the reference)",
-                quiet=args.quiet)
-        motion = tracker.update(img)
-        pts = tracker.centres
-        assert pts is not None  # set by the first update
-        if sink is not None:
-            sink.points(stream.frames[t], motion_fields(pts, motion))
-        for (x, y), (dx, dy) in zip(pts, motion, strict=True):
-            w.writerow([t, f"{x:.3f}", f"{y:.3f}", f"{dx:.4f}", f"{dy:.4f}"])
-        last = (img, pts, motion)
-        n += 1
+    # A bar over the frames: a long video, or the slow `accurate` flow, takes minutes.
+    total = frame_count(str(path)) if stream is None else (len(stream) or None)
+    with progress(total=total, desc=path.name, unit="frame", quiet=args.quiet) as bar:
+        for t, img in enumerate(frames):
+            bar.update(1)
+            if img is None:
+                continue
+            if ref is not None and img.shape != ref.shape:
+                raise ValueError(f"--ref: shape {ref.shape} does not match the frames of "
+                                 f"{str(path)!r} {img.shape}")
+            readable += 1
+            if readable <= skip:
+                continue
+            if n == 0 and skip:
+                say(f"{path}: frames 0-{t - 1} come before the camera settled (exposure "
+                    "changing, or frames left from before), so motion is measured from frame "
+                    f"{t}; those frames get no rows (pass --ref to choose the reference)",
+                    quiet=args.quiet)
+            motion = tracker.update(img)
+            pts = tracker.centres
+            assert pts is not None  # set by the first update
+            if sink is not None:
+                sink.points(stream.frames[t], motion_fields(pts, motion))
+            for (x, y), (dx, dy) in zip(pts, motion, strict=True):
+                w.writerow([t, f"{x:.3f}", f"{y:.3f}", f"{dx:.4f}", f"{dy:.4f}"])
+            last = (img, pts, motion)
+            n += 1
     if last is None:
         raise ValueError(f"inputs: no frame of {str(path)!r} could be decoded")
     with atomic_open(out / f"{path.stem}.csv") as fh:

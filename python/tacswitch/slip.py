@@ -19,7 +19,7 @@ from tacswitch._checks import (
     as_valid,
     positive_or_none,
 )
-from tacswitch.tracking import MarkerTracker, _is_image, check_tracker_options
+from tacswitch.tracking import MarkerTracker, check_tracker_options, is_frame_input
 
 #: The paper's threshold (pixels) on 640-pixel-wide frames.
 PAPER_THRESHOLD_PX = 3.25
@@ -217,7 +217,7 @@ class SlipDetector:
                 aligned with fixed reference markers (NaN rows = lost).
             valid: ``N`` bool flags for a motion field; default: rows without NaN.
         """
-        if _is_image(motion_or_img):
+        if is_frame_input(motion_or_img):
             # Checked here so that the error names this argument, not the tracker's.
             motion_or_img = as_image_u8(motion_or_img, "motion_or_img")
             if self.tracker is None:

@@ -250,7 +250,7 @@ def match_markers(
     return motion, valid
 
 
-def _is_image(x: Any) -> bool:
+def is_frame_input(x: Any) -> bool:
     """A frame rather than points: any uint8 array, or one shaped like a frame (colour, or grey
     at least 8 px a side), so that a float or 16-bit frame gets the image check's dtype error
     rather than a points error."""
@@ -312,7 +312,7 @@ class MarkerTracker:
         # The native tracker is mutably borrowed during a call (with the GIL released), so a
         # second thread would get "Already borrowed": serialise calls instead.
         self._lock = threading.Lock()
-        if _is_image(ref_img_or_pts):
+        if is_frame_input(ref_img_or_pts):
             ref = extract_markers(as_image_u8(ref_img_or_pts, "ref_img_or_pts"),
                                   **extract_opts).centres
             self.reference_shape: tuple[int, int] | None = (
@@ -356,7 +356,7 @@ class MarkerTracker:
         Returns ``(motion, valid)`` aligned with :attr:`reference`: ``N x 2`` float32
         ``(dx, dy)`` from the reference (NaN where lost) and ``N`` bool.
         """
-        if _is_image(img_or_pts):
+        if is_frame_input(img_or_pts):
             arr = as_image_u8(img_or_pts, "img_or_pts")
             if self.reference_shape is not None and arr.shape[:2] != self.reference_shape:
                 raise ValueError(

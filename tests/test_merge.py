@@ -141,3 +141,8 @@ def test_bad_inputs_name_the_argument() -> None:
         merge_patches(patches[:, :, :8], origins, img.shape)
     with pytest.raises(TypeError, match="patches"):
         merge_patches(patches.astype(np.float64), origins, img.shape)
+    for bad in (np.nan, np.inf, -np.inf):  # a model's NaN would otherwise spread silently
+        broken = patches.copy()
+        broken[1, 3, 5, 2] = bad
+        with pytest.raises(ValueError, match=r"patches: .*finite"):
+            merge_patches(broken, origins, img.shape)

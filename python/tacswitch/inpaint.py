@@ -259,7 +259,8 @@ def merge_patches(
 
     Raises:
         ValueError: shapes disagree, an origin lies outside the image, a pixel is covered by no
-            patch, or an unknown ``mode``; the message names the argument.
+            patch, NaN or inf in float32 patches, or an unknown ``mode``; the message names the
+            argument.
     """
     if not isinstance(patches, np.ndarray):
         raise TypeError(f"patches: expected a numpy array, got {type(patches).__name__}")
@@ -292,6 +293,11 @@ def merge_patches(
         raise ValueError(f"shape: (H, W) given but the patches have {channels} channels")
     if not isinstance(mode, str) or mode not in ("average", "feather"):
         raise ValueError(f"mode: must be 'average' or 'feather'; got {mode!r}")
+    if patches.dtype == np.float32 and patches.size:
+        # min / max propagate NaN and show +-inf without a temporary the patches' size.
+        lo, hi = float(patches.min()), float(patches.max())
+        if not (np.isfinite(lo) and np.isfinite(hi)):
+            raise ValueError("patches: float32 patches must be finite; got NaN or inf")
     out: NDArray[Any] = _native.merge_patches(
         aligned(patches), aligned(org), dims[0], dims[1], mode
     )

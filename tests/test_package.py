@@ -58,3 +58,24 @@ def test_mypy_clean() -> None:
     out = subprocess.run([sys.executable, "-m", "mypy", "python/tacswitch"], capture_output=True,
                          text=True, cwd=ROOT)
     assert out.returncode == 0, out.stdout + out.stderr
+
+
+def test_licence_and_notices_ship_and_name_every_shipped_data_file() -> None:
+    """Every model and calibration table in the package is made from others' data (Taxim's
+    tables, the slip study's videos): THIRD_PARTY_NOTICES.md, which the wheel carries beside
+    LICENSE, must name each one, so a new model cannot ship without its notice."""
+    import fnmatch
+    import re
+
+    project = (ROOT / "pyproject.toml").read_text()
+    assert re.search(r'^license = "MIT"$', project, re.M)
+    assert re.search(r'^license-files = \["LICENSE", "THIRD_PARTY_NOTICES.md"\]$', project, re.M)
+    assert "MIT License" in (ROOT / "LICENSE").read_text()
+    notices = (ROOT / "THIRD_PARTY_NOTICES.md").read_text()
+    named = {Path(tok).name for tok in re.findall(r"`([^`\s]+)`", notices)}
+    pkg = ROOT / "python" / "tacswitch"
+    shipped = [*pkg.glob("models/*.onnx"), *pkg.glob("models/*.safetensors"),
+               *pkg.glob("sim/calib/*.npz")]
+    assert len(shipped) >= 9
+    missing = [p.name for p in shipped if not any(fnmatch.fnmatch(p.name, n) for n in named)]
+    assert not missing, f"THIRD_PARTY_NOTICES.md does not name {missing}"

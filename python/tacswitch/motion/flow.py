@@ -304,15 +304,13 @@ def dense_flow(ref8: NDArray[np.uint8], img8: NDArray[np.uint8], algorithm: str 
     if pad > 0:
         ref8 = cv2.copyMakeBorder(ref8, pad, pad, pad, pad, cv2.BORDER_REFLECT_101)
         img8 = cv2.copyMakeBorder(img8, pad, pad, pad, pad, cv2.BORDER_REFLECT_101)
-    if algorithm == "dis" and preset == ACCURATE:
-        flow = cv2.optflow.createOptFlow_DeepFlow().calc(ref8, img8, None)
-    elif algorithm == "dis":
+    if algorithm == "dis" and preset != ACCURATE:
         flow = _dis(preset, finest_scale).calc(ref8, img8, None)
     elif algorithm == "farneback":
         # A 15 px Gaussian window, 5 levels: smooth gel fields, motions up to a marker pitch.
         flow = cv2.calcOpticalFlowFarneback(ref8, img8, None, 0.5, 5, 15, 5, 7, 1.5,
                                             cv2.OPTFLOW_FARNEBACK_GAUSSIAN)
-    elif algorithm == "deepflow":
+    elif algorithm in ("deepflow", "dis"):  # "dis" here: the accurate preset, DeepFlow
         flow = cv2.optflow.createOptFlow_DeepFlow().calc(ref8, img8, None)
     elif algorithm == "pcaflow":
         flow = cv2.optflow.createOptFlow_PCAFlow().calc(ref8, img8, None)

@@ -53,6 +53,7 @@ from tacswitch.grasp.dataset import (
     experiment_clips,
     read_labels,
 )
+from tacswitch.grasp.detector import SCORER_FLOW_PRESET, SCORER_REMOVAL
 from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
 from tacswitch.grasp.simulated import SIMULATED_PER_KIND, SIMULATED_SEED, simulated_clips
 from tacswitch.grasp.train import (
@@ -150,8 +151,9 @@ def main() -> int:
                               votes=args.votes, epochs=args.epochs,
                               log=lambda s: print(s, file=sys.stderr),
                               extra=(clip_features(rendered, still), rendered_labels))
-        motion = ("markers removed, MarkerlessTracker; and the marker tracks" if args.markerless
-                  else "markers")
+        motion = (f"markers removed by remove_markers(frame, {removal_text()}), "
+                  f"MarkerlessTracker ({SCORER_FLOW_PRESET} flow); and the marker tracks"
+                  if args.markerless else "markers")
         export_scorer(res, args.export, extra={
             "trained_on": f"{args.data.name}: {len(exps)} experiments, "
                           f"{len(set(objects))} objects (real GelSight Mini, {motion})"},
@@ -233,6 +235,11 @@ def main() -> int:
         print(format_scores("SIMULATED held-out grasps: paper rule",
                             score_experiments(held_labels, paper_sim)))
     return 0
+
+
+def removal_text() -> str:
+    """The markerless training removal's keywords as a call writes them: ``dilate=5, radius=5``."""
+    return ", ".join(f"{k}={v}" for k, v in SCORER_REMOVAL.items())
 
 
 def committee_name(seeds: int, votes: int | None) -> str:

@@ -227,8 +227,10 @@ def test_train_slip_markerless_also_learns_from_the_marker_tracks(labelled: Path
     assert (scorer.committee, scorer.votes) == (MARKERLESS_COMMITTEE,
                                                 default_votes(MARKERLESS_COMMITTEE))
     names = sorted(p.name for p in cache.iterdir())
-    assert sum("markerless-v2" in n for n in names) == 6
-    assert sum("markers-v3" in n for n in names) == 6
+    from tacswitch.grasp.dataset import MARKER_TRACKS_TAG, MARKERLESS_TRACKS_TAG
+
+    assert sum(MARKERLESS_TRACKS_TAG in n for n in names) == 6
+    assert sum(MARKER_TRACKS_TAG in n for n in names) == 6
     alone = tmp_path / "alone.onnx"
     code, text = run("train", "slip", str(labelled), "--markerless", "--no-marker-tracks",
                      "--out", str(alone), "--epochs", "1", "--cache", str(cache))

@@ -85,21 +85,50 @@ def test_a_recording_that_starts_in_contact_is_scored_from_its_first_frame_with_
     assert [s.slip for s in given_start] == [s.frame >= 3 for s in given_start]
 
 
-@pytest.mark.parametrize("name", ["markers", "markerless"])
-def test_a_scorer_of_the_base_layout_reads_only_its_prefix(name: str) -> None:
+def _linear_scorer(path: Path, n_features: int) -> Path:
+    """A one-member ONNX slip scorer (``features`` ``B x n_features`` -> ``logit`` ``B x 1``,
+    a random linear map) with the metadata ``tacswitch train slip`` writes."""
+    import onnx
+    from onnx import TensorProto, helper, numpy_helper
+
+    w = np.random.default_rng(1).normal(0, 1, (n_features, 1)).astype(np.float32)
+    graph = helper.make_graph(
+        [helper.make_node("MatMul", ["features", "w"], ["logit"])], "scorer",
+        [helper.make_tensor_value_info("features", TensorProto.FLOAT, ["B", n_features])],
+        [helper.make_tensor_value_info("logit", TensorProto.FLOAT, ["B", 1])],
+        [numpy_helper.from_array(w, "w")])
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
+    model.ir_version = 8
+    for key, value in (("kind", "slip"), ("n_features", str(n_features))):
+        entry = model.metadata_props.add()
+        entry.key, entry.value = f"tacswitch.{key}", value
+    onnx.save(model, str(path))
+    return path
+
+
+@pytest.mark.parametrize("n", [N_BASE_FEATURES, N_FEATURES])
+def test_a_scorer_of_the_base_layout_reads_only_its_prefix(n: int, tmp_path: Path) -> None:
     """Scorers trained before the snap-back features take the first N_BASE_FEATURES values;
     the values after them must not reach such a scorer, and must reach one of the full layout."""
-    scorer = load_scorer(name)
-    assert scorer.n_features in (N_BASE_FEATURES, N_FEATURES)
+    pytest.importorskip("onnx")
+    scorer = load_scorer(_linear_scorer(tmp_path / f"scorer{n}.onnx", n))
+    assert scorer.n_features == n
     rng = np.random.default_rng(0)
     x = rng.normal(0, 1, (4, N_FEATURES)).astype(np.float32)
     y = x.copy()
     y[:, N_BASE_FEATURES:] += 5.0
     same = np.allclose(scorer(x), scorer(y))
-    assert same == (scorer.n_features == N_BASE_FEATURES)
+    assert same == (n == N_BASE_FEATURES)
     z = x.copy()
     z[:, :N_BASE_FEATURES] += 5.0
     assert not np.allclose(scorer(x), scorer(z))
+
+
+@pytest.mark.parametrize("name", ["markers", "markerless"])
+def test_shipped_scorers_read_every_feature(name: str) -> None:
+    # Both shipped committees were trained with the snap-back features (the markerless one
+    # since 2026-11-30).
+    assert load_scorer(name).n_features == N_FEATURES
 
 
 @pytest.mark.parametrize("name", [None, "markers", "markerless"])

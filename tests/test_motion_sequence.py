@@ -189,19 +189,22 @@ def test_the_flow_preset_is_the_default_unless_given(mini, grid) -> None:
         np.testing.assert_array_equal(
             tr.update(img), flow_motion(img, mini.f0, grid, preset=preset,
                                         suppress_imprint=True))
-    # The slip scorer's preset is not the default: the two trackers differ.
-    assert SCORER_FLOW_PRESET != DEFAULT_PRESET
+    # Different presets are different flows.
+    assert not np.array_equal(
+        MarkerlessTracker(mini.f0, grid, preset="balanced", anchor="rest").update(img),
+        MarkerlessTracker(mini.f0, grid, preset="refined", anchor="rest").update(img))
     with pytest.raises(ValueError, match=r"^preset: unknown 'quick'"):
         MarkerlessTracker(mini.f0, grid, preset="quick")
 
 
-def test_markerless_slip_reads_the_flow_its_scorer_learned(monkeypatch, mini, grid) -> None:
+def test_markerless_slip_reads_the_flow_its_scorer_learned(monkeypatch, mini, grid,
+                                                           marker_frames) -> None:
     # Training clips (tacswitch train slip --markerless) and the slip CLI's markerless source
     # both track with the scorer's preset.
     import argparse
 
     from tacswitch.cli.slip import MarkerlessSequence
-    from tacswitch.grasp.detector import SCORER_FLOW_PRESET
+    from tacswitch.grasp.detector import SCORER_FLOW_PRESET, SCORER_REMOVAL
 
     args = argparse.Namespace(ref=None, centres=None, model=None)
     src = MarkerlessSequence(mini.f0, args)
@@ -218,11 +221,17 @@ def test_markerless_slip_reads_the_flow_its_scorer_learned(monkeypatch, mini, gr
             made.append(self)
 
     monkeypatch.setattr(dataset, "MarkerlessTracker", Spy)
-    from gel_fixtures import _gel
+    removals: list[dict[str, object]] = []
 
-    gel = _gel()
-    dataset.track_clip(iter([gel] * 4), markerless=True)
+    def removal(frame, **kw):  # type: ignore[no-untyped-def]
+        removals.append(kw)
+        return frame
+
+    monkeypatch.setattr(dataset, "remove_markers", removal)
+    dataset.track_clip(iter(marker_frames[:4]), markerless=True)
     assert [t.preset for t in made] == [SCORER_FLOW_PRESET]
+    # The markers are removed as the scorer's training removed them.
+    assert removals and all(kw == SCORER_REMOVAL for kw in removals)
 
 
 def test_reset_and_bad_inputs(mini, grid) -> None:

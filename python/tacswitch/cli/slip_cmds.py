@@ -27,8 +27,9 @@ def _common(p: argparse.ArgumentParser) -> None:
                    help="folder for the tracked clips (default: DATA/.tacswitch-cache)")
     p.add_argument("--workers", type=int, default=1, help="tracking processes (default: 1)")
     p.add_argument("--markerless", action="store_true",
-                   help="remove the markers first and predict their motion "
-                        "(MarkerlessTracker): the markerless sensor these videos would be")
+                   help="remove the markers first (remove_markers with dilate=5, "
+                        "radius=5) and predict their motion (MarkerlessTracker): the "
+                        "markerless sensor these videos would be")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or messages")
 
 

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from tacswitch.grasp.detector import SCORER_FLOW_PRESET
+from tacswitch.grasp.detector import SCORER_FLOW_PRESET, SCORER_REMOVAL
 from tacswitch.grasp.features import marker_pitch, sequence_features
 from tacswitch.grasp.timebase import needs_resampling, resample_field
 from tacswitch.markers import extract_markers
@@ -155,10 +155,10 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
     the camera settled, among the first :data:`~tacswitch.tracking.REST_LOOK_AHEAD`); the
     frames before it are not tracked and read as rest (zero motion), so frame numbers stay
     the video's. ``markerless``: the markers are removed from every frame first
-    (:func:`tacswitch.remove_markers`) and the motion predicted by
-    :class:`tacswitch.MarkerlessTracker` from the first frame after the camera settled (no
-    marker count: ``tacswitch slip --markerless`` starts there too), at its marker centres:
-    the markerless sensor this recording would have been."""
+    (:func:`tacswitch.remove_markers` with :data:`~tacswitch.grasp.detector.SCORER_REMOVAL`)
+    and the motion predicted by :class:`tacswitch.MarkerlessTracker` from the first frame
+    after the camera settled (no marker count: ``tacswitch slip --markerless`` starts there
+    too), at its marker centres: the markerless sensor this recording would have been."""
     it = iter(frames)
     head = list(itertools.islice(it, REST_LOOK_AHEAD))
     if not head:
@@ -179,7 +179,9 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
     if markerless:
         mtracker = MarkerlessTracker(None, points, preset=SCORER_FLOW_PRESET)
         for frame in itertools.chain(head[rest:], it):
-            m = mtracker.update(remove_markers(frame)) if n else np.zeros((0, 2), np.float32)
+            m = (mtracker.update(remove_markers(frame, dilate=SCORER_REMOVAL["dilate"],
+                                                radius=SCORER_REMOVAL["radius"]))
+                 if n else np.zeros((0, 2), np.float32))
             motions.append(np.asarray(m, np.float32))
             valids.append(np.ones(n, bool))
     else:
@@ -197,9 +199,10 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
 
 #: The version of the tracking rules a cached clip was made with, in its file name; an older
 #: cache is tracked again. "-v2": the rest frame after the camera settles (2026-11-28); "-v3"
-#: (markers): also after a stale start that fades (2026-11-29).
+#: (markers): also after a stale start that fades (2026-11-29); "-v3" (markerless): the
+#: refined flow on markers removed with ``SCORER_REMOVAL`` (2026-11-30).
 MARKER_TRACKS_TAG = "markers-v3"
-MARKERLESS_TRACKS_TAG = "markerless-v2"
+MARKERLESS_TRACKS_TAG = "markerless-v3"
 
 
 def source_stamp(video: Path) -> NDArray[np.int64]:

@@ -40,9 +40,14 @@ from tacswitch.grasp.timebase import TRAINED_FPS, TimeBase, check_fps, needs_res
 SHIPPED_SLIP_MODELS = {"markers": "slip_scorer.onnx", "markerless": "slip_scorer_markerless.onnx"}
 DEFAULT_SLIP_MODEL = SHIPPED_SLIP_MODELS["markers"]
 #: The DIS preset (:data:`tacswitch.motion.flow.DIS_PRESETS`) of the markerless motion the
-#: shipped markerless scorer was trained on (``MarkerlessTracker``'s plain flow): the slip paths
-#: keep it, and training on markerless videos uses it too, so a scorer reads what it learned.
-SCORER_FLOW_PRESET = "balanced"
+#: shipped markerless scorer was trained on (``MarkerlessTracker``'s plain flow; ``refined``,
+#: its default, since 2026-11-30, ``balanced`` before): the slip paths keep it, and training on
+#: markerless videos uses it too, so a scorer reads what it learned.
+SCORER_FLOW_PRESET = "refined"
+#: How the markers were removed from the marker videos the markerless scorer learned from
+#: (:func:`tacswitch.remove_markers` keywords; the removal the motion guide recommends: a mask
+#: grown five steps and a wider fill leave fewer seams for the flow to follow).
+SCORER_REMOVAL: dict[str, int] = {"dilate": 5, "radius": 5}
 RULES = ("learned", "paper")
 
 Scorer = Callable[[NDArray[np.float32]], NDArray[np.float32]]

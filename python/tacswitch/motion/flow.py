@@ -60,8 +60,8 @@ motion 1.81 -> 1.69 px (plain flow) and the false motion of a Mini gel that does
 -> 0.47 px; the real FOTS press -> shear pair 0.98 -> 0.93 px. On real texture warped by
 modelled fields up to a marker pitch it is worse from a frame of the same contact on the
 GelSight (2.69 -> 2.96 px; fewer descent steps follow a large shift less far) and better from
-the no-contact frame. It costs 1.17-1.19x ``balanced``'s time. ``balanced`` stays for the
-learned markerless slip scorer, which was trained on its flow.
+the no-contact frame. It costs 1.17-1.19x ``balanced``'s time. The learned markerless slip
+scorer is trained on it too (``balanced`` before 2026-11-30).
 
 ``accurate`` is not DIS: OpenCV's DeepFlow (a coarse-to-fine variational flow over a fine
 pyramid, no patch search) on the same work-width frames, for offline analysis of recordings

@@ -124,12 +124,12 @@ class MarkerlessTracker:
             markerless slip scorer was trained on (``tacswitch slip --markerless --ref``).
             Unused without a no-contact frame (the anchor may be in contact).
         preset: the flow's preset (:data:`tacswitch.motion.flow.FLOW_PRESETS`; None: the
-            default, ``"refined"``). The markerless slip scorer reads ``"balanced"``, the flow
-            it was trained on. ``"accurate"`` (DeepFlow, 5 frames/s: 10-30x slower) is for
-            recordings: on the real Mini videos (markers removed, measured with
-            ``anchor="rest"``) no held-out clip is worse than zero motion with the removals
-            whose fills move, and on a still real Mini gel it reads 0.11 px of false motion
-            against 0.27 (:mod:`tacswitch.motion.flow`).
+            default, ``"refined"``), which the markerless slip scorer was trained on too.
+            ``"accurate"`` (DeepFlow, 5 frames/s: 10-30x slower) is for recordings: on the
+            real Mini videos (markers removed, measured with ``anchor="rest"``) no held-out
+            clip is worse than zero motion with the removals whose fills move, and on a still
+            real Mini gel it reads 0.11 px of false motion against 0.27
+            (:mod:`tacswitch.motion.flow`).
         anchor: with a no-contact frame, ``"contact"`` (default) reads a steady contact's
             motion from the frame where it settled, ``"rest"`` every frame's from the
             no-contact frame (:data:`ANCHORS`, module doc). Unused without a no-contact frame.

@@ -6,7 +6,13 @@ Frames: a REAL GelSight Mini grasp video (320x240, from the slip study's trainin
 data folder is there, else rendered; a rendered GelSight grasp at 640x480. Budget: >= 1000
 frames/s at 320x240 with the learned detector.
 
-    python benches/bench_slip_loop.py [--rounds 9] [--data DIR]
+``--markerless``: the loop of ``tacswitch slip --markerless`` on a markerless sensor instead:
+``MarkerlessTracker``'s motion from rest (the preset the markerless scorer learned,
+``SCORER_FLOW_PRESET``, beside ``balanced``, the one before 2026-11-30) + the learned detector
+with the markerless scorer, on the same frames with the markers removed beforehand (the removal
+is not part of a markerless sensor's loop); the budget is camera rate (25 frames/s).
+
+    python benches/bench_slip_loop.py [--rounds 9] [--video VIDEO] [--markerless]
 """
 
 from __future__ import annotations
@@ -40,10 +46,48 @@ def loop_fps(frames: list[np.ndarray], rule: str | None) -> float:
     return len(frames) / (time.perf_counter() - t0)
 
 
+def markerless_fps(frames: list[np.ndarray], preset: str, centres: np.ndarray) -> float:
+    """Frames/s of one pass of the markerless slip loop: ``MarkerlessTracker`` (plain flow
+    from the first frame, as ``tacswitch slip --markerless`` runs it) + the learned detector
+    with the markerless scorer."""
+    tracker = ts.MarkerlessTracker(frames[0], centres, suppress_imprint=False, anchor="rest",
+                                   preset=preset)
+    det = ts.GraspSlipDetector(centres, model="markerless", image_width=frames[0].shape[1])
+    t0 = time.perf_counter()
+    for f in frames:
+        det.update(tracker.update(f))
+    return len(frames) / (time.perf_counter() - t0)
+
+
+def markerless_main(sets: list[tuple[str, list[np.ndarray]]], rounds: int) -> None:
+    """The markerless loop's table: frames/s per preset, medians of alternating rounds."""
+    from tacswitch.grasp.detector import SCORER_FLOW_PRESET, SCORER_REMOVAL
+
+    presets = list(dict.fromkeys([SCORER_FLOW_PRESET, "balanced"]))
+    removal = ", ".join(f"{k}={v}" for k, v in SCORER_REMOVAL.items())
+    print(f"| frames (markers removed: `remove_markers(frame, {removal})`) | "
+          + " | ".join(f"`{p}` flow + markerless detector" for p in presets)
+          + " | ratio |\n|---|" + "---|" * (len(presets) + 1))
+    for name, marked in sets:
+        centres = ts.extract_markers(marked[0]).centres
+        frames = [ts.remove_markers(f, dilate=SCORER_REMOVAL["dilate"],
+                                    radius=SCORER_REMOVAL["radius"]) for f in marked]
+        markerless_fps(frames[:10], presets[0], centres)  # warm-up
+        rates: dict[str, list[float]] = {p: [] for p in presets}
+        for _ in range(rounds):
+            for p in presets:
+                rates[p].append(markerless_fps(frames, p, centres))
+        med = [float(np.median(rates[p])) for p in presets]
+        print(f"| {name} ({len(frames)} frames, {rounds} rounds, medians) | "
+              + " | ".join(f"{m:.0f}" for m in med) + f" | {med[0] / med[-1]:.2f} |")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--rounds", type=int, default=9)
     ap.add_argument("--video", type=Path, default=DEFAULT_VIDEO)
+    ap.add_argument("--markerless", action="store_true",
+                    help="the markerless slip loop (module doc)")
     args = ap.parse_args()
     single_thread()
     sets = []
@@ -56,6 +100,9 @@ def main() -> int:
     seq = sim.grasp_sequence("gelsight", "slip", n_frames=60, seed=0)
     sets.append(("rendered GelSight 640x480", [seq.reference, *seq.frames]))
     print(machine())
+    if args.markerless:
+        markerless_main(sets, args.rounds)
+        return 0
     print("| frames | tracking alone | tracking + paper rule | tracking + learned detector | "
           "learned / paper |\n|---|---|---|---|---|")
     for name, frames in sets:

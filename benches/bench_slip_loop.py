@@ -61,17 +61,16 @@ def markerless_fps(frames: list[np.ndarray], preset: str, centres: np.ndarray) -
 
 def markerless_main(sets: list[tuple[str, list[np.ndarray]]], rounds: int) -> None:
     """The markerless loop's table: frames/s per preset, medians of alternating rounds."""
-    from tacswitch.grasp.detector import SCORER_FLOW_PRESET, SCORER_REMOVAL
+    from tacswitch.grasp.dataset import scorer_removal
+    from tacswitch.grasp.detector import SCORER_FLOW_PRESET, SCORER_REMOVAL_TEXT
 
     presets = list(dict.fromkeys([SCORER_FLOW_PRESET, "balanced"]))
-    removal = ", ".join(f"{k}={v}" for k, v in SCORER_REMOVAL.items())
-    print(f"| frames (markers removed: `remove_markers(frame, {removal})`) | "
+    print(f"| frames (markers removed: `remove_markers(frame, {SCORER_REMOVAL_TEXT})`) | "
           + " | ".join(f"`{p}` flow + markerless detector" for p in presets)
           + " | ratio |\n|---|" + "---|" * (len(presets) + 1))
     for name, marked in sets:
         centres = ts.extract_markers(marked[0]).centres
-        frames = [ts.remove_markers(f, dilate=SCORER_REMOVAL["dilate"],
-                                    radius=SCORER_REMOVAL["radius"]) for f in marked]
+        frames = [scorer_removal(f) for f in marked]
         markerless_fps(frames[:10], presets[0], centres)  # warm-up
         rates: dict[str, list[float]] = {p: [] for p in presets}
         for _ in range(rounds):

@@ -53,7 +53,7 @@ from tacswitch.grasp.dataset import (
     experiment_clips,
     read_labels,
 )
-from tacswitch.grasp.detector import SCORER_FLOW_PRESET, SCORER_REMOVAL
+from tacswitch.grasp.detector import SCORER_FLOW_PRESET, SCORER_REMOVAL_TEXT
 from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
 from tacswitch.grasp.simulated import SIMULATED_PER_KIND, SIMULATED_SEED, simulated_clips
 from tacswitch.grasp.train import (
@@ -151,7 +151,7 @@ def main() -> int:
                               votes=args.votes, epochs=args.epochs,
                               log=lambda s: print(s, file=sys.stderr),
                               extra=(clip_features(rendered, still), rendered_labels))
-        motion = (f"markers removed by remove_markers(frame, {removal_text()}), "
+        motion = (f"markers removed by remove_markers(frame, {SCORER_REMOVAL_TEXT}), "
                   f"MarkerlessTracker ({SCORER_FLOW_PRESET} flow); and the marker tracks"
                   if args.markerless else "markers")
         export_scorer(res, args.export, extra={
@@ -235,11 +235,6 @@ def main() -> int:
         print(format_scores("SIMULATED held-out grasps: paper rule",
                             score_experiments(held_labels, paper_sim)))
     return 0
-
-
-def removal_text() -> str:
-    """The markerless training removal's keywords as a call writes them: ``dilate=5, radius=5``."""
-    return ", ".join(f"{k}={v}" for k, v in SCORER_REMOVAL.items())
 
 
 def committee_name(seeds: int, votes: int | None) -> str:

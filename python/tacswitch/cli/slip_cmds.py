@@ -26,10 +26,12 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cache", default=None,
                    help="folder for the tracked clips (default: DATA/.tacswitch-cache)")
     p.add_argument("--workers", type=int, default=1, help="tracking processes (default: 1)")
+    from tacswitch.grasp.detector import SCORER_REMOVAL_TEXT
+
     p.add_argument("--markerless", action="store_true",
-                   help="remove the markers first (remove_markers with dilate=5, "
-                        "radius=5) and predict their motion (MarkerlessTracker): the "
-                        "markerless sensor these videos would be")
+                   help=f"remove the markers first (remove_markers with "
+                        f"{SCORER_REMOVAL_TEXT}) and predict their motion (MarkerlessTracker): "
+                        "the markerless sensor these videos would be")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or messages")
 
 

@@ -148,6 +148,14 @@ def clip_features(experiments: list[list[TrackedClip]], still_filter: bool = Fal
     return [[c.features(still_filter) for c in exp] for exp in experiments]
 
 
+def scorer_removal(frame: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """``frame`` (``H x W x 3`` uint8 BGR, with markers) with its markers removed as for the
+    markerless slip scorer's training: :func:`tacswitch.remove_markers` with
+    :data:`~tacswitch.grasp.detector.SCORER_REMOVAL`."""
+    return remove_markers(frame, dilate=SCORER_REMOVAL["dilate"],
+                          radius=SCORER_REMOVAL["radius"])
+
+
 def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
                ) -> TrackedClip:
     """Tracks markers through ``frames``. With markers the reference is the rest frame
@@ -155,10 +163,10 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
     the camera settled, among the first :data:`~tacswitch.tracking.REST_LOOK_AHEAD`); the
     frames before it are not tracked and read as rest (zero motion), so frame numbers stay
     the video's. ``markerless``: the markers are removed from every frame first
-    (:func:`tacswitch.remove_markers` with :data:`~tacswitch.grasp.detector.SCORER_REMOVAL`)
-    and the motion predicted by :class:`tacswitch.MarkerlessTracker` from the first frame
-    after the camera settled (no marker count: ``tacswitch slip --markerless`` starts there
-    too), at its marker centres: the markerless sensor this recording would have been."""
+    (:func:`scorer_removal`) and the motion predicted by :class:`tacswitch.MarkerlessTracker`
+    from the first frame after the camera settled (no marker count: ``tacswitch slip
+    --markerless`` starts there too), at its marker centres: the markerless sensor this
+    recording would have been."""
     it = iter(frames)
     head = list(itertools.islice(it, REST_LOOK_AHEAD))
     if not head:
@@ -179,9 +187,8 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
     if markerless:
         mtracker = MarkerlessTracker(None, points, preset=SCORER_FLOW_PRESET)
         for frame in itertools.chain(head[rest:], it):
-            m = (mtracker.update(remove_markers(frame, dilate=SCORER_REMOVAL["dilate"],
-                                                radius=SCORER_REMOVAL["radius"]))
-                 if n else np.zeros((0, 2), np.float32))
+            m = (mtracker.update(scorer_removal(frame)) if n
+                 else np.zeros((0, 2), np.float32))
             motions.append(np.asarray(m, np.float32))
             valids.append(np.ones(n, bool))
     else:

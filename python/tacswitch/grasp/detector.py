@@ -48,6 +48,8 @@ SCORER_FLOW_PRESET = "refined"
 #: (:func:`tacswitch.remove_markers` keywords; the removal the motion guide recommends: a mask
 #: grown five steps and a wider fill leave fewer seams for the flow to follow).
 SCORER_REMOVAL: dict[str, int] = {"dilate": 5, "radius": 5}
+#: :data:`SCORER_REMOVAL` as a call writes it (``"dilate=5, radius=5"``), for help and reports.
+SCORER_REMOVAL_TEXT = ", ".join(f"{k}={v}" for k, v in SCORER_REMOVAL.items())
 RULES = ("learned", "paper")
 
 Scorer = Callable[[NDArray[np.float32]], NDArray[np.float32]]

@@ -57,6 +57,7 @@ from tacswitch.grasp.detector import SCORER_FLOW_PRESET, SCORER_REMOVAL_TEXT
 from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
 from tacswitch.grasp.simulated import SIMULATED_PER_KIND, SIMULATED_SEED, simulated_clips
 from tacswitch.grasp.train import (
+    SLIP_TAIL,
     committee_votes,
     default_committee_text,
     real_only_members,
@@ -120,7 +121,12 @@ def main() -> int:
     ap.add_argument("--augment", type=int, default=COPIES,
                     help="rescaled copies of each real experiment in the marker scorer's "
                          "training set (the training objects' only; default: %(default)s)")
+    ap.add_argument("--slip-tail", type=float, default=float(SLIP_TAIL),
+                    help="the share of each cut-short slip video that may carry its label in "
+                         "training (tacswitch.grasp.train.counted_from; default: %(default)s, "
+                         "every frame)")
     args = ap.parse_args()
+    tail = {"slip_tail": args.slip_tail}
 
     exps = read_labels(args.data)
     labels = [e.slip for e in exps]
@@ -150,7 +156,7 @@ def main() -> int:
                               seeds=markerless_seeds if args.markerless else marker_seeds,
                               votes=args.votes, epochs=args.epochs,
                               log=lambda s: print(s, file=sys.stderr),
-                              extra=(clip_features(rendered, still), rendered_labels))
+                              extra=(clip_features(rendered, still), rendered_labels), **tail)
         motion = (f"markers removed by remove_markers(frame, {SCORER_REMOVAL_TEXT}), "
                   f"MarkerlessTracker ({SCORER_FLOW_PRESET} flow); and the marker tracks"
                   if args.markerless else "markers")
@@ -187,7 +193,7 @@ def main() -> int:
                                           epochs=args.epochs,
                                           test_sets={"markerless": test} if test else None,
                                           extra=extra, seeds=marker_seeds, votes=args.votes,
-                                          augment=args.augment, still_filter=still)
+                                          augment=args.augment, still_filter=still, **tail)
             with_sim = f" + {copies_phrase(args.augment)}" if args.augment else ""
             if extra:
                 alone = real_only_members(marker_seeds, True)
@@ -206,12 +212,13 @@ def main() -> int:
             first = seed * markerless_seeds
             committee = committee_name(markerless_seeds, args.votes)
             own = cross_validated_flags(test, labels, objects, seed=first, epochs=args.epochs,
-                                        seeds=markerless_seeds, votes=args.votes)
+                                        seeds=markerless_seeds, votes=args.votes, **tail)
             print(format_scores(f"markerless: learned on markerless motion, {committee}, "
                                 f"objects held out (seed {first})",
                                 score_experiments(labels, own["train"])), flush=True)
             both = cross_validated_flags(test, labels, objects, seed=first, epochs=args.epochs,
-                                         seeds=markerless_seeds, votes=args.votes, paired=clips)
+                                         seeds=markerless_seeds, votes=args.votes, paired=clips,
+                                         **tail)
             print(format_scores(f"markerless: learned on markerless + marker motion, "
                                 f"{committee}, objects held out (seed {first})",
                                 score_experiments(labels, both["train"])), flush=True)
@@ -225,7 +232,7 @@ def main() -> int:
         real, real_labels = with_copies(clips, labels, args.augment)
         res = train_committee(clip_features(real, still), real_labels,
                               seeds=marker_seeds, votes=args.votes, epochs=args.epochs,
-                              extra=(clip_features(extra[0], still), extra[1]))
+                              extra=(clip_features(extra[0], still), extra[1]), **tail)
         scorer = torch_scorer(res.net)
         flags_sim = [[clip_flags(c, model=scorer, threshold=0.0, votes=res.votes,
                                  still_filter=still)] for c in held]

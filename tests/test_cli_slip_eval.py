@@ -116,9 +116,15 @@ def test_train_slip_writes_a_model_the_slip_loop_uses(labelled: Path, tmp_path: 
                   "--cache", str(tmp_path / "cache"), "--simulated", "0", "--seeds", "1",
                   "--augment", "2")
     assert code == 0 and "6 experiments, 2 rescaled copies of each" in _trained_on(copied)
+    tail = tmp_path / "tail.onnx"
+    code, _ = run("train", "slip", str(labelled), "--out", str(tail), "--epochs", "1", "-q",
+                  "--cache", str(tmp_path / "cache"), "--simulated", "0", "--seeds", "1",
+                  "--slip-tail", "0.5")
+    assert code == 0 and _meta(tail, "slip_tail") == 0.5
     from tacswitch.grasp.detector import load_scorer
-    from tacswitch.grasp.train import COMMITTEE, VOTES
+    from tacswitch.grasp.train import COMMITTEE, SLIP_TAIL, VOTES
 
+    assert _meta(copied, "slip_tail") == SLIP_TAIL
     scorer = load_scorer(model)
     assert (scorer.committee, scorer.votes) == (COMMITTEE, VOTES)
     assert scorer.motion == "markers"
@@ -197,6 +203,21 @@ def test_errors_name_the_argument(labelled: Path, tmp_path: Path,
     assert "--augment: must be in [0, 20]; got -1" in capsys.readouterr().err
     assert main(["evaluate", "slip", str(labelled), "--augment", "1", "-q"]) != 0
     assert "--augment: applies to --cv (training) only" in capsys.readouterr().err
+    for bad in ("0", "1.5", "nan"):
+        assert main(["train", "slip", str(labelled), "--out", str(tmp_path / "m.onnx"),
+                     "--slip-tail", bad, "-q"]) != 0
+        assert f"--slip-tail: must be in (0, 1]; got {float(bad)}" in capsys.readouterr().err
+    assert main(["evaluate", "slip", str(labelled), "--slip-tail", "0.5", "-q"]) != 0
+    assert "--slip-tail: applies to --cv (training) only" in capsys.readouterr().err
+
+
+def _meta(model: Path, key: str) -> object:
+    import json
+
+    import onnxruntime as ort
+
+    meta = ort.InferenceSession(str(model), providers=["CPUExecutionProvider"]).get_modelmeta()
+    return json.loads(meta.custom_metadata_map[f"tacswitch.{key}"])
 
 
 def _trained_on(model: Path) -> str:

@@ -503,7 +503,7 @@ def test_paired_view_trains_only_on_the_training_objects(monkeypatch) -> None:
     paired = [[_Tagged(100 + i)] for i in range(len(objects))]
     seen: list[set[int]] = []
 
-    def fake_train(features, labels, *, epochs, seed, log=None):  # type: ignore[no-untyped-def]
+    def fake_train(features, labels, *, epochs, seed, log=None, starts=None):  # type: ignore[no-untyped-def]
         seen.append({int(v[0][0, 0]) for v in features})
         assert len(features) == len(labels)
         return SlipTrainResult(len(seen) - 1, len(labels), sum(labels), epochs, seed)
@@ -566,3 +566,99 @@ def test_false_alarms_per_minute_use_each_video_s_frame_rate() -> None:
     assert mixed.false_alarms_per_min == pytest.approx(at_25.false_alarms_per_min)
     with pytest.raises(ValueError, match=r"^fps:"):
         score_experiments([False, True], [held, [np.ones(50, bool)]], fps=[[25.0]])
+
+
+def test_counted_from_keeps_only_the_tail_of_slip_videos_cut_short() -> None:
+    """A slip video shorter than CUT_SHORT of the median held video (the recording stopped once
+    the object fell) counts only its last ``tail`` share; full-length slips and every held
+    video count every frame after the warm-up, and so does everything at the default."""
+    from tacswitch.grasp.train import CUT_SHORT, SLIP_TAIL, WARMUP, counted_from
+
+    def videos(*lengths: int) -> list[np.ndarray]:
+        return [np.zeros((n, N_FEATURES), np.float32) for n in lengths]
+
+    feats = [videos(450, 450), videos(200, 200), videos(100, 120), videos(450, 450),
+             videos(4, 4), videos(450, 450)]
+    labels = [False, False, True, True, True, False]
+    assert CUT_SHORT * 450 > 120
+    assert counted_from(feats, labels, 0.5) == [
+        [WARMUP, WARMUP], [WARMUP, WARMUP], [50, 60],
+        [WARMUP, WARMUP], [WARMUP, WARMUP], [WARMUP, WARMUP]]
+    assert SLIP_TAIL == 1.0 and counted_from(feats, labels) == counted_from(feats, labels, 1.0)
+    assert counted_from(feats, labels, 0.25) == [
+        [WARMUP] * 2, [WARMUP] * 2, [75, 90], [WARMUP] * 2, [WARMUP] * 2, [WARMUP] * 2]
+    assert all(s == WARMUP for exp in counted_from(feats, labels, 1.0) for s in exp)
+    # Every video one length (a user's clips, not cut by the slip): nothing changes.
+    same = [videos(300) for _ in labels]
+    assert all(s == WARMUP for exp in counted_from(same, labels) for s in exp)
+    for bad in (0.0, -0.5, 1.5, float("nan")):
+        with pytest.raises(ValueError, match="tail: must be in"):
+            counted_from(feats, labels, bad)
+
+
+def test_train_scorer_scores_each_video_from_its_counted_frames(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """An experiment's score in training is its largest logit over the frames from each video's
+    ``starts`` entry on (the warm-up by default); the standardisation still sees every frame
+    after the warm-up."""
+    pytest.importorskip("torch")
+    from tacswitch.grasp import train
+
+    rng = np.random.default_rng(4)
+    feats = [[rng.normal(0, 1, (n, N_FEATURES)).astype(np.float32)] for n in (30, 12, 30, 30)]
+    labels = [True, True, False, False]
+    masks: list[np.ndarray] = []
+    original = train._experiment_scores
+
+    def spy(net, x, mask, owner, batch):  # type: ignore[no-untyped-def]
+        order = owner.numpy()
+        for k, i in enumerate(order):
+            masks.append((int(i), mask[k].numpy().copy()))
+        return original(net, x, mask, owner, batch)
+
+    monkeypatch.setattr(train, "_experiment_scores", spy)
+    w = train.WARMUP
+    train.train_scorer(feats, labels, epochs=1, seed=0, members=1,
+                       starts=[[20], [40], [w], [0]])
+    got = dict(masks)
+    np.testing.assert_array_equal(got[0], np.arange(30) >= 20)
+    np.testing.assert_array_equal(got[1][:12], np.arange(12) == 11)  # at least its last frame
+    assert not got[1][12:].any()
+    for i in (2, 3):  # never before the warm-up
+        np.testing.assert_array_equal(got[i], np.arange(30) >= w)
+    masks.clear()
+    train.train_scorer(feats, labels, epochs=1, seed=0, members=1)
+    np.testing.assert_array_equal(dict(masks)[0], np.arange(30) >= w)
+    with pytest.raises(ValueError, match="starts"):
+        train.train_scorer(feats, labels, epochs=1, starts=[[w]] * 3)
+
+
+def test_train_committee_passes_the_counted_frames_to_each_member(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """``train_committee`` counts the real slips' tail (:func:`counted_from`) and every frame of
+    the ``extra`` (rendered) experiments, for every member."""
+    pytest.importorskip("torch")
+    from tacswitch.grasp import train
+
+    def video(n: int) -> list[np.ndarray]:
+        return [np.zeros((n, N_FEATURES), np.float32)]
+
+    real = [video(100), video(100), video(40), video(100)]
+    real_labels = [False, False, True, True]
+    rendered, rendered_labels = [video(30), video(30)], [True, False]
+    seen: list[list[list[int]]] = []
+
+    def spy(features, labels, **kw):  # type: ignore[no-untyped-def]
+        seen.append(kw["starts"])
+        return train.SlipTrainResult(None, len(labels), sum(labels), 0, kw["seed"])
+
+    monkeypatch.setattr(train, "train_scorer", spy)
+    monkeypatch.setattr(train, "build_committee", lambda nets: nets)
+    res = train.train_committee(real, real_labels, seeds=2, epochs=1,
+                                extra=(rendered, rendered_labels), slip_tail=0.5)
+    w = train.WARMUP
+    assert seen == [[[w], [w], [20], [w]], [[w], [w], [20], [w], [w], [w]]]
+    assert res.slip_tail == 0.5
+    seen.clear()
+    res = train.train_committee(real, real_labels, seeds=1, epochs=1)
+    assert seen == [[[w]] * 4] and res.slip_tail == train.SLIP_TAIL == 1.0

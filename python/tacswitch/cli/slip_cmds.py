@@ -55,6 +55,7 @@ def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
     _committee_options(p, "--cv: per fold, ")
     _marker_tracks_option(p, "--cv: ")
     _augment_option(p, "--cv: per fold, ")
+    _slip_tail_option(p, "--cv: ")
     p.add_argument("--json", default=None, help="also write the scores and each experiment's "
                                                 "decision to this JSON file")
     p.set_defaults(run=run_evaluate)
@@ -79,6 +80,7 @@ def add_train_parser(what: argparse._SubParsersAction) -> None:
                         "ignored with --markerless)")
     _marker_tracks_option(p, "")
     _augment_option(p, "")
+    _slip_tail_option(p, "")
     p.set_defaults(run=run_train)
 
 
@@ -129,6 +131,29 @@ def _augment(args: argparse.Namespace) -> int:
     if not 0 <= args.augment <= 20:
         raise UsageError(f"--augment: must be in [0, 20]; got {args.augment}")
     return int(args.augment)
+
+
+def _slip_tail_option(p: argparse.ArgumentParser, scope: str) -> None:
+    from tacswitch.grasp.train import CUT_SHORT, SLIP_TAIL
+
+    p.add_argument("--slip-tail", type=float, default=None, metavar="F",
+                   help=f"{scope}in a slip video cut short by its slip (shorter than "
+                        f"{CUT_SHORT:g} of the median held video: the recording stopped once "
+                        "the object fell), only its last share F may carry the slip label in "
+                        f"training (default: {float(SLIP_TAIL):g}, every frame). 0.5 helped "
+                        "committees trained on real grasps alone, not the shipped recipes "
+                        "(docs/slip.md); clips all of one length: it changes nothing")
+
+
+def _slip_tail(args: argparse.Namespace) -> float:
+    """``--slip-tail``, checked (default: the recipe's)."""
+    from tacswitch.grasp.train import SLIP_TAIL
+
+    if args.slip_tail is None:
+        return float(SLIP_TAIL)
+    if not (math.isfinite(args.slip_tail) and 0 < args.slip_tail <= 1):
+        raise UsageError(f"--slip-tail: must be in (0, 1]; got {args.slip_tail}")
+    return float(args.slip_tail)
 
 
 def _marker_tracks_option(p: argparse.ArgumentParser, scope: str) -> None:
@@ -218,7 +243,10 @@ def run_evaluate(args: argparse.Namespace) -> int:
         raise UsageError("--no-marker-tracks: applies to --cv with --markerless only")
     if args.augment is not None and not args.cv:
         raise UsageError("--augment: applies to --cv (training) only")
+    if args.slip_tail is not None and not args.cv:
+        raise UsageError("--slip-tail: applies to --cv (training) only")
     augment = _augment(args)
+    slip_tail = _slip_tail(args)
     if args.json is not None:
         out = Path(args.json)
         if out.is_dir() or not out.parent.is_dir():
@@ -237,7 +265,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
                                       seeds=seeds, votes=votes,
                                       paired=_paired_marker_clips(args, exps),
                                       augment=augment, still_filter=not args.markerless,
-                                      quiet=args.quiet)["train"]
+                                      slip_tail=slip_tail, quiet=args.quiet)["train"]
         name = f"learned, {args.cv} folds grouped by object"
     elif args.rule == "paper":
         opts = {} if rigid is None else {"rigid_threshold_px": rigid}
@@ -283,6 +311,7 @@ def run_train(args: argparse.Namespace) -> int:
     if args.no_marker_tracks and not args.markerless:
         raise UsageError("--no-marker-tracks: applies to --markerless only")
     augment = _augment(args)
+    slip_tail = _slip_tail(args)
     out = output_file(args.out, "--out")
     try:
         import torch  # noqa: F401
@@ -316,7 +345,7 @@ def run_train(args: argparse.Namespace) -> int:
     feats = clip_features(train, still)
     log = None if args.quiet else (lambda s: print(s, file=sys.stderr))
     res = train_committee(feats, labels, seed=args.seed, seeds=seeds, votes=votes,
-                          epochs=epochs, log=log,
+                          epochs=epochs, log=log, slip_tail=slip_tail,
                           extra=(clip_features(rendered, still), rendered_labels))
     n_rendered = 0 if args.markerless else n_sim * len(KINDS) * len(SENSORS)
     views = "" if paired is None else " (markerless and marker tracks)"

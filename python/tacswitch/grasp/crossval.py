@@ -13,7 +13,7 @@ from tacswitch.grasp.augment import augmented_experiments
 from tacswitch.grasp.dataset import TrackedClip, clip_features
 from tacswitch.grasp.detector import run_clip
 from tacswitch.grasp.evaluate import object_folds
-from tacswitch.grasp.train import COMMITTEE
+from tacswitch.grasp.train import COMMITTEE, SLIP_TAIL
 
 
 def clip_flags(clip: TrackedClip, **options: Any) -> NDArray[np.bool_]:
@@ -41,7 +41,8 @@ def cross_validated_flags(clips: list[list[TrackedClip]], labels: list[bool],
                           extra: tuple[list[list[TrackedClip]], list[bool]] | None = None,
                           seeds: int = COMMITTEE, votes: int | None = None,
                           paired: list[list[TrackedClip]] | None = None,
-                          augment: int = 0, still_filter: bool = False, quiet: bool = True
+                          augment: int = 0, still_filter: bool = False,
+                          slip_tail: float = SLIP_TAIL, quiet: bool = True
                           ) -> dict[str, list[list[NDArray[np.bool_]]]]:
     """Flags of every experiment's videos from a scorer trained on ``clips`` of the other
     folds' objects (:func:`object_folds`): under key ``"train"`` for ``clips`` themselves and
@@ -56,7 +57,9 @@ def cross_validated_flags(clips: list[list[TrackedClip]], labels: list[bool],
     is the recipe's committee (:func:`~tacswitch.grasp.train.train_committee`: ``seeds``
     scorers from seed ``seed``, ``votes`` of them to flag). ``still_filter``: features read
     through the still-marker hysteresis in training and scoring (a marker scorer's recipe,
-    :class:`~tacswitch.grasp.features.FieldFeatures`)."""
+    :class:`~tacswitch.grasp.features.FieldFeatures`). ``slip_tail``: the share of each
+    cut-short slip video that may carry its label in training
+    (:func:`~tacswitch.grasp.train.counted_from`)."""
     from tacswitch.grasp.train import train_committee
 
     feats = clip_features(clips, still_filter)
@@ -84,7 +87,8 @@ def cross_validated_flags(clips: list[list[TrackedClip]], labels: list[bool],
         train_feats += [x for x, i in zip(copy_feats, owner, strict=True) if i in kept]
         train_labels += [labels[i] for i in owner if i in kept]
         res = train_committee(train_feats, train_labels, seed=seed, seeds=seeds, votes=votes,
-                              epochs=epochs, extra=(extra_feats, extra_labels))
+                              epochs=epochs, extra=(extra_feats, extra_labels),
+                              slip_tail=slip_tail)
         scorer = torch_scorer(res.net)
         for name, test in sets.items():
             for i, k in enumerate(fold_of):

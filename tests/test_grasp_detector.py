@@ -662,3 +662,5 @@ def test_train_committee_passes_the_counted_frames_to_each_member(
     seen.clear()
     res = train.train_committee(real, real_labels, seeds=1, epochs=1)
     assert seen == [[[w]] * 4] and res.slip_tail == train.SLIP_TAIL == 1.0
+    with pytest.raises(ValueError, match="slip_tail: must be in"):
+        train.train_committee(real, real_labels, seeds=1, epochs=1, slip_tail=0.0)

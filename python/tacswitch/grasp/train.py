@@ -347,6 +347,8 @@ def train_committee(features: list[list[NDArray[np.float32]]], labels: list[bool
               else int(real_only))
     if not 0 <= n_real <= seeds:
         raise ValueError(f"real_only: must be in [0, seeds={seeds}]; got {real_only}")
+    if not 0 < slip_tail <= 1:
+        raise ValueError(f"slip_tail: must be in (0, 1]; got {slip_tail!r}")
     starts = counted_from(features, labels, slip_tail)
     extra_starts = [[WARMUP] * len(exp) for exp in extra_feats]
     results = []

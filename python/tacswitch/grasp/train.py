@@ -96,7 +96,8 @@ class SlipTrainResult:
     committee: int = 1
     #: Members that must have fired in a grasp before it is flagged (1 for a single scorer).
     votes: int = 1
-    #: The share of each cut-short slip video that counted in training (:func:`counted_from`).
+    #: The share of each cut-short slip video that counted in training (:func:`counted_from`;
+    #: set by :func:`train_committee`, whose ``slip_tail`` it is).
     slip_tail: float = 1.0
 
 
@@ -132,27 +133,27 @@ def build_scorer(mean: NDArray[np.floating], std: NDArray[np.floating],
 
 
 def counted_from(features: list[list[NDArray[np.float32]]], labels: list[bool],
-                 tail: float = SLIP_TAIL) -> list[list[int]]:
+                 slip_tail: float = SLIP_TAIL) -> list[list[int]]:
     """The first frame of each video (``features[i][j]``) whose score may count towards its
     experiment's in training: :data:`WARMUP`, except in a slip video cut short by its slip
-    (shorter than :data:`CUT_SHORT` of the median held video), where only its last ``tail``
-    share counts (``1``: every frame after the warm-up).
+    (shorter than :data:`CUT_SHORT` of the median held video), where only its last
+    ``slip_tail`` share counts (``1``: every frame after the warm-up).
 
     Why: labels say that an experiment slipped, not when. Where the recording was stopped
     because the object fell, the slip is near the end, and the early frames (the grasp
     closing, the lift starting) are not evidence of it; a scorer allowed to explain the label
     with them may learn to fire on events that held grasps show too. On the real GelSight Mini
-    grasps, objects held out, ``tail=0.5`` helps committees trained on real grasps alone (8
+    grasps, objects held out, ``slip_tail=0.5`` helps committees trained on real grasps alone (8
     scorers at 4 votes, 5 seed sets: balanced accuracy 0.852 -> 0.879, held grasps left alone
     75.8 -> 79.0 of 85), not the shipped recipes (32 scorers at 13 votes: markers, half with
     rendered grasps, 0.872 -> 0.868 with false alarms 1.12 -> 0.42 a minute; markerless 0.770
     -> 0.731), so :data:`SLIP_TAIL` stays 1 (``docs/notes/2026-11-slip.md``).
     """
-    if not 0 < tail <= 1:
-        raise ValueError(f"tail: must be in (0, 1]; got {tail!r}")
+    if not 0 < slip_tail <= 1:
+        raise ValueError(f"slip_tail: must be in (0, 1]; got {slip_tail!r}")
     held = [len(v) for exp, lab in zip(features, labels, strict=True) if not lab for v in exp]
     short = CUT_SHORT * float(np.median(held)) if held else 0.0
-    return [[max(WARMUP, math.floor((1 - tail) * len(v))) if lab and len(v) < short
+    return [[max(WARMUP, math.floor((1 - slip_tail) * len(v))) if lab and len(v) < short
              else WARMUP for v in exp]
             for exp, lab in zip(features, labels, strict=True)]
 
@@ -347,8 +348,6 @@ def train_committee(features: list[list[NDArray[np.float32]]], labels: list[bool
               else int(real_only))
     if not 0 <= n_real <= seeds:
         raise ValueError(f"real_only: must be in [0, seeds={seeds}]; got {real_only}")
-    if not 0 < slip_tail <= 1:
-        raise ValueError(f"slip_tail: must be in (0, 1]; got {slip_tail!r}")
     starts = counted_from(features, labels, slip_tail)
     extra_starts = [[WARMUP] * len(exp) for exp in extra_feats]
     results = []

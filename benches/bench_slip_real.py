@@ -57,11 +57,11 @@ from tacswitch.grasp.detector import SCORER_FLOW_PRESET, SCORER_REMOVAL_TEXT
 from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
 from tacswitch.grasp.simulated import SIMULATED_PER_KIND, SIMULATED_SEED, simulated_clips
 from tacswitch.grasp.train import (
-    SLIP_TAIL,
     committee_votes,
     default_committee_text,
     real_only_members,
     recipe_committee,
+    recipe_slip_tail,
     train_committee,
 )
 
@@ -121,12 +121,16 @@ def main() -> int:
     ap.add_argument("--augment", type=int, default=COPIES,
                     help="rescaled copies of each real experiment in the marker scorer's "
                          "training set (the training objects' only; default: %(default)s)")
-    ap.add_argument("--slip-tail", type=float, default=float(SLIP_TAIL),
+    ap.add_argument("--slip-tail", type=float, default=None,
                     help="the share of each cut-short slip video that may carry its label in "
-                         "training (tacswitch.grasp.train.counted_from; default: %(default)s, "
-                         "every frame)")
+                         "training (tacswitch.grasp.train.counted_from; default: the recipe's, "
+                         f"{recipe_slip_tail()} for the marker scorer's real-only members, "
+                         f"{recipe_slip_tail(True)} for the markerless scorer)")
     args = ap.parse_args()
-    tail = {"slip_tail": args.slip_tail}
+    # Each path trains with its own recipe's share unless one is given.
+    tail = {"slip_tail": recipe_slip_tail() if args.slip_tail is None else args.slip_tail}
+    markerless_tail = {"slip_tail": (recipe_slip_tail(True) if args.slip_tail is None
+                                     else args.slip_tail)}
 
     exps = read_labels(args.data)
     labels = [e.slip for e in exps]
@@ -156,7 +160,8 @@ def main() -> int:
                               seeds=markerless_seeds if args.markerless else marker_seeds,
                               votes=args.votes, epochs=args.epochs,
                               log=lambda s: print(s, file=sys.stderr),
-                              extra=(clip_features(rendered, still), rendered_labels), **tail)
+                              extra=(clip_features(rendered, still), rendered_labels),
+                              **(markerless_tail if args.markerless else tail))
         motion = (f"markers removed by remove_markers(frame, {SCORER_REMOVAL_TEXT}), "
                   f"MarkerlessTracker ({SCORER_FLOW_PRESET} flow); and the marker tracks"
                   if args.markerless else "markers")
@@ -212,13 +217,14 @@ def main() -> int:
             first = seed * markerless_seeds
             committee = committee_name(markerless_seeds, args.votes)
             own = cross_validated_flags(test, labels, objects, seed=first, epochs=args.epochs,
-                                        seeds=markerless_seeds, votes=args.votes, **tail)
+                                        seeds=markerless_seeds, votes=args.votes,
+                                        **markerless_tail)
             print(format_scores(f"markerless: learned on markerless motion, {committee}, "
                                 f"objects held out (seed {first})",
                                 score_experiments(labels, own["train"])), flush=True)
             both = cross_validated_flags(test, labels, objects, seed=first, epochs=args.epochs,
                                          seeds=markerless_seeds, votes=args.votes, paired=clips,
-                                         **tail)
+                                         **markerless_tail)
             print(format_scores(f"markerless: learned on markerless + marker motion, "
                                 f"{committee}, objects held out (seed {first})",
                                 score_experiments(labels, both["train"])), flush=True)

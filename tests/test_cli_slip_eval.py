@@ -122,9 +122,9 @@ def test_train_slip_writes_a_model_the_slip_loop_uses(labelled: Path, tmp_path: 
                   "--slip-tail", "0.5")
     assert code == 0 and _meta(tail, "slip_tail") == 0.5
     from tacswitch.grasp.detector import load_scorer
-    from tacswitch.grasp.train import COMMITTEE, SLIP_TAIL, VOTES
+    from tacswitch.grasp.train import COMMITTEE, VOTES, recipe_slip_tail
 
-    assert _meta(copied, "slip_tail") == SLIP_TAIL
+    assert _meta(copied, "slip_tail") == recipe_slip_tail() == 0.5
     scorer = load_scorer(model)
     assert (scorer.committee, scorer.votes) == (COMMITTEE, VOTES)
     assert scorer.motion == "markers"

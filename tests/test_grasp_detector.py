@@ -635,8 +635,9 @@ def test_train_scorer_scores_each_video_from_its_counted_frames(
 
 def test_train_committee_passes_the_counted_frames_to_each_member(
         monkeypatch: pytest.MonkeyPatch) -> None:
-    """``train_committee`` counts the real slips' tail (:func:`counted_from`) and every frame of
-    the ``extra`` (rendered) experiments, for every member."""
+    """``train_committee`` counts the real slips' tail (:func:`counted_from`) for the members
+    trained on the real experiments alone (every member without ``extra``); members that also
+    learn the ``extra`` (rendered) experiments count every frame of both."""
     pytest.importorskip("torch")
     from tacswitch.grasp import train
 
@@ -657,8 +658,16 @@ def test_train_committee_passes_the_counted_frames_to_each_member(
     res = train.train_committee(real, real_labels, seeds=2, epochs=1,
                                 extra=(rendered, rendered_labels), slip_tail=0.5)
     w = train.WARMUP
-    assert seen == [[[w], [w], [20], [w]], [[w], [w], [20], [w], [w], [w]]]
+    assert seen == [[[w], [w], [20], [w]], [[w]] * 6]
     assert res.slip_tail == 0.5
+    seen.clear()
+    train.train_committee(real, real_labels, seeds=2, epochs=1, slip_tail=0.5)
+    assert seen == [[[w], [w], [20], [w]]] * 2
+    seen.clear()
+    train.train_committee(real, real_labels, seeds=1, epochs=1,
+                          extra=(rendered, rendered_labels), slip_tail=0.5)
+    assert seen == [[[w]] * 6]
+    assert (train.recipe_slip_tail(), train.recipe_slip_tail(True)) == (0.5, 1.0)
     seen.clear()
     res = train.train_committee(real, real_labels, seeds=1, epochs=1)
     assert seen == [[[w]] * 4] and res.slip_tail == train.SLIP_TAIL == 1.0

@@ -134,23 +134,24 @@ def _augment(args: argparse.Namespace) -> int:
 
 
 def _slip_tail_option(p: argparse.ArgumentParser, scope: str) -> None:
-    from tacswitch.grasp.train import CUT_SHORT, SLIP_TAIL
+    from tacswitch.grasp.train import CUT_SHORT, recipe_slip_tail
 
     p.add_argument("--slip-tail", type=float, default=None, metavar="F",
                    help=f"{scope}in a slip video cut short by its slip (shorter than "
                         f"{CUT_SHORT:g} of the median held video: the recording stopped once "
                         "the object fell), only its last share F may carry the slip label in "
-                        f"training (default: {float(SLIP_TAIL):g}, every frame). 0.5 helped "
-                        "committees trained on real grasps alone, not the shipped recipes "
-                        "(docs/slip.md); clips all of one length: it changes nothing")
+                        "training, for the scorers trained on your grasps alone (default: "
+                        f"{recipe_slip_tail():g}; with --markerless {recipe_slip_tail(True):g}, "
+                        "every frame; docs/slip.md); clips all of one length: it changes "
+                        "nothing")
 
 
 def _slip_tail(args: argparse.Namespace) -> float:
-    """``--slip-tail``, checked (default: the recipe's)."""
-    from tacswitch.grasp.train import SLIP_TAIL
+    """``--slip-tail``, checked (default: the recipe's, :func:`recipe_slip_tail`)."""
+    from tacswitch.grasp.train import recipe_slip_tail
 
     if args.slip_tail is None:
-        return float(SLIP_TAIL)
+        return recipe_slip_tail(bool(args.markerless))
     if not (math.isfinite(args.slip_tail) and 0 < args.slip_tail <= 1):
         raise UsageError(f"--slip-tail: must be in (0, 1]; got {args.slip_tail}")
     return float(args.slip_tail)

@@ -128,9 +128,8 @@ def main() -> int:
                          f"{recipe_slip_tail(True)} for the markerless scorer)")
     args = ap.parse_args()
     # Each path trains with its own recipe's share unless one is given.
-    tail = {"slip_tail": recipe_slip_tail() if args.slip_tail is None else args.slip_tail}
-    markerless_tail = {"slip_tail": (recipe_slip_tail(True) if args.slip_tail is None
-                                     else args.slip_tail)}
+    tail, markerless_tail = ({"slip_tail": recipe_slip_tail(m) if args.slip_tail is None
+                              else args.slip_tail} for m in (False, True))
 
     exps = read_labels(args.data)
     labels = [e.slip for e in exps]

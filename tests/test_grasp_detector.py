@@ -664,9 +664,9 @@ def test_train_committee_passes_the_counted_frames_to_each_member(
     train.train_committee(real, real_labels, seeds=2, epochs=1, slip_tail=0.5)
     assert seen == [[[w], [w], [20], [w]]] * 2
     seen.clear()
-    train.train_committee(real, real_labels, seeds=1, epochs=1,
-                          extra=(rendered, rendered_labels), slip_tail=0.5)
-    assert seen == [[[w]] * 6]
+    res = train.train_committee(real, real_labels, seeds=1, epochs=1,
+                                extra=(rendered, rendered_labels), slip_tail=0.5)
+    assert seen == [[[w]] * 6] and res.slip_tail == 1.0  # no member used the tail
     assert (train.recipe_slip_tail(), train.recipe_slip_tail(True)) == (0.5, 1.0)
     seen.clear()
     res = train.train_committee(real, real_labels, seeds=1, epochs=1)

@@ -103,7 +103,8 @@ class SlipTrainResult:
     #: Members that must have fired in a grasp before it is flagged (1 for a single scorer).
     votes: int = 1
     #: The share of each cut-short slip video that counted in training (:func:`counted_from`;
-    #: set by :func:`train_committee`, whose ``slip_tail`` it is).
+    #: set by :func:`train_committee`: its ``slip_tail``, or 1 when every member also learned
+    #: ``extra`` and so counted every frame).
     slip_tail: float = 1.0
 
 
@@ -364,8 +365,9 @@ def train_committee(features: list[list[NDArray[np.float32]]], labels: list[bool
     if not 0 <= n_real <= seeds:
         raise ValueError(f"real_only: must be in [0, seeds={seeds}]; got {real_only}")
     starts = counted_from(features, labels, slip_tail)
-    every = [[WARMUP] * len(exp) for exp in features]
-    extra_starts = [[WARMUP] * len(exp) for exp in extra_feats]
+    every = [[WARMUP] * len(exp) for exp in features + extra_feats]
+    # The share the file records: what its members used (none does when all learn ``extra``).
+    used = float(slip_tail) if n_real or not extra_feats else 1.0
     results = []
     for s in range(seed, seed + seeds):
         alone = s - seed < n_real
@@ -374,15 +376,15 @@ def train_committee(features: list[list[NDArray[np.float32]]], labels: list[bool
                 f"{', real grasps only' if alone and extra_feats else ''})")
         feats, labs, firsts = ((features, labels, starts) if alone or not extra_feats
                                else (features + extra_feats, list(labels) + extra_labels,
-                                     every + extra_starts))
+                                     every))
         results.append(train_scorer(feats, labs, epochs=epochs, seed=s, log=log,
                                     starts=firsts))
     if seeds == 1:
-        return replace(results[0], slip_tail=float(slip_tail))
+        return replace(results[0], slip_tail=used)
     full = max(results, key=lambda r: r.n_experiments)  # with ``extra`` when any member saw it
     return SlipTrainResult(build_committee([r.net for r in results]), full.n_experiments,
                            full.n_slip, epochs, seed, committee=seeds, votes=v,
-                           slip_tail=float(slip_tail))
+                           slip_tail=used)
 
 
 def _experiment_scores(net: Any, x: Any, mask: Any, owner: Any, batch: Any) -> Any:

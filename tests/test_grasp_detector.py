@@ -406,6 +406,11 @@ def test_committee_trains_its_real_only_members_without_the_extra_experiments(
     train.export_scorer(res, path)
     np.testing.assert_allclose(load_scorer(path)(x), train.frame_scores(res.net, x),
                                rtol=1e-4, atol=1e-4)
+    # Its two later members (with the rendered grasps) also vote on their own: 2 of 3 of them.
+    assert (res.real_only, res.half_votes) == (2, 2)
+    assert load_scorer(path).half_vote == (2, 2)
+    alone = train.train_committee(real, real_labels, seeds=3, epochs=1)
+    assert (alone.real_only, alone.half_votes) == (0, 0)
     with pytest.raises(ValueError, match="real_only"):
         train.train_committee(real, real_labels, seeds=2, epochs=1, real_only=3)
 
@@ -460,6 +465,58 @@ def test_committee_flags_a_grasp_once_enough_members_have_fired() -> None:
     with pytest.raises(ValueError, match="votes: must be >= 1, at most the committee's 3"):
         for _ in range(6):
             det.update(np.zeros_like(pts))
+
+
+def test_committee_half_vote_flags_on_the_later_members_alone() -> None:
+    """``half_vote=(first, votes)``: a grasp is also flagged once ``votes`` of the members from
+    ``first`` on have fired, however few of all the members that is; errors name it."""
+    pts = _grid()
+    fire = {6: [2], 8: [3], 10: [0]}
+    frame = [0]
+
+    def scorer(x: np.ndarray) -> np.ndarray:
+        out = -np.ones((len(x), 4), np.float32)
+        for k in fire.get(frame[0], []):
+            out[:, k] = 1.0
+        return out
+
+    def run(**kw: object) -> list[bool]:
+        det = GraspSlipDetector(pts, image_width=200, model=scorer, votes=3, start=0, **kw)
+        out = []
+        for t in range(12):
+            frame[0] = t
+            out.append(det.update(np.zeros_like(pts) + 0.01 * t).slip)
+        return out
+
+    # Without it three of four must fire: members 2, 3 and then 0 (frame 10).
+    assert run() == [False] * 10 + [True, False]
+    # Members 2 and 3 are both of the later half: two of them flag at frame 8.
+    assert run(half_vote=(2, 2)) == [False] * 8 + [True, False, True, False]
+    assert run(half_vote=(3, 1)) == [False] * 8 + [True, False, True, False]
+    with pytest.raises(ValueError, match="half_vote: applies to rule='learned' only"):
+        GraspSlipDetector(pts, image_width=200, rule="paper", half_vote=(1, 1))
+    for bad in ((0, 1), (1, 0), (1,), "ab", (1.5, 1), (True, 1)):
+        with pytest.raises(ValueError, match="half_vote"):
+            GraspSlipDetector(pts, image_width=200, model=scorer, half_vote=bad)  # type: ignore[arg-type]
+    # More votes than the later members: known at the first score of a callable.
+    det = GraspSlipDetector(pts, image_width=200, model=scorer, half_vote=(2, 3), start=0)
+    with pytest.raises(ValueError, match=r"half_vote: needs .* for a committee of 4"):
+        for _ in range(6):
+            det.update(np.zeros_like(pts))
+
+
+def test_shipped_marker_committee_has_the_rendered_half_vote() -> None:
+    from tacswitch.grasp.train import COMMITTEE, default_votes, half_votes, real_only_members
+
+    first = real_only_members(COMMITTEE, True)
+    assert load_scorer("markers").half_vote == (first, half_votes(COMMITTEE, first))
+    assert load_scorer("markerless").half_vote is None
+    # A loaded file passed as the model is read as its path is (votes, half vote, filter).
+    det = GraspSlipDetector(_grid(), image_width=200, model=load_scorer("markers"))
+    assert (det.votes, det.half_vote, det.still_filter) == (
+        default_votes(COMMITTEE), (first, half_votes(COMMITTEE, first)), True)
+    assert [half_votes(k, r) for k, r in ((96, 48), (32, 16), (8, 4), (1, 0), (8, 0), (4, 4))] \
+        == [30, 10, 3, 0, 0, 0]
 
 
 @given(st.lists(st.floats(-1e6, 1e6, allow_nan=False), max_size=60),

@@ -92,6 +92,11 @@ class OnnxScorer:
         self.warmup = value("warmup", "3", int)
         self.committee = value("committee", "1", int)
         self.votes = value("votes", "1", int)
+        # The members after the first ``real_only`` (trained with rendered grasps too) also flag
+        # on ``half_votes`` of their own (files before these keys, or 0: no such vote).
+        real_only = value("real_only", "0", int)
+        half = value("half_votes", "0", int)
+        self.half_vote: tuple[int, int] | None = (real_only, half) if half > 0 else None
         # Whether its features read tracked markers through the still-marker hysteresis
         # (:class:`~tacswitch.grasp.features.FieldFeatures`; files before this key: no).
         self.still_filter = value("still_filter", "false", bool)
@@ -117,6 +122,25 @@ def load_scorer(path: str | os.PathLike[str] | None = None) -> OnnxScorer:
     from tacswitch._ort import cached
 
     return cached(OnnxScorer, slip_model_path(path), "cpu")
+
+
+def check_half_vote(half_vote: Any, committee: int | None) -> tuple[int, int] | None:
+    """``half_vote`` as ``(first, votes)`` (or None); ``ValueError`` naming it unless both are
+    ints with ``first >= 1`` and ``1 <= votes <= committee - first`` (None: not known yet)."""
+    if half_vote is None:
+        return None
+    try:
+        first, votes = half_vote
+    except (TypeError, ValueError):
+        raise ValueError(f"half_vote: expected (first member, votes); got {half_vote!r}") from None
+    if any(isinstance(v, bool) or not isinstance(v, (int, np.integer)) for v in (first, votes)):
+        raise ValueError(f"half_vote: expected two ints; got {half_vote!r}")
+    top = None if committee is None else int(committee) - int(first)
+    if first < 1 or votes < 1 or (top is not None and votes > top):
+        raise ValueError(f"half_vote: needs first >= 1 and 1 <= votes <= the committee's "
+                         f"members from first on; got {half_vote!r}"
+                         + ("" if committee is None else f" for a committee of {committee}"))
+    return int(first), int(votes)
 
 
 def check_votes(votes: int, committee: int | None) -> None:
@@ -176,11 +200,16 @@ class GraspSlipDetector:
         rule: ``"learned"`` (default) or ``"paper"``.
         model: ONNX scorer for the learned rule: a path, ``"markers"`` (the default, for
             tracked markers) or ``"markerless"`` (for motion predicted on a markerless sensor),
-            or a callable ``B x N_FEATURES`` -> ``B`` logits (``B x K`` for a committee).
+            an :class:`OnnxScorer` (:func:`load_scorer`; read as its file is), or a callable ``B x
+            N_FEATURES`` -> ``B`` logits (``B x K`` for a committee).
         threshold: the learned rule's logit threshold, per member (default: the model's).
         votes: the learned rule: committee members that must have fired in a grasp before it
             is flagged (default: the model's; 1 for a callable). Fewer: earlier and more
             detections, more false alarms.
+        half_vote: the learned rule: ``(first, votes)``, a grasp is also flagged once ``votes``
+            of the members from index ``first`` on have fired (the shipped marker committee's
+            members trained with rendered grasps too, which alone know their textbook slip).
+            Default: the model's (none for a callable or a file without one).
         threshold_px: the paper rule's displacement threshold (default 3.25 px at 640 wide,
             scaled to ``image_width``).
         rigid_threshold_px: the paper rule's rigid criterion (pixels or ``"auto"``).
@@ -204,7 +233,8 @@ class GraspSlipDetector:
                  threshold_px: float | None = None,
                  rigid_threshold_px: float | str | None = None, rigid_only: bool = False,
                  smooth_frames: int = 1, start: int | None = None,
-                 fps: float | None = None, still_filter: bool | None = None) -> None:
+                 fps: float | None = None, still_filter: bool | None = None,
+                 half_vote: tuple[int, int] | None = None) -> None:
         from tacswitch.slip import SlipDetector, scaled_threshold
 
         if rule not in RULES:
@@ -233,6 +263,7 @@ class GraspSlipDetector:
         self.threshold = 0.0
         self.warmup = 3
         self.votes = 1
+        self.half_vote: tuple[int, int] | None = None
         self._committee: int | None = None
         self._fired: NDArray[np.bool_] | None = None
         #: The time base's rate (frames/s): the scorer's; the paper rule's phases, 25.
@@ -241,6 +272,8 @@ class GraspSlipDetector:
         if rule == "paper":
             if votes is not None:
                 raise ValueError("votes: applies to rule='learned' only")
+            if half_vote is not None:
+                raise ValueError("half_vote: applies to rule='learned' only")
             if still_filter is not None:
                 raise ValueError("still_filter: applies to rule='learned' only")
             if rigid_only and rigid_threshold_px is None:
@@ -256,13 +289,16 @@ class GraspSlipDetector:
             if smooth_frames != 1:
                 raise ValueError("smooth_frames: applies to rule='paper' only")
             self.pitch = marker_pitch(self.points)
-            if callable(model) and not isinstance(model, (str, os.PathLike)):
+            if (callable(model) and not isinstance(model, (str, os.PathLike))
+                    and not isinstance(model, OnnxScorer)):
                 self._scorer = model
             else:
-                onnx = load_scorer(model)
+                # A loaded file brings its threshold, votes and filter, as its path would.
+                onnx = model if isinstance(model, OnnxScorer) else load_scorer(model)
                 self._scorer = onnx
                 self.threshold, self.warmup = onnx.threshold, onnx.warmup
                 self.votes, self._committee = onnx.votes, onnx.committee
+                self.half_vote = onnx.half_vote
                 self.model_fps = onnx.fps
                 self.still_filter = onnx.still_filter
             if still_filter is not None:
@@ -278,6 +314,8 @@ class GraspSlipDetector:
                     raise TypeError(f"votes: expected an int; got {type(votes).__name__}")
                 self.votes = int(votes)
             check_votes(self.votes, self._committee)
+            if half_vote is not None:
+                self.half_vote = check_half_vote(half_vote, self._committee)
         self.timebase = (TimeBase(self.fps, self.model_fps)
                          if self.fps is not None and needs_resampling(self.fps, self.model_fps)
                          else None)
@@ -360,11 +398,15 @@ class GraspSlipDetector:
             logits = self._logits(feats)
             if self._fired is None:
                 check_votes(self.votes, len(logits))
+                check_half_vote(self.half_vote, len(logits))
                 self._fired = np.zeros(len(logits), bool)
             above = logits > self.threshold
             self._fired |= above
             score = float(logits.mean())
-            slip = bool(above.any()) and int(self._fired.sum()) >= self.votes
+            slip = bool(above.any()) and (
+                int(self._fired.sum()) >= self.votes
+                or (self.half_vote is not None
+                    and int(self._fired[self.half_vote[0]:].sum()) >= self.half_vote[1]))
         fired = 0 if self._fired is None else int(self._fired.sum())
         return GraspSlipState(self.tick, step.phase, step.grasp, step.start, slip, score,
                               "learned" if slip else None, float("nan"), -1, float("nan"),

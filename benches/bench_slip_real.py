@@ -239,9 +239,8 @@ def main() -> int:
                               seeds=marker_seeds, votes=args.votes, epochs=args.epochs,
                               extra=(clip_features(extra[0], still), extra[1]), **tail)
         scorer = torch_scorer(res.net)
-        half = (res.real_only, res.half_votes) if res.half_votes else None
         flags_sim = [[clip_flags(c, model=scorer, threshold=0.0, votes=res.votes,
-                                 still_filter=still, half_vote=half)] for c in held]
+                                 still_filter=still, half_vote=res.half_vote)] for c in held]
         paper_sim = [[clip_flags(c, rule="paper")] for c in held]
         print(format_scores(f"SIMULATED held-out grasps ({len(held)}: slip / hold / vibration, "
                             "GelSight + Mini): learned", score_experiments(held_labels, flags_sim)))

@@ -407,10 +407,10 @@ def test_committee_trains_its_real_only_members_without_the_extra_experiments(
     np.testing.assert_allclose(load_scorer(path)(x), train.frame_scores(res.net, x),
                                rtol=1e-4, atol=1e-4)
     # Its two later members (with the rendered grasps) also vote on their own: 2 of 3 of them.
-    assert (res.real_only, res.half_votes) == (2, 2)
+    assert (res.real_only, res.half_votes) == res.half_vote == (2, 2)
     assert load_scorer(path).half_vote == (2, 2)
     alone = train.train_committee(real, real_labels, seeds=3, epochs=1)
-    assert (alone.real_only, alone.half_votes) == (0, 0)
+    assert (alone.real_only, alone.half_votes, alone.half_vote) == (0, 0, None)
     with pytest.raises(ValueError, match="real_only"):
         train.train_committee(real, real_labels, seeds=2, epochs=1, real_only=3)
 

@@ -56,7 +56,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "later and fewer detections")
     p.add_argument("--votes", type=int, default=None, metavar="K",
                    help="--rule learned: flag a grasp once K members of the scorer's committee "
-                        f"have fired in it (default: the model's, {_shipped_votes()}); fewer: "
+                        f"have fired in it (default: the model's, {_shipped_votes()}; the "
+                        "marker model's second vote, 5/8 of its members trained with rendered "
+                        "grasps, stays); fewer: "
                         "earlier and "
                         "more detections, more false alarms")
     p.add_argument("--threshold-px", type=float, default=None,

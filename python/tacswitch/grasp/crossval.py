@@ -90,12 +90,11 @@ def cross_validated_flags(clips: list[list[TrackedClip]], labels: list[bool],
                               epochs=epochs, extra=(extra_feats, extra_labels),
                               slip_tail=slip_tail)
         scorer = torch_scorer(res.net)
-        half = (res.real_only, res.half_votes) if res.half_votes else None
         for name, test in sets.items():
             for i, k in enumerate(fold_of):
                 if k == f:
                     out[name][i] = [clip_flags(c, model=scorer, threshold=0.0,
                                                votes=res.votes, still_filter=still_filter,
-                                               half_vote=half)
+                                               half_vote=res.half_vote)
                                     for c in test[i]]
     return out

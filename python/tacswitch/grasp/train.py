@@ -121,6 +121,11 @@ class SlipTrainResult:
     #: :func:`half_votes`).
     half_votes: int = 0
 
+    @property
+    def half_vote(self) -> tuple[int, int] | None:
+        """``(real_only, half_votes)``, the detector's ``half_vote``; None without one."""
+        return (self.real_only, self.half_votes) if self.half_votes else None
+
 
 def _transform(x: Any) -> Any:
     import torch

@@ -160,6 +160,7 @@ def methods() -> dict[str, tuple[Method, bool]]:
         "MarkerlessTracker (default)": (_tracker(), True),
         "MarkerlessTracker, rest_frames=16": (_tracker(rest_frames=16), True),
         "MarkerlessTracker, anchor='rest'": (_tracker(anchor="rest"), True),
+        "MarkerlessTracker, frame_to_frame=0.8": (_tracker(frame_to_frame=0.8), True),
         "MarkerlessTracker, anchor='rest', suppress_imprint=False": (
             _tracker(anchor="rest", suppress_imprint=False), True),
         "pairwise from the first frame, auto": (_pairwise(), False),

@@ -8,8 +8,9 @@ frames/s at 320x240 with the learned detector.
 
 ``--markerless``: the loop of ``tacswitch slip --markerless`` on a markerless sensor instead:
 ``MarkerlessTracker``'s motion from rest (the preset the markerless scorer learned,
-``SCORER_FLOW_PRESET``, beside ``balanced``, the one before 2026-11-30) + the learned detector
-with the markerless scorer, on the same frames with the markers removed beforehand (the removal
+``SCORER_FLOW_PRESET``, with its frame-to-frame path, ``SCORER_FRAME_TO_FRAME``, beside the
+same without that path, as before 2026-12-01) + the learned detector with the markerless
+scorer, on the same frames with the markers removed beforehand (the removal
 is not part of a markerless sensor's loop); the budget is camera rate (25 frames/s).
 
     python benches/bench_slip_loop.py [--rounds 9] [--video VIDEO] [--markerless]
@@ -46,12 +47,14 @@ def loop_fps(frames: list[np.ndarray], rule: str | None) -> float:
     return len(frames) / (time.perf_counter() - t0)
 
 
-def markerless_fps(frames: list[np.ndarray], preset: str, centres: np.ndarray) -> float:
+def markerless_fps(frames: list[np.ndarray], weight: float, centres: np.ndarray) -> float:
     """Frames/s of one pass of the markerless slip loop: ``MarkerlessTracker`` (plain flow
-    from the first frame, as ``tacswitch slip --markerless`` runs it) + the learned detector
-    with the markerless scorer."""
+    from the first frame with the scorer's preset and frame-to-frame ``weight``, as ``tacswitch
+    slip --markerless`` runs it) + the learned detector with the markerless scorer."""
+    from tacswitch.grasp.detector import SCORER_FLOW_PRESET
+
     tracker = ts.MarkerlessTracker(frames[0], centres, suppress_imprint=False, anchor="rest",
-                                   preset=preset)
+                                   preset=SCORER_FLOW_PRESET, frame_to_frame=weight)
     det = ts.GraspSlipDetector(centres, model="markerless", image_width=frames[0].shape[1])
     t0 = time.perf_counter()
     for f in frames:
@@ -60,23 +63,24 @@ def markerless_fps(frames: list[np.ndarray], preset: str, centres: np.ndarray) -
 
 
 def markerless_main(sets: list[tuple[str, list[np.ndarray]]], rounds: int) -> None:
-    """The markerless loop's table: frames/s per preset, medians of alternating rounds."""
+    """The markerless loop's table: frames/s with the scorer's frame-to-frame weight (what
+    ships) and without that path, medians of alternating rounds."""
     from tacswitch.grasp.dataset import scorer_removal
-    from tacswitch.grasp.detector import SCORER_FLOW_PRESET, SCORER_REMOVAL_TEXT
+    from tacswitch.grasp.detector import SCORER_FRAME_TO_FRAME, SCORER_REMOVAL_TEXT
 
-    presets = list(dict.fromkeys([SCORER_FLOW_PRESET, "balanced"]))
+    weights = [SCORER_FRAME_TO_FRAME, 0.0]
     print(f"| frames (markers removed: `remove_markers(frame, {SCORER_REMOVAL_TEXT})`) | "
-          + " | ".join(f"`{p}` flow + markerless detector" for p in presets)
-          + " | ratio |\n|---|" + "---|" * (len(presets) + 1))
+          + " | ".join(f"frame_to_frame={w:g} + markerless detector" for w in weights)
+          + " | ratio |\n|---|" + "---|" * (len(weights) + 1))
     for name, marked in sets:
         centres = ts.extract_markers(marked[0]).centres
         frames = [scorer_removal(f) for f in marked]
-        markerless_fps(frames[:10], presets[0], centres)  # warm-up
-        rates: dict[str, list[float]] = {p: [] for p in presets}
+        markerless_fps(frames[:10], weights[0], centres)  # warm-up
+        rates: dict[float, list[float]] = {w: [] for w in weights}
         for _ in range(rounds):
-            for p in presets:
-                rates[p].append(markerless_fps(frames, p, centres))
-        med = [float(np.median(rates[p])) for p in presets]
+            for w in weights:
+                rates[w].append(markerless_fps(frames, w, centres))
+        med = [float(np.median(rates[w])) for w in weights]
         print(f"| {name} ({len(frames)} frames, {rounds} rounds, medians) | "
               + " | ".join(f"{m:.0f}" for m in med) + f" | {med[0] / med[-1]:.2f} |")
 

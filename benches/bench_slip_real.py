@@ -53,7 +53,11 @@ from tacswitch.grasp.dataset import (
     experiment_clips,
     read_labels,
 )
-from tacswitch.grasp.detector import SCORER_FLOW_PRESET, SCORER_REMOVAL_TEXT
+from tacswitch.grasp.detector import (
+    SCORER_FLOW_PRESET,
+    SCORER_FRAME_TO_FRAME,
+    SCORER_REMOVAL_TEXT,
+)
 from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
 from tacswitch.grasp.simulated import SIMULATED_PER_KIND, SIMULATED_SEED, simulated_clips
 from tacswitch.grasp.train import (
@@ -162,7 +166,8 @@ def main() -> int:
                               extra=(clip_features(rendered, still), rendered_labels),
                               **(markerless_tail if args.markerless else tail))
         motion = (f"markers removed by remove_markers(frame, {SCORER_REMOVAL_TEXT}), "
-                  f"MarkerlessTracker ({SCORER_FLOW_PRESET} flow); and the marker tracks"
+                  f"MarkerlessTracker ({SCORER_FLOW_PRESET} flow, frame_to_frame="
+                  f"{SCORER_FRAME_TO_FRAME:g}); and the marker tracks"
                   if args.markerless else "markers")
         export_scorer(res, args.export, extra={
             "trained_on": f"{args.data.name}: {len(exps)} experiments, "

@@ -247,6 +247,10 @@ def test_train_slip_markerless_also_learns_from_the_marker_tracks(labelled: Path
     scorer = load_scorer(model)
     assert (scorer.committee, scorer.votes) == (MARKERLESS_COMMITTEE,
                                                 default_votes(MARKERLESS_COMMITTEE))
+    # It records the frame-to-frame weight its markerless tracks were made with.
+    from tacswitch.grasp.detector import SCORER_FRAME_TO_FRAME
+
+    assert scorer.frame_to_frame == SCORER_FRAME_TO_FRAME
     names = sorted(p.name for p in cache.iterdir())
     from tacswitch.grasp.dataset import MARKER_TRACKS_TAG, MARKERLESS_TRACKS_TAG
 

@@ -142,13 +142,14 @@ def test_markerless_motion_matches_markerless_tracker() -> None:
     frames = grasp("slip")[:10]
     p = TactileProcessor(motion="markerless", outputs=["motion", "slip"])
     out = process_all(p, [message(f, i, "bgr8") for i, f in enumerate(frames)])
-    # With the learned slip output, the plain flow (of the preset) the markerless scorer was
-    # trained on.
-    from tacswitch.grasp.detector import SCORER_FLOW_PRESET
+    # With the learned slip output, the plain flow (of the preset, with the frame-to-frame
+    # weight) the markerless scorer was trained on.
+    from tacswitch.grasp.detector import SCORER_FLOW_PRESET, SCORER_FRAME_TO_FRAME
 
     tracker = ts.MarkerlessTracker(frames[0], suppress_imprint=False, preset=SCORER_FLOW_PRESET,
-                                   anchor="rest")
+                                   anchor="rest", frame_to_frame=SCORER_FRAME_TO_FRAME)
     assert p.tracker.anchor == "rest"  # type: ignore[attr-defined]
+    assert p.tracker.frame_to_frame == SCORER_FRAME_TO_FRAME  # type: ignore[attr-defined]
     motions = by_name(out, "motion")
     assert [o.stamp_ns for o in motions] == [T0 + i * DT for i in range(10)]
     assert len(by_name(out, "slip")) == 10

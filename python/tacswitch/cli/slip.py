@@ -461,7 +461,14 @@ class _LearnedLoop:
         from tacswitch.grasp.detector import GraspSlipDetector
 
         self.offset = offset
-        self.tracker = _first_tracker(frame, self.args, MarkerlessSequence)
+        if self.args.markerless:
+            from tacswitch.grasp.detector import load_scorer
+
+            # The markerless motion of the kind the scorer learned from (its file says).
+            self.tracker = MarkerlessSequence(
+                frame, self.args, frame_to_frame=load_scorer(self.model).frame_to_frame)
+        else:
+            self.tracker = _first_tracker(frame, self.args, MarkerlessSequence)
         if self.fps is None and self.bag is not None:
             from tacswitch.grasp.timebase import fps_from_stamps
 
@@ -499,9 +506,11 @@ class MarkerlessSequence:
     """Stands in for the marker tracker on a markerless sensor for the learned rule: every
     frame's marker motion since the first frame from :class:`tacswitch.MarkerlessTracker`
     (``--ref``: the no-contact frame, default none: the first frame is the anchor) at
-    ``--centres`` or the motion model's grid; no marker is ever lost."""
+    ``--centres`` or the motion model's grid; no marker is ever lost. ``frame_to_frame``: the
+    tracker's frame-to-frame weight, the one the scorer's motion was tracked with."""
 
-    def __init__(self, first: np.ndarray, args: argparse.Namespace) -> None:
+    def __init__(self, first: np.ndarray, args: argparse.Namespace, *,
+                 frame_to_frame: float = 0.0) -> None:
         import tacswitch as ts
         from tacswitch._io import read_image
         from tacswitch.cli.motion import _read_centres
@@ -523,7 +532,8 @@ class MarkerlessSequence:
         # The plain flow from rest, of the preset the markerless scorer was trained on
         # (MarkerlessTracker's doc).
         self._tracker = ts.MarkerlessTracker(ref, self.reference, suppress_imprint=False,
-                                             preset=SCORER_FLOW_PRESET, anchor="rest")
+                                             preset=SCORER_FLOW_PRESET, anchor="rest",
+                                             frame_to_frame=frame_to_frame)
 
     def __len__(self) -> int:
         return len(self.reference)

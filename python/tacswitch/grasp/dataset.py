@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from tacswitch.grasp.detector import SCORER_FLOW_PRESET, SCORER_REMOVAL
+from tacswitch.grasp.detector import SCORER_FLOW_PRESET, SCORER_FRAME_TO_FRAME, SCORER_REMOVAL
 from tacswitch.grasp.features import marker_pitch, sequence_features
 from tacswitch.grasp.timebase import needs_resampling, resample_field
 from tacswitch.markers import extract_markers
@@ -165,7 +165,8 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
     the video's. ``markerless``: the markers are removed from every frame first
     (:func:`scorer_removal`) and the motion predicted by :class:`tacswitch.MarkerlessTracker`
     from the first frame after the camera settled (no marker count: ``tacswitch slip
-    --markerless`` starts there too), at its marker centres: the markerless sensor this
+    --markerless`` starts there too), at its marker centres, with the frame-to-frame path at
+    :data:`~tacswitch.grasp.detector.SCORER_FRAME_TO_FRAME`: the markerless sensor this
     recording would have been."""
     it = iter(frames)
     head = list(itertools.islice(it, REST_LOOK_AHEAD))
@@ -185,7 +186,8 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
     motions: list[NDArray[np.float32]] = [np.zeros((n, 2), np.float32)] * rest
     valids: list[NDArray[np.bool_]] = [np.ones(n, bool)] * rest
     if markerless:
-        mtracker = MarkerlessTracker(None, points, preset=SCORER_FLOW_PRESET)
+        mtracker = MarkerlessTracker(None, points, preset=SCORER_FLOW_PRESET,
+                                     frame_to_frame=SCORER_FRAME_TO_FRAME)
         for frame in itertools.chain(head[rest:], it):
             m = (mtracker.update(scorer_removal(frame)) if n
                  else np.zeros((0, 2), np.float32))
@@ -207,9 +209,10 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
 #: The version of the tracking rules a cached clip was made with, in its file name; an older
 #: cache is tracked again. "-v2": the rest frame after the camera settles (2026-11-28); "-v3"
 #: (markers): also after a stale start that fades (2026-11-29); "-v3" (markerless): the
-#: refined flow on markers removed with ``SCORER_REMOVAL`` (2026-11-30).
+#: refined flow on markers removed with ``SCORER_REMOVAL`` (2026-11-30); "-v4" (markerless): the
+#: frame-to-frame path at ``SCORER_FRAME_TO_FRAME`` (2026-12-01).
 MARKER_TRACKS_TAG = "markers-v3"
-MARKERLESS_TRACKS_TAG = "markerless-v3"
+MARKERLESS_TRACKS_TAG = "markerless-v4"
 
 
 def source_stamp(video: Path) -> NDArray[np.int64]:

@@ -477,6 +477,7 @@ def export_scorer(result: SlipTrainResult, path: str | os.PathLike[str],
     import torch
 
     from tacswitch._io import write_onnx
+    from tacswitch.grasp.detector import SCORER_FRAME_TO_FRAME
     from tacswitch.grasp.features import FRAME_FEATURES, LONG, SNAP_FEATURES, WINDOW
     from tacswitch.grasp.timebase import TRAINED_FPS
 
@@ -498,6 +499,7 @@ def export_scorer(result: SlipTrainResult, path: str | os.PathLike[str],
             "half_votes": result.half_votes, "slip_tail": result.slip_tail, "cut_short": CUT_SHORT,
             "fps": TRAINED_FPS, "still_filter": bool(still_filter),
             "motion": motion,
+            "frame_to_frame": SCORER_FRAME_TO_FRAME if motion == "markerless" else 0.0,
         }
         info.update(extra or {})
         write_onnx(tmp, path, meta, info)

@@ -59,6 +59,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, fields
 from typing import Any
@@ -522,10 +523,19 @@ class TactileProcessor:
             scorer = "slip" in cfg.outputs and cfg.rule == "learned"
             anchor = cfg.anchor if cfg.anchor != "auto" else (
                 "rest" if "slip" in cfg.outputs else "contact")
+            # ... and with the frame-to-frame weight its file records.
+            weight = 0.0
+            if scorer:
+                from tacswitch.grasp.detector import load_scorer
+
+                model = self.slip_model or "markerless"
+                weight = (load_scorer(model).frame_to_frame
+                          if isinstance(model, (str, os.PathLike))
+                          else float(getattr(model, "frame_to_frame", 0.0)))
             self.tracker = MarkerlessTracker(
                 frame, suppress_imprint=not scorer,
                 preset=SCORER_FLOW_PRESET if scorer else None, anchor=anchor,
-                rest_frames=cfg.rest_frames)
+                rest_frames=cfg.rest_frames, frame_to_frame=weight)
             points = self.tracker.centres
         self.points = np.asarray(points, np.float32)
         self.detector = None

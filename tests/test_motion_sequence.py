@@ -283,6 +283,13 @@ def test_markerless_slip_reads_the_flow_its_scorer_learned(monkeypatch, mini, gr
 
     assert load_scorer("markerless").frame_to_frame == SCORER_FRAME_TO_FRAME > 0
     assert load_scorer("markers").frame_to_frame == 0.0
+    from tacswitch.grasp.detector import scorer_frame_to_frame
+
+    # However the scorer is given (a name, a loaded file; a plain callable records none).
+    assert scorer_frame_to_frame("markerless") == SCORER_FRAME_TO_FRAME
+    assert scorer_frame_to_frame(load_scorer("markerless")) == SCORER_FRAME_TO_FRAME
+    assert scorer_frame_to_frame("markers") == 0.0
+    assert scorer_frame_to_frame(lambda x: x[:, :1]) == 0.0
     src = MarkerlessSequence(mini.f0, args, frame_to_frame=SCORER_FRAME_TO_FRAME)
     assert src._tracker.frame_to_frame == SCORER_FRAME_TO_FRAME
 

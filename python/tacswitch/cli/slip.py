@@ -7,6 +7,7 @@ import csv
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -350,9 +351,10 @@ def checked_scorer(model: str, markerless: bool, *, command: str = "slip",
     return scorer
 
 
-def _first_tracker(frame: np.ndarray, args: argparse.Namespace, markerless: type) -> Any:
-    """The marker tracker (or its markerless stand-in) from the rest frame (one with markers:
-    :func:`tacswitch.cli.rest_frame.choose_rest_frame`)."""
+def _first_tracker(frame: np.ndarray, args: argparse.Namespace,
+                   markerless: Callable[[np.ndarray, argparse.Namespace], Any]) -> Any:
+    """The marker tracker (or its markerless stand-in, ``markerless(frame, args)``) from the
+    rest frame (one with markers: :func:`tacswitch.cli.rest_frame.choose_rest_frame`)."""
     import tacswitch as ts
 
     return markerless(frame, args) if args.markerless else ts.MarkerTracker(frame)
@@ -456,19 +458,19 @@ class _LearnedLoop:
     def segmenter(self) -> Any:
         return None if self.detector is None else self.detector.segmenter
 
+    def _markerless_sequence(self, frame: np.ndarray, args: argparse.Namespace
+                             ) -> MarkerlessSequence:
+        """The markerless motion of the kind the scorer learned from (its file says)."""
+        from tacswitch.grasp.detector import scorer_frame_to_frame
+
+        return MarkerlessSequence(frame, args, frame_to_frame=scorer_frame_to_frame(self.model))
+
     def begin(self, frame: np.ndarray, offset: int) -> None:
         """Starts on the rest frame, frame ``offset`` of the source."""
         from tacswitch.grasp.detector import GraspSlipDetector
 
         self.offset = offset
-        if self.args.markerless:
-            from tacswitch.grasp.detector import load_scorer
-
-            # The markerless motion of the kind the scorer learned from (its file says).
-            self.tracker = MarkerlessSequence(
-                frame, self.args, frame_to_frame=load_scorer(self.model).frame_to_frame)
-        else:
-            self.tracker = _first_tracker(frame, self.args, MarkerlessSequence)
+        self.tracker = _first_tracker(frame, self.args, self._markerless_sequence)
         if self.fps is None and self.bag is not None:
             from tacswitch.grasp.timebase import fps_from_stamps
 

@@ -133,6 +133,18 @@ def load_scorer(path: str | os.PathLike[str] | None = None) -> OnnxScorer:
     return cached(OnnxScorer, slip_model_path(path), "cpu")
 
 
+def scorer_frame_to_frame(model: Any) -> float:
+    """The frame-to-frame weight (``MarkerlessTracker(frame_to_frame=...)``) of the motion the
+    scorer ``model`` learned from, ``model`` as :class:`GraspSlipDetector` takes it: a path or a
+    shipped name (read from its file), a loaded :class:`OnnxScorer`, or a plain callable (which
+    records none: 0)."""
+    if isinstance(model, OnnxScorer):
+        return model.frame_to_frame
+    if callable(model) and not isinstance(model, (str, os.PathLike)):
+        return 0.0
+    return load_scorer(model).frame_to_frame
+
+
 def check_half_vote(half_vote: Any, committee: int | None) -> tuple[int, int] | None:
     """``half_vote`` as ``(first, votes)`` (or None); ``ValueError`` naming it unless both are
     ints with ``first >= 1`` and ``1 <= votes <= committee - first`` (None: not known yet)."""

@@ -59,7 +59,6 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, fields
 from typing import Any
@@ -526,12 +525,9 @@ class TactileProcessor:
             # ... and with the frame-to-frame weight its file records.
             weight = 0.0
             if scorer:
-                from tacswitch.grasp.detector import load_scorer
+                from tacswitch.grasp.detector import scorer_frame_to_frame
 
-                model = self.slip_model or "markerless"
-                weight = (load_scorer(model).frame_to_frame
-                          if isinstance(model, (str, os.PathLike))
-                          else float(getattr(model, "frame_to_frame", 0.0)))
+                weight = scorer_frame_to_frame(self.slip_model or "markerless")
             self.tracker = MarkerlessTracker(
                 frame, suppress_imprint=not scorer,
                 preset=SCORER_FLOW_PRESET if scorer else None, anchor=anchor,

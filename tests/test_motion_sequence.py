@@ -213,7 +213,7 @@ def test_the_frame_to_frame_path_steadies_the_velocity(grid) -> None:
             np.testing.assert_array_equal(
                 out[0], flow_motion(frames[0], rest, grid, preset=tr.preset))
             step = flow_motion(frames[1], frames[0], (grid + out[0]).astype(np.float32),
-                               preset=tr.preset, step=True)
+                               preset=tr.preset, coarse=True)
             direct = flow_motion(frames[1], rest, grid, preset=tr.preset)
             np.testing.assert_allclose(out[1], w * (out[0] + step) + (1 - w) * direct,
                                        atol=1e-4)
@@ -226,19 +226,29 @@ def test_the_frame_to_frame_path_steadies_the_velocity(grid) -> None:
             np.testing.assert_array_equal(
                 tr.update(frames[2]), flow_motion(frames[2], rest, grid, preset=tr.preset))
     assert errors[0.8] < 0.5 * errors[0.0], errors
-    # The step's flow: at the work width the same flow; on a frame downsampled for the flow
+    # The coarse flow: at the work width the same flow; on a frame downsampled for the flow
     # (640 x 480) DIS stops a level higher, at a quarter of the cost, and still reads a small
-    # step to within a few tenths of a pixel.
-    np.testing.assert_array_equal(flow_motion(frames[1], frames[0], grid, step=True),
+    # step, and a large motion from rest, to within a few tenths of a pixel.
+    np.testing.assert_array_equal(flow_motion(frames[1], frames[0], grid, coarse=True),
                                   flow_motion(frames[1], frames[0], grid))
     big = _gel(3, shape=(480, 640), grain_sd=2.0)
     b0, fld0 = _moved(big, (10.0, 3.0))
     b1, fld1 = _moved(big, (12.0, 3.6))
     pts = (grid * 2).astype(np.float32)
     true_step = sample_field(fld1, pts) - sample_field(fld0, pts)
-    for st in (False, True):
-        got = flow_motion(b1, b0, pts, step=st)
-        assert np.sqrt(((got - true_step) ** 2).sum(-1).mean()) < 0.4, st
+    for co in (False, True):
+        got = flow_motion(b1, b0, pts, coarse=co)
+        assert np.sqrt(((got - true_step) ** 2).sum(-1).mean()) < 0.4, co
+        got = flow_motion(b1, big, pts, coarse=co)
+        assert np.sqrt(((got - sample_field(fld1, pts)) ** 2).sum(-1).mean()) < 0.4, co
+    # With the path on, the tracker reads every flow so (at 640 x 480 a different, coarser
+    # flow); without it, the fine one.
+    fine = flow_motion(b1, big, pts, suppress_imprint=False)
+    coarse = flow_motion(b1, big, pts, suppress_imprint=False, coarse=True)
+    assert np.abs(fine - coarse).max() > 1e-3
+    for w, want in ((0.8, coarse), (0.0, fine)):
+        tr = MarkerlessTracker(big, pts, anchor="rest", suppress_imprint=False, frame_to_frame=w)
+        np.testing.assert_array_equal(tr.update(b1), want)
     for bad, err in ((-0.1, ValueError), (1.5, ValueError), ("0.5", TypeError)):
         with pytest.raises(err, match=r"^frame_to_frame: expected a"):
             MarkerlessTracker(rest, grid, frame_to_frame=bad)  # type: ignore[arg-type]

@@ -85,8 +85,12 @@ detector reads the velocity, and the markerless slip scorer is trained on this p
 (:data:`tacswitch.grasp.detector.SCORER_FRAME_TO_FRAME`). On the motion from rest it changes
 little (held-out objects, markers removed: 0.53x -> 0.55x zero motion with the default removal,
 0.44x both with the removal for motion; markerless-motion notes), so it is off by default. It
-costs a second flow a frame (the step's, :func:`~tacswitch.motion.flow.flow_motion` with
-``step=True``: on frames wider than the flow's work width a quarter of the direct flow's cost).
+costs a second flow a frame, the step's. With the path on, every flow of the tracker stops one
+pyramid level above the flow's work size (:func:`~tacswitch.motion.flow.flow_motion` with
+``coarse=True``): on frames wider than the work width (640 x 480) each flow then costs a quarter
+and reads on the grid the slip scorer learned at 320 x 240 (the slip loop at 640 x 480 on one
+thread: 26 -> 51 frames/s, against 34 without the path; BENCHMARKS.md); at 320 x 240 the flows
+are the same.
 
 A video that starts in contact has no no-contact frame (``no_contact=None``): the first frame
 is the anchor and the mechanics rule runs on it alone (single frame; ``predict_motion(img)``
@@ -164,8 +168,9 @@ class MarkerlessTracker:
             from frame to frame without lag, the motion read from rest or the anchor bounds
             the drift. 0 (default): off. It steadies the velocity a slip detector reads (the
             markerless slip scorer is trained on it: :data:`tacswitch.grasp.detector.
-            SCORER_FRAME_TO_FRAME`) and costs a second flow a frame (a cheaper one on
-            frames wider than the flow's work width).
+            SCORER_FRAME_TO_FRAME`) and costs a second flow a frame (on frames wider than
+            the flow's work width every flow is then read a pyramid level coarser, at a
+            quarter of the cost: module doc).
 
     Attributes:
         centres: the rest centres used (None until the first frame when both ``no_contact``
@@ -221,6 +226,12 @@ class MarkerlessTracker:
         self.gain = MECHANICS_GAIN if gain is None else _rule_gain("mechanics", gain)
         self.reset()
 
+    @property
+    def _coarse(self) -> bool:
+        """Whether the flows stop a pyramid level above the work size on frames downsampled
+        for the flow (``flow_motion(coarse=True)``): with the frame-to-frame path (module doc)."""
+        return self.frame_to_frame > 0
+
     def _checked(self, img: NDArray[np.uint8], name: str, what: str) -> NDArray[np.uint8]:
         """``img`` (argument ``name``) after the size check; fixes the frame shape (``what``
         fixed it, for later errors) and the default centres from the first frame seen."""
@@ -260,7 +271,7 @@ class MarkerlessTracker:
                 last, moved = self._last
                 assert self.centres is not None  # set by the first frame's _read
                 at = (self.centres + moved).astype(np.float32)
-                step = flow_motion(img, last, at, preset=self.preset, step=True)
+                step = flow_motion(img, last, at, preset=self.preset, coarse=True)
                 motion = (w * (moved + step) + (1.0 - w) * motion).astype(np.float32)
             self._last = (img.copy(), motion.copy())
         return motion
@@ -291,7 +302,8 @@ class MarkerlessTracker:
             return self._anchor[1].copy()
         anchor, pressed = self._anchor
         at = (c + pressed).astype(np.float32)
-        return (pressed + flow_motion(img, anchor, at, preset=self.preset)).astype(np.float32)
+        return (pressed + flow_motion(img, anchor, at, preset=self.preset,
+                                       coarse=self._coarse)).astype(np.float32)
 
     def _fold_rest(self, img: NDArray[np.uint8]) -> bool:
         """Averages ``img`` into the no-contact frame once :data:`REST_CONFIRM` more frames
@@ -334,7 +346,7 @@ class MarkerlessTracker:
 
         def direct() -> NDArray[np.float32]:
             return flow_motion(img, rest, c, preset=self.preset,
-                               suppress_imprint=self.suppress_imprint)
+                               suppress_imprint=self.suppress_imprint, coarse=self._coarse)
 
         if self.anchor == "rest" or still or not is_new_contact(img, rest):
             # No contact (or not asked for): nothing to anchor on.
@@ -349,4 +361,5 @@ class MarkerlessTracker:
         # Both frames show the contact: the flow follows the imprint and the gel under it.
         anchor, at_anchor = self._anchor
         at = (c + at_anchor).astype(np.float32)
-        return (at_anchor + flow_motion(img, anchor, at, preset=self.preset)).astype(np.float32)
+        return (at_anchor + flow_motion(img, anchor, at, preset=self.preset,
+                                          coarse=self._coarse)).astype(np.float32)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -141,12 +142,55 @@ def test_remove_markers_redoes_outputs_of_other_options(
     assert code == 0 and "0 written, 1 already done" in stdout, stdout
     # The record names the options that made each output.
     record = json.loads((out / ".tacswitch-remove-markers.json").read_text())
-    key = record["outputs"]["frame.png"]
+    key = record["outputs"]["frame.png"].split(":")[0]
     assert record["options"][key]["--method"] == "ns"
     # An output with no record (a folder from before the record) is redone.
     (out / ".tacswitch-remove-markers.json").unlink()
     code, stdout, _ = run([*argv, "--method", "ns"], capsys)
     assert code == 0 and "1 written, 0 already done" in stdout, stdout
+
+
+def test_remove_markers_redoes_an_output_of_another_input_of_the_same_name(
+        tmp_path: Path, image: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # A dataset's experiments each hold a camera_0.avi: removed one after another into one
+    # folder, the second must not be "already done" with the first one's output.
+    first, second = tmp_path / "exp_1" / "frame.png", tmp_path / "exp_2" / "frame.png"
+    for path, img in ((first, cv2.imread(str(image))),
+                      (second, cv2.flip(cv2.imread(str(image)), 1))):
+        path.parent.mkdir()
+        cv2.imwrite(str(path), img)
+    out = tmp_path / "out"
+    assert run(["remove-markers", str(first), "-o", str(out)], capsys)[0] == 0
+    code, stdout, _ = run(["remove-markers", str(second), "-o", str(out)], capsys)
+    assert code == 0 and "1 written, 0 already done" in stdout, stdout
+    np.testing.assert_array_equal(cv2.imread(str(out / "frame.png")),
+                                  ts.remove_markers(cv2.imread(str(second))))
+    # The same input again: resumed; the input edited since: redone.
+    code, stdout, _ = run(["remove-markers", str(second), "-o", str(out)], capsys)
+    assert code == 0 and "0 written, 1 already done" in stdout, stdout
+    cv2.imwrite(str(second), cv2.imread(str(first)))
+    os.utime(second, ns=(second.stat().st_atime_ns, second.stat().st_mtime_ns + 10**9))
+    code, stdout, _ = run(["remove-markers", str(second), "-o", str(out)], capsys)
+    assert code == 0 and "1 written, 0 already done" in stdout, stdout
+
+
+def test_remove_markers_warns_where_it_finds_no_marker(
+        tmp_path: Path, image: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    blank = tmp_path / "blank.png"
+    cv2.imwrite(str(blank), np.full((120, 160, 3), 128, np.uint8))
+    video = tmp_path / "blank.mkv"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter.fourcc(*"FFV1"), 25, (160, 120))
+    for _ in range(3):
+        writer.write(np.full((120, 160, 3), 128, np.uint8))
+    writer.release()
+    out = tmp_path / "out"
+    code, _, err = run(["remove-markers", str(image), str(blank), str(video), "-o",
+                             str(out), "-q"], capsys)
+    assert code == 0 and (out / "blank.png").exists() and (out / "blank.mp4").exists()
+    warned = [line for line in err.splitlines() if "no markers found" in line]
+    assert len(warned) == 2, err  # the blank image and the blank video, not the marker frame
+    assert str(blank) in warned[0] and "--threshold" in warned[0]
+    assert str(video) in warned[1]
 
 
 def test_a_frames_folder_of_other_options_is_redone_whole(
@@ -315,6 +359,7 @@ def test_track_options_have_help() -> None:
     (["track", "IMG", "--max-dist", "nan"], "--max-dist"),
     (["markers", "IMG", "--max-aspect", "0.5"], "--max-aspect"),
     (["slip", "IMG", "--rigid-threshold-px", "-2"], "--rigid-threshold-px"),
+    (["slip", "IMG", "--rule", "paper", "--threshold-px", "inf"], "--threshold-px"),
     (["simulate", "--n", "-1"], "--n"),
     (["simulate", "--preset", "nope"], "--preset"),
     (["simulate", "--seed", "-1"], "--seed"),

@@ -10,6 +10,7 @@ import json
 from pathlib import Path
 
 import cv2
+import numpy as np
 import pytest
 
 from tacswitch import sim
@@ -170,6 +171,13 @@ def test_errors_name_the_argument(labelled: Path, tmp_path: Path,
     assert "lacks column(s) ['experiment']" in capsys.readouterr().err
     assert main(["evaluate", "slip", str(labelled), "--rigid-threshold-px", "2", "-q"]) != 0
     assert "--rigid-threshold-px: applies to --rule paper only" in capsys.readouterr().err
+    # A value that is not pixels > 0 is refused by the parser (exit 2), before any tracking.
+    for value in ("-2", "0", "nan", "inf", "two"):
+        with pytest.raises(SystemExit) as exc:
+            main(["evaluate", "slip", str(labelled), "--rule", "paper", "--rigid-threshold-px",
+                  value, "-q"])
+        assert exc.value.code == 2
+        assert "--rigid-threshold-px" in capsys.readouterr().err
     # Options --cv would ignore (it trains its own scorers) are refused, not dropped.
     for extra, name in ((["--rule", "paper"], "--rule paper"), (["--model", "m.onnx"], "--model"),
                         (["--score-threshold", "1"], "--score-threshold")):
@@ -377,3 +385,29 @@ def test_train_slip_help_states_the_rendered_grasps_it_adds(
         main(["train", "slip", "--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert f"(default: {SIMULATED_PER_KIND}, as the shipped scorer" in text
+
+
+def test_unusable_videos_are_left_out_and_named(labelled: Path, tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    # A copy of the labelled grasps where one held grasp's video is blank (no markers: it would
+    # count as a grasp left alone) and another experiment gains an empty file beside its video.
+    import shutil
+
+    data = tmp_path / "data"
+    shutil.copytree(labelled, data)
+    blank = data / "cup" / "exp_1" / "camera_0.avi"
+    vw = cv2.VideoWriter(str(blank), cv2.VideoWriter_fourcc(*"MJPG"), 25, (160, 120))
+    for _ in range(12):
+        vw.write(np.full((120, 160, 3), 128, np.uint8))
+    vw.release()
+    (data / "box" / "exp_2" / "camera_2.avi").write_bytes(b"")
+    out = tmp_path / "res.json"
+    code, _ = run("evaluate", "slip", str(data), "--json", str(out), "-q",
+                  "--cache", str(tmp_path / "cache"))
+    assert code == 0
+    err = capsys.readouterr().err
+    assert "2 video(s) left out" in err and str(blank) in err and "camera_2.avi" in err
+    assert "1 experiment(s) with no usable video are not scored" in err
+    res = json.loads(out.read_text())
+    assert res["scores"]["n"] == 5 and res["scores"]["n_slip"] == 3
+    assert "exp_1" not in {e["experiment"] for e in res["experiments"]}

@@ -246,3 +246,23 @@ def test_motion_of_a_video_starts_after_the_stale_frames(
     with open(tmp_path / "out" / "v.csv") as fh:
         rows = list(csv.DictReader(fh))
     assert min(int(r["frame"]) for r in rows) == 4
+
+
+def test_motion_of_an_image_sequence_starts_after_the_stale_frames(
+        tmp_path: Path, seq: sim.GraspSequence, capsys: pytest.CaptureFixture[str]) -> None:
+    # The same frames as a folder of images (`--sequence`): the same settle check as a video's.
+    import cv2
+
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for i, frame in enumerate(_stale_start(seq)):
+        cv2.imwrite(str(folder / f"{i:04d}.png"), frame)
+    out = tmp_path / "out"
+    assert main(["motion", str(folder), "--sequence", "-o", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "the first 4 readable image(s) come before the camera settled" in said
+    assert sorted(p.name for p in out.glob("*.csv"))[0] == "0004.csv"
+    # With --ref the user chose the reference: every image is measured from it.
+    assert main(["motion", str(folder), "--sequence", "--ref", str(folder / "0004.png"), "-o",
+                 str(tmp_path / "out_ref"), "-q"]) == 0
+    assert sorted(p.name for p in (tmp_path / "out_ref").glob("*.csv"))[0] == "0000.csv"

@@ -91,10 +91,13 @@ def _content_change(a: NDArray[np.float32], mean_a: float, b: NDArray[np.float32
 
 def _isolated_jump(change: Sequence[float], j: int) -> bool:
     """Frame ``j``'s change is a jump: above :data:`REST_JUMP_GREY` and
-    :data:`REST_JUMP_ISOLATION` times each neighbouring frame's."""
+    :data:`REST_JUMP_ISOLATION` times each neighbouring frame's. The frame after it must have
+    been seen: a stale buffer ends in a jump *between* still frames, and a change on the last
+    frame looked at (a press as a short sequence ends) cannot show that."""
+    if j + 1 >= len(change):
+        return False
     around = [change[k] for k in (j - 1, j + 1) if 1 <= k < len(change)]
-    return bool(around) and change[j] > REST_JUMP_GREY and change[j] > (
-        REST_JUMP_ISOLATION * max(around))
+    return change[j] > REST_JUMP_GREY and change[j] > REST_JUMP_ISOLATION * max(around)
 
 
 def lattice_irregularity(centres: Any) -> float:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from tacswitch.cli import (
     bench,
@@ -40,11 +41,20 @@ COMMANDS = {
 EXIT_OK, EXIT_ERROR, EXIT_USAGE = 0, 1, 2
 
 
+class _OneLineErrors(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line on stderr, ``PROG: error: MESSAGE``
+    and where to read the usage, as every other error of the command line (argparse would print
+    its whole usage block above it); exit status 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (usage: {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser (one sub-parser per command)."""
     from tacswitch import __version__
 
-    parser = argparse.ArgumentParser(
+    parser = _OneLineErrors(
         prog="tacswitch",
         description="Mode-switchable optical tactile sensing: markers, tracking, slip, "
         "marker removal, marker motion from markerless images.",

@@ -278,8 +278,12 @@ def run(args: argparse.Namespace) -> int:
             continue
         done += 1
     tracker = None
+    skip = 0  # readable images before the first settled one (--sequence without --ref)
     if args.sequence:
         tracker = _SequenceTracker(ref, centres, gain, args, preset, anchor)
+        if ref is None:
+            skip = _settled_start(files)
+    readable = 0
     # Pairs run flow with --method flow, or auto with --ref; the preset goes only there.
     pair_preset = preset if args.method == "flow" or (args.method == "auto" and ref is not None) \
         else None
@@ -293,6 +297,14 @@ def run(args: argparse.Namespace) -> int:
                 failed.append((path, f"--ref: shape {ref.shape} does not match "
                                      f"{str(path)!r} {img.shape}"))
                 continue
+            readable += 1
+            if readable <= skip:
+                continue
+            if readable == skip + 1 and skip:
+                say(f"--sequence: the first {skip} readable image(s) come before the camera "
+                    f"settled (exposure changing, or frames left from before), so motion is "
+                    f"measured from {path}; those get no output (pass --ref to choose the "
+                    "reference)", quiet=args.quiet)
             try:
                 if tracker is not None:
                     motion = tracker.update(img)
@@ -392,6 +404,17 @@ class _ModelFromAnchor:
         return self.model(img, ref=self.anchor, centres=self.centres)
 
 
+def _settled_start(files: list[Path]) -> int:
+    """How many readable images of a ``--sequence`` come before the camera settled, as a
+    video's frames are read (:func:`tacswitch.cli.rest_frame.choose_rest_frame`, markerless:
+    exposure still changing, or an isolated jump of the whole image at the start)."""
+    from tacswitch.cli.rest_frame import choose_rest_frame
+    from tacswitch.cli.sources import read_quiet
+
+    rest, _ = choose_rest_frame((read_quiet(p) for p in files), None, source="--sequence")
+    return 0 if rest is None else rest.index
+
+
 def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # type: ignore[no-untyped-def]
                  out: Path, stream=None, sink=None, model=None, preset=None,
                  anchor: str = "contact") -> None:
@@ -442,7 +465,8 @@ def _track_video(path: Path, ref, centres, gain, args: argparse.Namespace,  # ty
             if readable <= skip:
                 continue
             if n == 0 and skip:
-                say(f"{path}: frames 0-{t - 1} come before the camera settled (exposure "
+                before = "frame 0 comes" if t == 1 else f"frames 0-{t - 1} come"
+                say(f"{path}: {before} before the camera settled (exposure "
                     "changing, or frames left from before), so motion is measured from frame "
                     f"{t}; those frames get no rows (pass --ref to choose the reference)",
                     quiet=args.quiet)

@@ -183,7 +183,11 @@ def positive_count(text: str) -> int:
     """A whole number in [1, MAX_COUNT]."""
     from tacswitch._checks import MAX_COUNT
 
-    value = count(text)
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number in [1, {MAX_COUNT}], "
+                                         f"got {text!r}") from None
     if not 1 <= value <= MAX_COUNT:
         raise argparse.ArgumentTypeError(f"expected a whole number in [1, {MAX_COUNT}], "
                                          f"got {text!r}")

@@ -35,10 +35,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "with --frames a folder OUT/<stem>/ of lossless PNG frames named by frame index. "
         "Folders are searched for both. Frames that do not decode are skipped and counted; "
         "unreadable images and videos are skipped, counted and named at the end. Existing "
-        "outputs made with the same options are skipped, so an interrupted run resumes (a "
-        "video file is redone, a --frames folder resumes frame by frame); outputs made with "
-        "other options are redone (OUT/.tacswitch-remove-markers.json records which options "
-        "made each output); every write is atomic. For markerless motion from the outputs "
+        "outputs made from the same input with the same options are skipped, so an "
+        "interrupted run resumes (a video file is redone, a --frames folder resumes frame by "
+        "frame); outputs made with other options or from another input of the same name are "
+        "redone (OUT/.tacswitch-remove-markers.json records which input and options made "
+        "each output); every write is atomic. For markerless motion from the outputs "
         "(tacswitch motion), --dilate 5 --radius 5 leaves no fill seams for the flow to "
         "misread, and --codec ffv1 no codec noise (docs/markerless-motion.md).",
         epilog="Exit status: 0 when every readable input is done (unreadable ones are named "
@@ -116,6 +117,26 @@ def _remover(args: argparse.Namespace, ref: np.ndarray | None) -> Remover:
         return ts.remove_markers(img, method=args.method, radius=args.radius, **opts)
 
     return remove
+
+
+def _finds_markers(img: np.ndarray, args: argparse.Namespace) -> bool:
+    """Whether the extraction options find any marker in ``img`` (none found: the fill leaves
+    the frame as it is, which deserves a warning, not a silent copy)."""
+    import tacswitch as ts
+    from tacswitch.cli.options import extraction_options
+
+    return len(ts.extract_markers(img, **extraction_options(args))) > 0
+
+
+def _warn_no_markers(names: list[str]) -> None:
+    """One warning for the inputs in which no marker was found."""
+    from tacswitch.cli.progress import warn
+
+    if names:
+        more = f" and {len(names) - 1} more" if len(names) > 1 else ""
+        warn("remove-markers", f"no markers found in {names[0]}{more}, so the output equals the "
+             "input there; check --polarity and --threshold (tacswitch markers shows what is "
+             "found)")
 
 
 def _output_options(args: argparse.Namespace) -> dict[str, Any]:
@@ -323,29 +344,33 @@ def _images(images: list[Path], out: Path, remove: Remover, workers: int,
     from tacswitch.cli.sources import read_quiet
 
     jobs = [(p, t) for p, t, _ in _jobs(images, [], out, args)]
-    todo = [(p, t) for p, t in jobs if args.overwrite or not record.made_here(t)]
+    todo = [(p, t) for p, t in jobs if args.overwrite or not record.made_here(t, p)]
     failed: list[tuple[Path, str]] = []
 
     def decoded() -> Iterator[tuple[Path, Path, np.ndarray | None]]:
         for path, target in todo:
             yield path, target, read_quiet(path)
 
-    def one(job: tuple[Path, Path, np.ndarray | None]) -> tuple[Path, Path, bool]:
+    def one(job: tuple[Path, Path, np.ndarray | None]) -> tuple[Path, Path, bool, bool]:
         path, target, img = job
         if img is None:
-            return path, target, False
+            return path, target, False, False
         write_image(target, remove(img))
-        return path, target, True
+        return path, target, True, _finds_markers(img, args)
 
+    unmarked: list[str] = []
     with progress(total=len(todo), desc="images", unit="img", quiet=args.quiet) as bar, \
             ordered_map(one, decoded(), workers) as results:
-        for path, target, ok in results:
+        for path, target, ok, marked in results:
             bar.update()
             if ok:
-                record.add(target)
+                record.add(target, path)
                 say(f"{path} -> {target}", quiet=args.quiet)
+                if not marked:
+                    unmarked.append(str(path))
             else:
                 failed.append((path, f"inputs: cannot read an image from {str(path)!r}"))
+    _warn_no_markers(unmarked)
     return len(todo) - len(failed), len(jobs) - len(todo), failed
 
 
@@ -369,7 +394,7 @@ def _video(path: Path, out: Path, ref: np.ndarray | None, workers: int,
     from tacswitch.cli.sources import video_frames, video_info
 
     target = _video_target(path, out, args)
-    if not args.frames and record.made_here(target) and not args.overwrite:
+    if not args.frames and record.made_here(target, path) and not args.overwrite:
         return 0, 1, 0
     try:
         fps, count = video_info(path, "inputs")
@@ -388,6 +413,8 @@ def _video(path: Path, out: Path, ref: np.ndarray | None, workers: int,
                 remove = _remover(args, frame.copy() if first else ref)
                 if first:
                     say(f"{path}: hybrid reference (no contact) = frame {i}", quiet=quiet)
+                if not _finds_markers(frame, args):
+                    _warn_no_markers([f"the first readable frame of {path}"])
             yield i, frame
 
     bar = progress(total=count, desc=path.name, unit="frame", quiet=quiet)
@@ -396,9 +423,9 @@ def _video(path: Path, out: Path, ref: np.ndarray | None, workers: int,
         # Frame by frame resume only in a folder of these options' frames; a new folder is
         # recorded at once (every frame in it will be this run's), one of other options only
         # once all its frames are redone.
-        redo = args.overwrite or not (fresh or record.made_here(target))
+        redo = args.overwrite or not (fresh or record.made_here(target, path))
         if fresh:
-            record.add(target)
+            record.add(target, path)
             record.save()
 
         def one(item: tuple[int, np.ndarray | None]) -> str:
@@ -419,7 +446,7 @@ def _video(path: Path, out: Path, ref: np.ndarray | None, workers: int,
                 bar.update()
         if tally["done"] + tally["skip"] == 0:
             raise _Unreadable(f"inputs: no readable frame in video {str(path)!r}")
-        record.add(target)
+        record.add(target, path)
         say(f"{path} -> {target}/ ({tally['done']} frames written, {tally['skip']} already "
             f"done, {tally['bad']} unreadable skipped)", quiet=quiet)
         return tally["done"], tally["skip"], tally["bad"]
@@ -442,7 +469,7 @@ def _video(path: Path, out: Path, ref: np.ndarray | None, workers: int,
         if writer.frames == 0:
             raise _Unreadable(f"inputs: no readable frame in video {str(path)!r}")
         writer.commit()
-    record.add(target)
+    record.add(target, path)
     say(f"{path} -> {target} ({writer.frames} frames, {bad} unreadable skipped)", quiet=quiet)
     return 1, 0, bad
 
@@ -462,7 +489,7 @@ def _on_ray(images: list[Path], videos: list[Path], out: Path, ref: np.ndarray |
     from tacswitch.cli.progress import progress, say
 
     jobs = _jobs(images, videos, out, args)
-    todo = [(p, t, k) for p, t, k in jobs if args.overwrite or not record.made_here(t)]
+    todo = [(p, t, k) for p, t, k in jobs if args.overwrite or not record.made_here(t, p)]
     target_of = {p: t for p, t, _ in todo}
     task_args = argparse.Namespace(**{**vars(args), "quiet": True})
     failed: list[tuple[Path, str]] = []
@@ -476,7 +503,7 @@ def _on_ray(images: list[Path], videos: list[Path], out: Path, ref: np.ndarray |
                 failed.append((path, res.unreadable.replace(_INPUT, repr(str(path)))))
                 return
             write_outputs(out, res.outputs)
-            record.add(target_of[path])
+            record.add(target_of[path], path)
             tally["done"] += 1
             tally["bad"] += res.bad_frames
             say(f"{path} -> {target_of[path]}", quiet=args.quiet)

@@ -1,8 +1,10 @@
 """Which outputs in a folder were made with which options, so a rerun resumes only its own.
 
 A command that skips existing outputs (an interrupted run resumes) records, per output, the
-options that shaped it in ``OUT/.tacswitch-COMMAND.json`` (written atomically). A rerun with
-other options (another ``--method``, ``--radius``, ...) then redoes those outputs instead of
+options that shaped it and the input it was made from (its resolved path, size and modification
+time) in ``OUT/.tacswitch-COMMAND.json`` (written atomically). A rerun with other options
+(another ``--method``, ``--radius``, ...) or from another input of the same name (every
+experiment of a dataset holds a ``camera_0.avi``) then redoes those outputs instead of
 reporting them "already done"; an output with no record (a folder from an older version, or
 one written just before a hard kill) is redone too.
 
@@ -19,8 +21,9 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
-#: Bumped if the manifest's layout changes (an unknown layout counts as no record).
-VERSION = 1
+#: Bumped if the manifest's layout changes (an unknown layout counts as no record). 2: each
+#: output's entry also names its input (2026-12-02).
+VERSION = 2
 #: Seconds between saves of the record during a run.
 SAVE_EVERY_S = 2.0
 
@@ -36,10 +39,23 @@ def options_key(options: dict[str, Any]) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+def source_stamp(source: Path) -> str:
+    """A short digest of the input ``source``: its resolved path, size and modification time
+    (a file replaced or edited since reads as another input); the path alone if it cannot be
+    read."""
+    try:
+        st = source.stat()
+        text = f"{source.resolve()}|{st.st_size}|{st.st_mtime_ns}"
+    except OSError:
+        text = str(source)
+    return hashlib.sha256(text.encode()).hexdigest()[:12]
+
+
 class OutputRecord:
     """The record of one run's outputs in ``out``: :meth:`made_here` tells whether an existing
-    output was made with this run's ``options``; :meth:`add` records one just written. Use it
-    as a context manager (the record is saved on leaving, also on an error or Ctrl-C)."""
+    output was made from the same input with this run's ``options``; :meth:`add` records one
+    just written. Use it as a context manager (the record is saved on leaving, also on an error
+    or Ctrl-C)."""
 
     def __init__(self, out: Path, command: str, options: dict[str, Any]) -> None:
         self.out = out
@@ -61,13 +77,18 @@ class OutputRecord:
     def _name(self, target: Path) -> str:
         return target.relative_to(self.out).as_posix()
 
-    def made_here(self, target: Path) -> bool:
-        """Whether ``target`` exists and was recorded as made with this run's options."""
-        return target.exists() and self.outputs.get(self._name(target)) == self.key
+    def _entry(self, source: Path) -> str:
+        return f"{self.key}:{source_stamp(source)}"
 
-    def add(self, target: Path) -> None:
-        """Records ``target`` as made with this run's options (saved every few seconds)."""
-        self.outputs[self._name(target)] = self.key
+    def made_here(self, target: Path, source: Path) -> bool:
+        """Whether ``target`` exists and was recorded as made from ``source`` with this run's
+        options."""
+        return target.exists() and self.outputs.get(self._name(target)) == self._entry(source)
+
+    def add(self, target: Path, source: Path) -> None:
+        """Records ``target`` as made from ``source`` with this run's options (saved every few
+        seconds)."""
+        self.outputs[self._name(target)] = self._entry(source)
         self._dirty = True
         if time.monotonic() - self._saved >= SAVE_EVERY_S:
             self.save()
@@ -79,7 +100,7 @@ class OutputRecord:
 
         if not self._dirty:
             return
-        used = set(self.outputs.values())
+        used = {entry.split(":", 1)[0] for entry in self.outputs.values()}
         options = {k: v for k, v in self.known.items() if k in used}
         options[self.key] = self.options
         with atomic_open(self.path) as fh:

@@ -65,7 +65,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--threshold-px", type=float, default=None,
                    help="--rule paper: displacement threshold (default: 3.25 px scaled to the "
                         "frame width)")
-    p.add_argument("--rigid-threshold-px", type=_px_or_auto, default=None, metavar="PX|auto",
+    p.add_argument("--rigid-threshold-px", type=px_or_auto, default=None, metavar="PX|auto",
                    help="also flag deviation from a rigid contact motion above this (pixels, or "
                    "'auto': half the displacement threshold)")
     p.add_argument("--rigid-only", action="store_true",
@@ -125,7 +125,7 @@ RULES = ("learned", "paper")
 PAPER_OPTIONS = ("threshold_px", "rigid_threshold_px", "smooth_frames", "method")
 
 
-def _px_or_auto(text: str) -> float | str:
+def px_or_auto(text: str) -> float | str:
     """Pixels > 0 (finite) or ``'auto'``."""
     from tacswitch.cli.options import positive
 
@@ -174,8 +174,8 @@ def _check(args: argparse.Namespace) -> None:
         raise UsageError(f"--start: frame {args.start} is past --max-frames {args.max_frames}")
     if args.smooth_frames is not None and not 1 <= args.smooth_frames <= 1000:
         raise UsageError(f"--smooth-frames: must be in [1, 1000]; got {args.smooth_frames}")
-    if args.threshold_px is not None and not args.threshold_px > 0:
-        raise UsageError(f"--threshold-px: must be > 0; got {args.threshold_px}")
+    if args.threshold_px is not None and not 0 < args.threshold_px < float("inf"):
+        raise UsageError(f"--threshold-px: must be a finite number > 0; got {args.threshold_px}")
     if args.fps is not None:
         from tacswitch.grasp.timebase import check_fps
 

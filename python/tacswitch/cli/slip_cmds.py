@@ -47,8 +47,10 @@ def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
     p.add_argument("--score-threshold", type=float, default=None, metavar="LOGIT",
                    help="--rule learned: a committee member fires on a frame whose score "
                         "exceeds this (default: the model's, 0)")
-    p.add_argument("--rigid-threshold-px", default=None, metavar="PX|auto",
-                   help="--rule paper: add the rigid criterion")
+    from tacswitch.cli.slip import px_or_auto
+
+    p.add_argument("--rigid-threshold-px", type=px_or_auto, default=None, metavar="PX|auto",
+                   help="--rule paper: add the rigid criterion (pixels > 0, or 'auto')")
     p.add_argument("--cv", type=int, default=0, metavar="K",
                    help="instead of the model: train and score K folds grouped by object "
                         "(needs tacswitch[train])")
@@ -171,8 +173,9 @@ def _paired_marker_clips(args: argparse.Namespace, exps):  # type: ignore[no-unt
 
     if not args.markerless or args.no_marker_tracks:
         return None
+    # A video that cannot be tracked was named when the markerless tracks were loaded.
     return experiment_clips(exps, _cache_dir(args), markerless=False, workers=args.workers,
-                            progress=not args.quiet and stderr_is_terminal())
+                            progress=not args.quiet and stderr_is_terminal(), unreadable=[])
 
 
 def _cache_dir(args: argparse.Namespace) -> Path:
@@ -187,7 +190,8 @@ def _cache_dir(args: argparse.Namespace) -> Path:
     return output_dir(folder, "--cache")
 
 
-def _load(args: argparse.Namespace, folds: int = 0):  # type: ignore[no-untyped-def]
+def _load(args: argparse.Namespace, folds: int = 0,  # type: ignore[no-untyped-def]
+          command: str = "evaluate slip"):
     """The labelled experiments and their tracked clips (``folds``: ``--cv``'s, checked against
     the objects before anything is tracked)."""
     from tacswitch.grasp.dataset import experiment_clips, read_labels
@@ -204,9 +208,41 @@ def _load(args: argparse.Namespace, folds: int = 0):  # type: ignore[no-untyped-
     if folds > n_objects:
         raise UsageError(f"--cv: {folds} folds grouped by object need at least {folds} "
                          f"objects; the labels name {n_objects}")
+    unreadable: list[tuple[Path, str]] = []
     clips = experiment_clips(exps, _cache_dir(args), markerless=args.markerless,
-                             workers=args.workers, progress=not args.quiet and stderr_is_terminal())
-    return exps, clips
+                             workers=args.workers, progress=not args.quiet and stderr_is_terminal(),
+                             unreadable=unreadable)
+    return _usable(exps, clips, unreadable, command)
+
+
+def _usable(exps, clips, unreadable, command):  # type: ignore[no-untyped-def]
+    """The experiments with at least one video that could be tracked, each with those videos:
+    a video that does not decode, or shows no marker in its first frames (a blank recording:
+    it would be scored as a grasp left alone), is left out and named in a warning, and so is an
+    experiment left with no video; ``ValueError`` if none is left."""
+    from tacswitch.cli.progress import warn
+
+    bad = [(str(v), reason) for v, reason in unreadable]
+    keep_exps, keep_clips = [], []
+    for e, cs in zip(exps, clips, strict=True):
+        videos = [v for v in e.videos if str(v) not in {b for b, _ in bad}]
+        usable = []
+        for v, c in zip(videos, cs, strict=True):
+            if len(c.points) == 0:
+                bad.append((str(v), "no markers found in its first frames (a blank recording?)"))
+            else:
+                usable.append(c)
+        if usable:
+            keep_exps.append(e)
+            keep_clips.append(usable)
+    if bad:
+        dropped = len(exps) - len(keep_exps)
+        warn(command, f"{len(bad)} video(s) left out: " + "; ".join(
+            f"{v}: {why}" for v, why in bad[:5]) + (" ..." if len(bad) > 5 else "") + (
+            f"; {dropped} experiment(s) with no usable video are not scored" if dropped else ""))
+    if not keep_exps:
+        raise ValueError("data: no experiment has a video that can be tracked")
+    return keep_exps, keep_clips
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
@@ -214,11 +250,6 @@ def run_evaluate(args: argparse.Namespace) -> int:
     from tacswitch.grasp.evaluate import TABLE_HEADER, format_scores, score_experiments
 
     rigid = args.rigid_threshold_px
-    if rigid is not None and rigid != "auto":
-        try:
-            rigid = float(rigid)
-        except ValueError:
-            raise UsageError(f"--rigid-threshold-px: pixels or 'auto'; got {rigid!r}") from None
     if args.rule == "learned" and rigid is not None:
         raise UsageError("--rigid-threshold-px: applies to --rule paper only")
     if args.cv and args.cv < 2:
@@ -253,6 +284,9 @@ def run_evaluate(args: argparse.Namespace) -> int:
         if out.is_dir() or not out.parent.is_dir():
             raise UsageError(f"--json: cannot write {args.json!r} (a folder, or its folder "
                              "does not exist)")
+        from tacswitch.cli.options import output_file
+
+        output_file(out, "--json")  # a folder that cannot be written: said before tracking
     if args.model is not None:
         # Before tracking: a file that cannot be read is named at once, and a scorer of the
         # other kind of motion is said.
@@ -324,7 +358,7 @@ def run_train(args: argparse.Namespace) -> int:
     from tacswitch.grasp.simulated import KINDS, SENSORS, SIMULATED_PER_KIND
 
     n_sim = SIMULATED_PER_KIND if args.simulated is None else args.simulated
-    exps, clips = _load(args)
+    exps, clips = _load(args, command="train slip")
     labelled = [e.slip for e in exps]
     from tacswitch.grasp.augment import copies_phrase, marker_training_set, with_copies
     from tacswitch.grasp.dataset import clip_features

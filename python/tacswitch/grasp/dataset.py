@@ -300,22 +300,28 @@ def cached_clip(video: Path, cache: Path | None, *, markerless: bool = False) ->
 
 def experiment_clips(experiments: list[Experiment], cache: Path | None = None, *,
                      markerless: bool = False, workers: int = 1,
-                     progress: bool = False) -> list[list[TrackedClip]]:
+                     progress: bool = False,
+                     unreadable: list[tuple[Path, str]] | None = None
+                     ) -> list[list[TrackedClip]]:
     """Tracked clips of every video of every experiment (a list per experiment), computed in
-    ``workers`` processes (the caller's main module must be import-safe for ``workers > 1``)."""
+    ``workers`` processes (the caller's main module must be import-safe for ``workers > 1``).
+    ``unreadable``: a list to collect the videos that cannot be tracked (no readable frame:
+    ``(video, reason)``); they are left out of their experiment's list instead of stopping
+    the whole run (None: the first such video raises ``ValueError``)."""
     jobs = [(v, cache, markerless) for e in experiments for v in e.videos]
-    flat: list[TrackedClip] = []
+    job = _job if unreadable is None else _job_or_reason
+    flat: list[TrackedClip | str] = []
     if workers > 1:
         from multiprocessing import get_context
 
         with get_context("spawn").Pool(workers) as pool:
-            for i, clip in enumerate(pool.imap(_job, jobs, chunksize=1)):
+            for i, clip in enumerate(pool.imap(job, jobs, chunksize=1)):
                 flat.append(clip)
                 if progress:
                     print(f"\r{i + 1}/{len(jobs)} videos", end="", flush=True, file=sys.stderr)
     else:
-        for i, job in enumerate(jobs):
-            flat.append(_job(job))
+        for i, one in enumerate(jobs):
+            flat.append(job(one))
             if progress:
                 print(f"\r{i + 1}/{len(jobs)} videos", end="", flush=True, file=sys.stderr)
     if progress:
@@ -323,10 +329,25 @@ def experiment_clips(experiments: list[Experiment], cache: Path | None = None, *
     out: list[list[TrackedClip]] = []
     k = 0
     for e in experiments:
-        out.append(flat[k:k + len(e.videos)])
+        clips = []
+        for video, got in zip(e.videos, flat[k:k + len(e.videos)], strict=True):
+            if isinstance(got, str):
+                assert unreadable is not None
+                unreadable.append((video, got))
+            else:
+                clips.append(got)
+        out.append(clips)
         k += len(e.videos)
     return out
 
 
 def _job(job: tuple[Path, Path | None, bool]) -> TrackedClip:
     return cached_clip(job[0], job[1], markerless=job[2])
+
+
+def _job_or_reason(job: tuple[Path, Path | None, bool]) -> TrackedClip | str:
+    """:func:`_job`, or why the video cannot be tracked (a video without a readable frame)."""
+    try:
+        return _job(job)
+    except ValueError as exc:
+        return str(exc)

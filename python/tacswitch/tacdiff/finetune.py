@@ -533,7 +533,8 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
     if offset is None:
         pitch = estimate_pitch(first.centres)
         if pitch is None:
-            raise ValueError("frames: too few markers found to estimate the pitch; pass offset")
+            raise ValueError("frames: too few markers found to estimate the pitch; pass offset "
+                             "(tacswitch finetune --offset DX,DY)")
         offset = default_offset(pitch) if transplant else (round(pitch / 2),) * 2  # type: ignore[assignment]
     assert offset is not None
     offset = (int(offset[0]), int(offset[1]))
@@ -564,9 +565,11 @@ def finetune(frames: Sequence[NDArray[np.uint8]], out: str | Path, *,
                                 per_frame=max(1, MAX_PAIRS // len(tr)))
     pairs.pop("moved", None)
     if not pairs["loss_mask"].any():
-        raise ValueError("frames: no shifted marker pixel lands on real gel; pass offset")
+        raise ValueError("frames: no shifted marker pixel lands on real gel; pass offset "
+                         "(tacswitch finetune --offset DX,DY)")
     if not val.pairs["loss_mask"].any():
-        raise ValueError("frames: no validation marker lands on real gel; pass offset")
+        raise ValueError("frames: no validation marker lands on real gel; pass offset "
+                         "(tacswitch finetune --offset DX,DY)")
     inherited = start_objective(start)
     loss = inherited[0] if loss is None else check_loss(loss)
     terminal_fraction = inherited[1] if terminal_fraction is None else float(terminal_fraction)

@@ -266,3 +266,22 @@ def test_motion_of_an_image_sequence_starts_after_the_stale_frames(
     assert main(["motion", str(folder), "--sequence", "--ref", str(folder / "0004.png"), "-o",
                  str(tmp_path / "out_ref"), "-q"]) == 0
     assert sorted(p.name for p in (tmp_path / "out_ref").glob("*.csv"))[0] == "0000.csv"
+
+
+def test_a_hybrid_removal_takes_the_settled_frame_as_its_reference(
+        tmp_path: Path, seq: sim.GraspSequence, capsys: pytest.CaptureFixture[str]) -> None:
+    import cv2
+
+    import tacswitch as ts
+
+    frames = _stale_start(seq)[:12]
+    video = write_video(tmp_path / "v.mkv", frames, fourcc="FFV1")
+    out = tmp_path / "out"
+    assert main(["remove-markers", str(video), "-o", str(out), "--method", "hybrid",
+                 "--frames"]) == 0
+    said = capsys.readouterr().out
+    assert "hybrid reference (no contact) = frame 4 (the first after the camera settled)" in said
+    assert len(list((out / "v").glob("*.png"))) == len(frames)  # every frame is still removed
+    got = cv2.imread(str(out / "v" / f"{len(frames) - 1:06d}.png"))
+    np.testing.assert_array_equal(got, ts.remove_markers(frames[-1], method="hybrid",
+                                                         ref=frames[4]))

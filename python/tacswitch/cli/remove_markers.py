@@ -69,8 +69,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "time (default: 4, or 1 with --model fast)")
     p.add_argument("--ref", default=None,
                    help="hybrid: no-contact frame of the sensor to find the contact against "
-                        "(default for a video: its first frame, which should show no contact; "
-                        "for images: the contact is found from local texture)")
+                        "(default for a video: its first frame after the camera settled, which "
+                        "should show no contact; for images: the contact is found from local "
+                        "texture)")
     p.add_argument("--model", default=None,
                    help="tacdiff/hybrid ONNX model, or 'fast' for the shipped narrow model "
                         "(default: the shipped model)")
@@ -405,14 +406,22 @@ def _video(path: Path, out: Path, ref: np.ndarray | None, workers: int,
 
     def items() -> Iterator[tuple[int, np.ndarray | None]]:
         """Decoded frames with their index (on this thread); the remover is made at the first
-        readable frame, the reference of a hybrid run without --ref."""
+        readable frame, or for a hybrid run without --ref at the first frame after the camera
+        settled (:func:`_settled_reference`), its no-contact reference."""
         nonlocal remove
-        for i, frame in enumerate(video_frames(path, "inputs")):
-            if remove is None and frame is not None:
-                first = ref is None and args.method == "hybrid"
-                remove = _remover(args, frame.copy() if first else ref)
-                if first:
-                    say(f"{path}: hybrid reference (no contact) = frame {i}", quiet=quiet)
+        stream: Iterator[np.ndarray | None] = video_frames(path, "inputs")
+        if ref is None and args.method == "hybrid":
+            index, reference, stream = _settled_reference(stream, path)
+            if reference is not None:
+                remove = _remover(args, reference)
+                say(f"{path}: hybrid reference (no contact) = frame {index}"
+                    + (" (the first after the camera settled)" if index else ""), quiet=quiet)
+        warned = False
+        for i, frame in enumerate(stream):
+            if frame is not None and not warned:
+                warned = True
+                if remove is None:
+                    remove = _remover(args, ref)
                 if not _finds_markers(frame, args):
                     _warn_no_markers([f"the first readable frame of {path}"])
             yield i, frame
@@ -472,6 +481,31 @@ def _video(path: Path, out: Path, ref: np.ndarray | None, workers: int,
     record.add(target, path)
     say(f"{path} -> {target} ({writer.frames} frames, {bad} unreadable skipped)", quiet=quiet)
     return 1, 0, bad
+
+
+def _settled_reference(stream: Iterator[np.ndarray | None], path: Path
+                       ) -> tuple[int, np.ndarray | None, Iterator[np.ndarray | None]]:
+    """The frame of a video to take as the no-contact reference: the first after the camera
+    settled (:func:`tacswitch.cli.rest_frame.choose_rest_frame`, as ``slip`` and ``motion``
+    take it: not an under-exposed first frame, nor frames left in the camera's buffer from a
+    previous grasp). Returns (its index in the video, the frame or None when none decodes, the
+    whole stream again)."""
+    import itertools
+
+    from tacswitch.cli.rest_frame import choose_rest_frame
+
+    rest, replay = choose_rest_frame(stream, None, source=str(path))
+    if rest is None:
+        return 0, None, replay
+    head: list[np.ndarray | None] = []
+    readable = -1
+    for frame in replay:  # the look-ahead's frames, replayed up to the reference
+        head.append(frame)
+        if frame is not None:
+            readable += 1
+            if readable == rest.index:
+                return len(head) - 1, frame.copy(), itertools.chain(head, replay)
+    return 0, None, iter(head)
 
 
 #: Stands for the input's path in a Ray task's error message (the task sees a temporary copy).

@@ -545,3 +545,12 @@ def test_extraction_values_the_library_refuses_name_the_flag(
         flag: str) -> None:
     code, _, err = run(["markers", str(image), "-o", str(tmp_path / "out"), *extra], capsys)
     usage_error(code, err, "markers", flag)
+
+
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux's /proc")
+def test_a_folder_that_refuses_new_files_is_named_as_such(
+        tmp_path: Path, image: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # /proc exists but refuses new files with "no such file or directory" (ENOENT).
+    code, _, err = run(["slip", str(image), "--log", "/proc/x.csv"], capsys)
+    usage_error(code, err, "slip", "--log")
+    assert "does not accept new files" in err and "no such file" not in err

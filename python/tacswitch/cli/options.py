@@ -97,8 +97,10 @@ def _check_writable(folder: Path, option: str) -> None:
         with tempfile.TemporaryFile(dir=folder):
             pass
     except OSError as exc:
-        raise UsageError(f"{option}: cannot write in {str(folder)!r}: "
-                         f"{_os_reason(exc)}") from None
+        # An existing folder that refuses new files with "no such file" (/proc, /sys): say so.
+        reason = ("the folder does not accept new files (a virtual or read-only file system?)"
+                  if exc.errno == errno.ENOENT and folder.is_dir() else _os_reason(exc))
+        raise UsageError(f"{option}: cannot write in {str(folder)!r}: {reason}") from None
 
 
 def input_file(path: str | os.PathLike[str], option: str) -> Path:

@@ -188,8 +188,7 @@ def positive_count(text: str) -> int:
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number in [1, {MAX_COUNT}], "
-                                         f"got {text!r}") from None
+        value = 0  # not a whole number: the same message as one out of range
     if not 1 <= value <= MAX_COUNT:
         raise argparse.ArgumentTypeError(f"expected a whole number in [1, {MAX_COUNT}], "
                                          f"got {text!r}")
@@ -215,6 +214,16 @@ def positive(text: str) -> float:
     if not (value > 0 and value < float("inf")):
         raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
     return value
+
+
+def px_or_auto(text: str) -> float | str:
+    """Pixels > 0 (finite) or ``'auto'``."""
+    if text == "auto":
+        return text
+    try:
+        return positive(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"expected pixels > 0 or 'auto', got {text!r}") from None
 
 
 def fraction(text: str) -> float:

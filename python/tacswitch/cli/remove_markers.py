@@ -353,11 +353,13 @@ def _images(images: list[Path], out: Path, remove: Remover, workers: int,
             yield path, target, read_quiet(path)
 
     def one(job: tuple[Path, Path, np.ndarray | None]) -> tuple[Path, Path, bool, bool]:
+        """Fills one image; (path, target, read, changed: False where no marker was found)."""
         path, target, img = job
         if img is None:
             return path, target, False, False
-        write_image(target, remove(img))
-        return path, target, True, _finds_markers(img, args)
+        result = remove(img)
+        write_image(target, result)
+        return path, target, True, not np.array_equal(result, img)
 
     unmarked: list[str] = []
     with progress(total=len(todo), desc="images", unit="img", quiet=args.quiet) as bar, \

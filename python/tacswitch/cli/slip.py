@@ -18,6 +18,8 @@ from tacswitch.cli.sources import SkipCount, check_source, frame_count, frames
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
+    from tacswitch.cli.options import positive, px_or_auto
+
     p = sub.add_parser(
         "slip",
         help="run the slip loop on a video, an image folder or a camera",
@@ -62,7 +64,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "grasps, stays); fewer: "
                         "earlier and "
                         "more detections, more false alarms")
-    p.add_argument("--threshold-px", type=float, default=None,
+    p.add_argument("--threshold-px", type=positive, default=None,
                    help="--rule paper: displacement threshold (default: 3.25 px scaled to the "
                         "frame width)")
     p.add_argument("--rigid-threshold-px", type=px_or_auto, default=None, metavar="PX|auto",
@@ -125,18 +127,6 @@ RULES = ("learned", "paper")
 PAPER_OPTIONS = ("threshold_px", "rigid_threshold_px", "smooth_frames", "method")
 
 
-def px_or_auto(text: str) -> float | str:
-    """Pixels > 0 (finite) or ``'auto'``."""
-    from tacswitch.cli.options import positive
-
-    if text == "auto":
-        return text
-    try:
-        return positive(text)
-    except argparse.ArgumentTypeError:
-        raise argparse.ArgumentTypeError(f"expected pixels > 0 or 'auto', got {text!r}") from None
-
-
 def _window_problem() -> str | None:
     """Why ``--show`` cannot open a window here (None: it can): the headless OpenCV build
     tacswitch depends on has no GUI (``cv2.imshow`` raises "not implemented"), and on Linux a
@@ -174,8 +164,6 @@ def _check(args: argparse.Namespace) -> None:
         raise UsageError(f"--start: frame {args.start} is past --max-frames {args.max_frames}")
     if args.smooth_frames is not None and not 1 <= args.smooth_frames <= 1000:
         raise UsageError(f"--smooth-frames: must be in [1, 1000]; got {args.smooth_frames}")
-    if args.threshold_px is not None and not 0 < args.threshold_px < float("inf"):
-        raise UsageError(f"--threshold-px: must be a finite number > 0; got {args.threshold_px}")
     if args.fps is not None:
         from tacswitch.grasp.timebase import check_fps
 

@@ -47,7 +47,7 @@ def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
     p.add_argument("--score-threshold", type=float, default=None, metavar="LOGIT",
                    help="--rule learned: a committee member fires on a frame whose score "
                         "exceeds this (default: the model's, 0)")
-    from tacswitch.cli.slip import px_or_auto
+    from tacswitch.cli.options import px_or_auto
 
     p.add_argument("--rigid-threshold-px", type=px_or_auto, default=None, metavar="PX|auto",
                    help="--rule paper: add the rigid criterion (pixels > 0, or 'auto')")
@@ -223,9 +223,10 @@ def _usable(exps, clips, unreadable, command):  # type: ignore[no-untyped-def]
     from tacswitch.cli.progress import warn
 
     bad = [(str(v), reason) for v, reason in unreadable]
+    untracked = {v for v, _ in bad}
     keep_exps, keep_clips = [], []
     for e, cs in zip(exps, clips, strict=True):
-        videos = [v for v in e.videos if str(v) not in {b for b, _ in bad}]
+        videos = [v for v in e.videos if str(v) not in untracked]
         usable = []
         for v, c in zip(videos, cs, strict=True):
             if len(c.points) == 0:

@@ -257,6 +257,27 @@ def test_remove_markers_default_output_and_storage(tmp_path: Path,
     assert len(read_bag(tmp_path / "o" / "run1")[f"{TOPIC}/markerless"]) == 1
 
 
+def test_a_hybrid_removal_of_a_bag_takes_the_settled_frame_as_its_reference(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # A dark first frame (exposure settling), then the gel at rest, then a grasp: as for a
+    # video, the no-contact reference is frame 1, not frame 0.
+    seq = ts.sim.grasp_sequence("gelsight_mini", "hold", n_frames=8, seed=3)
+    frames = [(0.6 * seq.reference).astype(np.uint8)] + [seq.reference] * 6 + list(seq.frames)
+    src = bag_path(tmp_path, "sqlite3")
+    make_bag(src, "sqlite3", frames)
+    target = bag_path(tmp_path, "sqlite3", "out")
+    assert main(["remove-markers", str(src), "--topic", TOPIC, "-o", str(tmp_path / "o"),
+                 "--out-bag", str(target), "--method", "hybrid"]) == 0
+    assert "hybrid reference (no contact) = frame 1 (the first after the camera settled)" in (
+        capsys.readouterr().out)
+    clean = read_bag(target)[f"{TOPIC}/markerless"]
+    assert len(clean) == len(frames)  # every frame is still removed, in order
+    _, m, _ = clean[-1]
+    got = np.asarray(m.data, np.uint8).reshape(m.height, m.width, 3)
+    np.testing.assert_array_equal(got, ts.remove_markers(frames[-1], method="hybrid",
+                                                         ref=frames[1]))
+
+
 @pytest.mark.parametrize("kind", KINDS)
 def test_slip_writes_slip_state_and_motion(tmp_path: Path, grasp: list[np.ndarray],
                                            kind: str) -> None:

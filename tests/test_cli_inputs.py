@@ -121,6 +121,26 @@ def test_markers_reads_a_video_frame(tmp_path: Path, grasp: sim.GraspSequence,
     assert "--frame" in capsys.readouterr().err
 
 
+def test_a_named_file_without_a_known_suffix_is_told_by_its_contents(
+        tmp_path: Path, grasp: sim.GraspSequence, capsys: pytest.CaptureFixture[str]) -> None:
+    # A camera dump without an extension is a video; an image renamed without one stays an
+    # image; anything else fails as a video that does not decode, named.
+    video = write_video(tmp_path / "rec.mkv", [grasp.reference, *grasp.frames], "FFV1", fps=30)
+    bare = video.rename(tmp_path / "rec")
+    image = tmp_path / "still"
+    image.write_bytes(cv2.imencode(".png", grasp.frames[2])[1].tobytes())
+    out = tmp_path / "m"
+    assert main(["markers", str(bare), str(image), "-o", str(out), "-q"]) == 0
+    np.testing.assert_allclose(read_csv(out / "rec.csv"),
+                               ts.extract_markers(grasp.reference).centres, atol=1e-3)
+    np.testing.assert_allclose(read_csv(out / "still.csv"),
+                               ts.extract_markers(grasp.frames[2]).centres, atol=1e-3)
+    junk = tmp_path / "junk"
+    junk.write_bytes(b"neither an image nor a video")
+    assert main(["markers", str(junk), "-o", str(out), "-q"]) == 1
+    assert "junk" in capsys.readouterr().err
+
+
 def test_rest_centres_from_a_video_feed_motion(tmp_path: Path, grasp: sim.GraspSequence) -> None:
     video = write_video(tmp_path / "rec.mkv", [grasp.reference, *grasp.frames], "FFV1", fps=30)
     assert main(["markers", str(video), "-o", str(tmp_path / "m"), "-q"]) == 0

@@ -597,6 +597,33 @@ def test_a_contact_from_the_first_frame_that_keeps_moving_starts_a_grasp_after_m
         assert start == onset + 30
 
 
+def test_a_first_frame_with_a_motion_of_its_own_is_rest_when_asked() -> None:
+    """A markerless tracker started without a no-contact frame gives its first frame the
+    mechanics rule's motion; read as is, that offset stands above the onset level and opens a
+    grasp at frame 0 (the contact phases then cover the whole clip)."""
+    from tacswitch.grasp.phases import GraspSegmenter
+
+    rng = np.random.default_rng(0)
+    pts = np.stack(np.meshgrid(np.arange(8) * 20.0, np.arange(8) * 20.0), -1).reshape(-1, 2)
+    offset = rng.normal(0, 0.4, (len(pts), 2))
+    press = np.zeros((len(pts), 2))
+    press[:10, 0] = 3.0  # a contact of a few markers from frame 40
+    fields = [offset + rng.normal(0, 0.02, offset.shape) + (press if t >= 40 else 0)
+              for t in range(70)]
+    valid = np.ones(len(pts), bool)
+    as_is = GraspSegmenter(1.6)
+    onsets = [as_is.update(f, valid).onset for f in fields]
+    assert onsets[1] == 0
+    rest = GraspSegmenter(1.6, first_frame_rest=True)
+    steps = [rest.update(f, valid) for f in fields]
+    assert all(s.phase == "no contact" for s in steps[:40])
+    assert steps[-1].onset == 40 and steps[-1].phase == "grasp"
+    # The detector passes it on; clip scoring reads a clip's rest frame so.
+    det = GraspSlipDetector(pts.astype(np.float32), image_width=320, rule="paper",
+                            first_frame_rest=True)
+    assert [det.update(f.astype(np.float32)).phase for f in fields][:40] == ["no contact"] * 40
+
+
 def test_detector_refuses_arguments_of_the_wrong_kind_by_name() -> None:
     pts = np.stack(np.meshgrid(np.arange(5) * 20.0, np.arange(5) * 20.0), -1).reshape(-1, 2)
     pts = pts.astype(np.float32)

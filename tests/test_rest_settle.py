@@ -155,6 +155,47 @@ def test_tracking_for_the_slip_data_measures_from_the_settled_rest(
     assert np.abs(m[v]).max() > 1.0
 
 
+def test_scored_clips_start_their_detector_at_the_rest_frame(
+        tmp_path: Path, seq: sim.GraspSequence) -> None:
+    """`evaluate slip` scores a tracked clip as `tacswitch slip` runs the video: the detector
+    starts at the rest frame (the rows before it are not fed as frames of rest), and the rest
+    frame survives the track cache, or is found again for a cache written without it."""
+    from dataclasses import replace
+
+    from tacswitch.grasp.crossval import clip_flags
+    from tacswitch.grasp.dataset import cached_clip, load_clip, save_clip
+    from tacswitch.grasp.detector import run_clip
+
+    frames = _stale_start(seq)
+    clip = track_clip(iter(frames))
+    assert clip.rest == 4
+    # Rows before the rest frame that are not rest (as if fed): never seen, never flagged.
+    noisy = clip.motion.copy()
+    noisy[:4] = 30.0
+    flags = clip_flags(replace(clip, motion=noisy), rule="paper")
+    assert not flags[:4].any()
+    alone = [s.slip for s in run_clip(clip.motion[4:], clip.valid[4:], clip.points,
+                                      image_width=clip.width, rule="paper")]
+    assert flags[4:].tolist() == alone
+    # The test can fail: fed from frame 0, the detector sees those rows.
+    fed = [s.slip for s in run_clip(noisy, clip.valid, clip.points, image_width=clip.width,
+                                    rule="paper")]
+    assert fed != flags.tolist()
+    (tmp_path / "stale" / "e").mkdir(parents=True)
+    video = write_video(tmp_path / "stale" / "e" / "camera_0.mkv", frames, fourcc="FFV1")
+    cache = tmp_path / "cache"
+    assert cached_clip(video, cache).rest == 4
+    (path,) = cache.iterdir()
+    assert load_clip(path, video).rest == 4
+    # A cache file from before the rest frame was stored: found again from the video.
+    with np.load(path) as z:
+        old = {k: z[k] for k in z.files if k != "rest"}
+    np.savez(path, **old)
+    assert load_clip(path).rest == 0 and load_clip(path, video).rest == 4
+    save_clip(path, replace(clip, rest=2))
+    assert load_clip(path, video).rest == 2
+
+
 def test_slip_starts_after_the_stale_frames(tmp_path: Path, seq: sim.GraspSequence,
                                             capsys: pytest.CaptureFixture[str]) -> None:
     frames = _stale_start(seq)

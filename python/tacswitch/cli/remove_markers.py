@@ -296,10 +296,19 @@ def _bag(src: Any, args: argparse.Namespace) -> int:
 
     def items() -> Iterator[tuple[int, np.ndarray | None]]:
         nonlocal remove
-        for i, frame in enumerate(src):
+        stream: Iterator[np.ndarray | None] = iter(src)
+        if ref is None and args.method == "hybrid":
+            # As for a video: the first frame after the camera settled is the no-contact
+            # reference (the replayed stream keeps the bag's frame order and indices).
+            index, reference, stream = _settled_reference(stream, src.path)
+            if reference is not None:
+                remove = _remover(args, reference)
+                say(f"{src.path} {src.topic}: hybrid reference (no contact) = frame {index}"
+                    + (" (the first after the camera settled)" if index else ""),
+                    quiet=args.quiet)
+        for i, frame in enumerate(stream):
             if remove is None and frame is not None:
-                first = ref is None and args.method == "hybrid"
-                remove = _remover(args, frame.copy() if first else ref)
+                remove = _remover(args, ref)
             yield i, frame
 
     def clean(item: tuple[int, np.ndarray | None]) -> tuple[int, np.ndarray | None]:

@@ -393,7 +393,8 @@ class _PaperLoop:
                                         image_width=frame.shape[1],
                                         smooth_frames=_smooth_frames(args))
         self.segmenter = GraspSegmenter(_epsilon(args, frame.shape[1]),
-                                        start=_start_after(args, offset))
+                                        start=_start_after(args, offset),
+                                        first_frame_rest=args.ref is None)
 
     def step(self, frame: np.ndarray, n: int, t: float) -> tuple[list, bool, bool, Any]:
         from tacswitch.grasp.phases import GRASP
@@ -468,7 +469,9 @@ class _LearnedLoop:
             self.detector = GraspSlipDetector(
                 self.tracker.reference, image_width=frame.shape[1], model=self.model,
                 threshold=self.args.score_threshold, votes=self.args.votes,
-                start=_start_after(self.args, offset), fps=self.fps)
+                start=_start_after(self.args, offset), fps=self.fps,
+                # Tracked from this frame unless --ref gave the no-contact frame.
+                first_frame_rest=self.args.ref is None)
         except (ValueError, FileNotFoundError) as exc:
             raise ValueError(str(exc).replace("model:", "--slip-model:", 1)) from None
         tb = self.detector.timebase

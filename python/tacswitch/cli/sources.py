@@ -120,10 +120,22 @@ def check_distinct_outputs(jobs: list[tuple[Path, Path]]) -> None:
         seen[target] = path
 
 
+def _named_video(path: Path) -> bool:
+    """A named file is a video: by its suffix, or, with a suffix neither list knows (or none,
+    as a camera's dump may have), when OpenCV reads no image signature in it."""
+    suffix = path.suffix.lower()
+    if suffix in VIDEO_SUFFIXES or suffix in IMAGE_SUFFIXES:
+        return suffix in VIDEO_SUFFIXES
+    import cv2
+
+    return not cv2.haveImageReader(str(path))
+
+
 def collect_inputs(inputs: list[str]) -> tuple[list[Path], list[Path]]:
     """Images and videos named or found (natural order) in the named folders, told apart by suffix
-    (:data:`VIDEO_SUFFIXES`; any other named file counts as an image). ``FileNotFoundError``
-    naming the input if one does not exist, or if there is nothing to do."""
+    (:data:`VIDEO_SUFFIXES`, :data:`IMAGE_SUFFIXES`; a named file with another suffix or none is
+    an image if OpenCV knows its signature, else a video). ``FileNotFoundError`` naming the
+    input if one does not exist, or if there is nothing to do."""
     images: list[Path] = []
     videos: list[Path] = []
     for item in inputs:
@@ -132,7 +144,7 @@ def collect_inputs(inputs: list[str]) -> tuple[list[Path], list[Path]]:
             images += sorted_files(path, IMAGE_SUFFIXES)
             videos += sorted_files(path, VIDEO_SUFFIXES)
         elif path.is_file():
-            (videos if path.suffix.lower() in VIDEO_SUFFIXES else images).append(path)
+            (videos if _named_video(path) else images).append(path)
         else:
             raise FileNotFoundError(f"inputs: {item!r} does not exist")
     if not images and not videos:

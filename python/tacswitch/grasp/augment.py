@@ -62,7 +62,8 @@ def rescaled_clip(clip: TrackedClip, scale: float, speed: float) -> TrackedClip:
     on_frame = (frac == 0)[:, None]
     both = valid[i0] & valid[i1]
     return TrackedClip(motion.astype(np.float32), np.where(on_frame, valid[i0], both),
-                       clip.points, clip.pitch, clip.width, clip.fps)
+                       clip.points, clip.pitch, clip.width, clip.fps,
+                       min(round(clip.rest / float(speed)), t_out - 1))
 
 
 def augmented_experiments(clips: list[list[TrackedClip]], copies: int, *, seed: int = SEED,

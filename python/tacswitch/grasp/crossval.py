@@ -19,12 +19,20 @@ from tacswitch.grasp.train import COMMITTEE, SLIP_TAIL
 def clip_flags(clip: TrackedClip, **options: Any) -> NDArray[np.bool_]:
     """Per-frame slip flags of one tracked clip through :class:`GraspSlipDetector` (options:
     its keyword arguments), frame by frame as the online loop runs, at the clip's frame rate;
-    none for a clip whose first frame showed no marker."""
+    none for a clip whose first frame showed no marker. As in ``tacswitch slip``, the detector
+    starts at the clip's rest frame (none before it is flagged), so both flag the same frames,
+    and reads the contact phases since that frame (``first_frame_rest``: a clip is tracked from
+    its rest frame, but the markerless tracker gives that frame a motion of its own)."""
+    flags = np.zeros(len(clip.motion), bool)
     if len(clip.points) == 0:
-        return np.zeros(len(clip.motion), bool)
+        return flags
     options.setdefault("fps", clip.fps)
-    states = run_clip(clip.motion, clip.valid, clip.points, image_width=clip.width, **options)
-    return np.array([s.slip for s in states], bool)
+    options.setdefault("first_frame_rest", True)
+    r = clip.rest
+    states = run_clip(clip.motion[r:], clip.valid[r:], clip.points, image_width=clip.width,
+                      **options)
+    flags[r:] = [s.slip for s in states]
+    return flags
 
 
 def torch_scorer(net: Any) -> Any:

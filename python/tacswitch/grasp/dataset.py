@@ -117,8 +117,10 @@ def read_video(path: str | os.PathLike[str]) -> Iterator[NDArray[np.uint8]]:
 class TrackedClip:
     """A clip's tracked marker field: ``motion`` ``T x N x 2`` px since the first frame,
     ``valid`` ``T x N``, reference ``points`` ``N x 2``, marker ``pitch`` px, frame
-    ``width`` px and the video's frame rate ``fps`` (frames/s; None: not known, taken to be
-    the detector's time base, :data:`~tacswitch.grasp.timebase.TRAINED_FPS`)."""
+    ``width`` px, the video's frame rate ``fps`` (frames/s; None: not known, taken to be
+    the detector's time base, :data:`~tacswitch.grasp.timebase.TRAINED_FPS`) and its ``rest``
+    frame (index: the frames before it are rows of zero motion, not tracked; ``tacswitch
+    slip`` starts its detector there, and so does :func:`~tacswitch.grasp.crossval.clip_flags`)."""
 
     motion: NDArray[np.float32]
     valid: NDArray[np.bool_]
@@ -126,6 +128,7 @@ class TrackedClip:
     pitch: float
     width: int
     fps: float | None = None
+    rest: int = 0
 
     def features(self, still_filter: bool = False) -> NDArray[np.float32]:
         """``T' x N_FEATURES`` online features (:func:`sequence_features`) on the detector's
@@ -173,15 +176,7 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
     if not head:
         raise ValueError("frames: no readable frame")
     width = int(head[0].shape[1])
-    thumbs = [rest_thumbnail(f) for f in head]
-    if markerless:
-        rest = settled_index(thumbs)
-        points = extract_markers(head[rest]).centres
-    else:
-        found = [extract_markers(f).centres for f in head]
-        rest = settled_index(thumbs, [lattice_irregularity(c) for c in found])
-        rest = usable_rest_frame([len(c) for c in found], start=rest) or 0
-        points = found[rest]
+    rest, points = clip_rest_frame(head, markerless=markerless)
     n = len(points)
     motions: list[NDArray[np.float32]] = [np.zeros((n, 2), np.float32)] * rest
     valids: list[NDArray[np.bool_]] = [np.ones(n, bool)] * rest
@@ -203,7 +198,23 @@ def track_clip(frames: Iterator[NDArray[np.uint8]], *, markerless: bool = False
             m, v = tracker.update(frame)
             motions.append(np.array(m, np.float32))
             valids.append(np.array(v, bool))
-    return TrackedClip(np.stack(motions), np.stack(valids), points, marker_pitch(points), width)
+    return TrackedClip(np.stack(motions), np.stack(valids), points, marker_pitch(points), width,
+                       rest=rest)
+
+
+def clip_rest_frame(head: list[NDArray[np.uint8]], *, markerless: bool = False
+                    ) -> tuple[int, NDArray[np.float32]]:
+    """The rest frame :func:`track_clip` takes among a video's first frames ``head`` (its
+    index, and the marker centres found on it): the first after the camera settled, with
+    markers also one with a regular lattice and a usable marker count."""
+    thumbs = [rest_thumbnail(f) for f in head]
+    if markerless:
+        rest = settled_index(thumbs)
+        return rest, extract_markers(head[rest]).centres
+    found = [extract_markers(f).centres for f in head]
+    rest = settled_index(thumbs, [lattice_irregularity(c) for c in found])
+    rest = usable_rest_frame([len(c) for c in found], start=rest) or 0
+    return rest, found[rest]
 
 
 #: The version of the tracking rules a cached clip was made with, in its file name; an older
@@ -242,7 +253,8 @@ def save_clip(path: Path, clip: TrackedClip, video: Path | None = None) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     arrays: dict[str, Any] = {"motion": clip.motion, "valid": clip.valid,
                               "points": clip.points, "pitch": clip.pitch, "width": clip.width,
-                              "fps": np.nan if clip.fps is None else clip.fps}
+                              "fps": np.nan if clip.fps is None else clip.fps,
+                              "rest": clip.rest}
     if video is not None:
         arrays["source"] = source_stamp(video)
         arrays["source_digest"] = np.array(source_digest(video))
@@ -265,9 +277,12 @@ def _cache_matches(path: Path, video: Path) -> bool:
         return "source_digest" in z.files and str(z["source_digest"]) == source_digest(video)
 
 
-def load_clip(path: Path, video: Path | None = None) -> TrackedClip:
-    """The clip :func:`save_clip` wrote; a file written before the frame rate was stored takes
-    ``video``'s stated rate (None without ``video``)."""
+def load_clip(path: Path, video: Path | None = None, *, markerless: bool = False
+              ) -> TrackedClip:
+    """The clip :func:`save_clip` wrote. A file written before the frame rate was stored takes
+    ``video``'s stated rate (None without ``video``); one written before the rest frame was
+    stored finds it again from ``video``'s first frames (:func:`clip_rest_frame`, tracked with
+    markers or ``markerless``; 0 without ``video``)."""
     from tacswitch.cli.sources import stated_fps
 
     with np.load(path) as z:
@@ -275,8 +290,13 @@ def load_clip(path: Path, video: Path | None = None) -> TrackedClip:
             fps = None if np.isnan(z["fps"]) else float(z["fps"])
         else:
             fps = None if video is None else stated_fps(video, "video")
-        return TrackedClip(z["motion"], z["valid"], z["points"], float(z["pitch"]),
-                           int(z["width"]), fps)
+        clip = TrackedClip(z["motion"], z["valid"], z["points"], float(z["pitch"]),
+                           int(z["width"]), fps, int(z["rest"]) if "rest" in z.files else 0)
+        if "rest" in z.files or video is None:
+            return clip
+    head = list(itertools.islice(read_video(video), REST_LOOK_AHEAD))
+    rest = clip_rest_frame(head, markerless=markerless)[0] if head else 0
+    return replace(clip, rest=min(rest, max(len(clip.motion) - 1, 0)))
 
 
 def cached_clip(video: Path, cache: Path | None, *, markerless: bool = False) -> TrackedClip:
@@ -290,7 +310,7 @@ def cached_clip(video: Path, cache: Path | None, *, markerless: bool = False) ->
         key = f"{video.parent.parent.name}__{video.parent.name}__{video.stem}__{tag}.npz"
         target = cache / key
         if target.is_file() and _cache_matches(target, video):
-            return load_clip(target, video)
+            return load_clip(target, video, markerless=markerless)
     clip = replace(track_clip(read_video(video), markerless=markerless),
                    fps=stated_fps(video, "video"))
     if target is not None:

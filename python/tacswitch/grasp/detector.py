@@ -246,6 +246,12 @@ class GraspSlipDetector:
             (:class:`~tacswitch.grasp.features.FieldFeatures`: still markers stay exactly still
             under camera noise). Default: as the ONNX scorer was trained (on for the shipped
             marker scorer, off for the markerless one); off for a callable.
+        first_frame_rest: the first frame fed shows the gel at rest whatever motion it
+            carries: the contact phases read every field minus the first
+            (:class:`~tacswitch.grasp.phases.GraspSegmenter`). For the motion of a
+            :class:`tacswitch.MarkerlessTracker` started without a no-contact frame (its first
+            frame gets the mechanics rule's motion), as ``tacswitch slip --markerless`` runs
+            it without ``--ref``. The scorer's features are unchanged.
     """
 
     def __init__(self, points: Any, *, image_width: int | None = None, rule: str = "learned",
@@ -255,7 +261,8 @@ class GraspSlipDetector:
                  rigid_threshold_px: float | str | None = None, rigid_only: bool = False,
                  smooth_frames: int = 1, start: int | None = None,
                  fps: float | None = None, still_filter: bool | None = None,
-                 half_vote: tuple[int, int] | None = None) -> None:
+                 half_vote: tuple[int, int] | None = None,
+                 first_frame_rest: bool = False) -> None:
         from tacswitch.slip import SlipDetector, scaled_threshold
 
         if rule not in RULES:
@@ -343,7 +350,8 @@ class GraspSlipDetector:
         if start is not None and self.timebase is not None:
             # The first tick at or after the frame asked for (never an earlier one).
             start = math.ceil(start * self.timebase.ratio - 1e-9)
-        self.segmenter = GraspSegmenter(epsilon, start=start)
+        self.segmenter = GraspSegmenter(epsilon, start=start,
+                                        first_frame_rest=first_frame_rest)
         self._last: GraspSlipState | None = None
 
     def update(self, motion: Any, valid: Any = None) -> GraspSlipState:

@@ -4,7 +4,8 @@ The slip rule measures marker displacement since the start of the grasp, the fra
 contact is *established* (the paper's baseline). A recording usually begins before that: no
 contact, then a press that moves the markers by several pixels. Taking frame 0 as the start
 flags the whole press and hold as slip. :class:`GraspSegmenter` reads the marker motion field
-of each frame (measured from the first frame, which shows no contact) and finds:
+of each frame (measured from the first frame, which shows no contact; with
+``first_frame_rest``, since the first frame whatever motion it carries) and finds:
 
 - **contact onset**: the markers leave their rest positions, i.e. the motion statistic ``m``
   (the k-th largest marker displacement since the first frame, k = 2 % of the markers, at least
@@ -141,10 +142,17 @@ class GraspSegmenter:
             lasts to the end.
         max_wait: frames after onset after which a contact that is still moving starts the
             grasp anyway.
+        first_frame_rest: the first frame fed is the gel at rest whatever motion it carries:
+            every field is read minus the first one. For a :class:`tacswitch.MarkerlessTracker`
+            started without a no-contact frame, which gives its first frame the mechanics
+            rule's motion (0.4-0.5 px of the k-th largest on real GelSight Mini frames without
+            contact: above the onset level from the first frame, a grasp opened at frame 0 on
+            most of the real slip recordings). Off (default): motion measured from a separate
+            no-contact frame, where a contact from the first frame is seen at once.
     """
 
     def __init__(self, threshold_px: float, *, start: int | None = None,
-                 max_wait: int = 30) -> None:
+                 max_wait: int = 30, first_frame_rest: bool = False) -> None:
         if not threshold_px > 0:
             raise ValueError(f"threshold_px: must be > 0; got {threshold_px!r}")
         if start is not None and start < 0:
@@ -162,6 +170,9 @@ class GraspSegmenter:
         # long stream costs the same per frame.
         self._noise_v = RollingMedian(NOISE_FRAMES)
         self._prev: NDArray[np.float64] | None = None
+        self.first_frame_rest = bool(first_frame_rest)
+        # With first_frame_rest, the first frame's field, subtracted from every field.
+        self._origin: NDArray[np.float64] | None = None
         # The motion statistic of the last ONSET_WINDOW frames without contact (below the
         # onset level): the onset is the rise over them.
         self._recent: deque[float] = deque(maxlen=ONSET_WINDOW)
@@ -188,6 +199,10 @@ class GraspSegmenter:
         self.frame += 1
         t = self.frame
         mv = np.where(np.asarray(valid, bool)[:, None], np.asarray(motion, np.float64), np.nan)
+        if self.first_frame_rest:
+            if self._origin is None:
+                self._origin = np.nan_to_num(mv)
+            mv = mv - self._origin
         moving = top_statistic(np.hypot(mv[:, 0], mv[:, 1]))
         speed = 0.0 if self._prev is None else top_statistic(
             np.hypot(*(mv - self._prev).T))

@@ -232,6 +232,16 @@ def test_a_markerless_stream_starts_after_the_stale_frames(
         assert int(next(csv.DictReader(fh))["frame"]) == 4
     clip = track_clip(iter(frames[:12]), markerless=True)
     assert clip.motion.shape[0] == 12 and np.all(clip.motion[:4] == 0)
+    # With --ref the user chose the reference: every frame is measured from it, no rest frame
+    # is looked for (as `motion --sequence --ref`).
+    import cv2
+
+    cv2.imwrite(str(tmp_path / "ref.png"), frames[4])
+    assert main(["slip", str(video), "--markerless", "--ref", str(tmp_path / "ref.png"),
+                 "--log", str(tmp_path / "r.csv"), "-q"]) == 0
+    assert "rest frame" not in capsys.readouterr().err
+    with open(tmp_path / "r.csv") as fh:
+        assert int(next(csv.DictReader(fh))["frame"]) == 0
 
 
 # --- a stale start that fades (no jump) ---------------------------------------------------

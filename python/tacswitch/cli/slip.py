@@ -94,7 +94,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "the reference frame (the learned rule: tacswitch.MarkerlessTracker and "
                         "the shipped markerless scorer; --rule paper: tacswitch.predict_motion)")
     m.add_argument("--ref", default=None, metavar="IMG",
-                   help="markerless no-contact reference frame (default: the first frame)")
+                   help="markerless no-contact reference frame; every frame is measured "
+                        "from it (default: the first frame after the camera settled)")
     m.add_argument("--centres", default=None, metavar="CSV",
                    help="marker rest centres, a CSV with x,y columns (e.g. `tacswitch markers` "
                         "on a frame with markers); default: the motion model's grid scaled to "
@@ -241,10 +242,14 @@ def run(args: argparse.Namespace) -> int:
         writer.writerow(LOG_COLUMNS)
         try:
             stream = frames(args.source) if bag is None else iter(bag)
-            # Predicted motion needs no markers on the rest frame, only a settled camera.
-            rest, stream = choose_rest_frame(
-                stream, None if args.markerless else lambda f: ts.extract_markers(f).centres,
-                source=args.source, max_frames=args.max_frames)
+            # Predicted motion needs no markers on the rest frame, only a settled camera; with
+            # --ref the user chose the reference, and every frame is measured from it (as
+            # `motion --sequence --ref` does).
+            rest = None
+            if not (args.markerless and args.ref):
+                rest, stream = choose_rest_frame(
+                    stream, None if args.markerless else lambda f: ts.extract_markers(f).centres,
+                    source=args.source, max_frames=args.max_frames)
             if rest is not None and rest.index > 0:
                 warn("slip", rest.message())
             for frame in stream:

@@ -200,9 +200,12 @@ class GraspSegmenter:
         t = self.frame
         mv = np.where(np.asarray(valid, bool)[:, None], np.asarray(motion, np.float64), np.nan)
         if self.first_frame_rest:
-            if self._origin is None:
-                self._origin = np.nan_to_num(mv)
-            mv = mv - self._origin
+            if t == 0:
+                origin = np.nan_to_num(mv)
+                # A field that starts at zero (tracked markers) needs no subtraction.
+                self._origin = origin if origin.any() else None
+            if self._origin is not None:
+                mv = mv - self._origin
         moving = top_statistic(np.hypot(mv[:, 0], mv[:, 1]))
         speed = 0.0 if self._prev is None else top_statistic(
             np.hypot(*(mv - self._prev).T))

@@ -39,9 +39,11 @@ def grasp_start(clip: TrackedClip) -> int:
     the scorer is not run (the phases do not depend on it)."""
     if len(clip.points) == 0:
         return 0
-    states = run_clip(clip.motion, clip.valid, clip.points, image_width=clip.width,
-                      model=lambda x: np.zeros(len(x), np.float32), fps=clip.fps)
-    return next((t for t, s in enumerate(states) if s.phase == GRASP), 0)
+    r = clip.rest  # from the rest frame, as clip_flags scores it
+    states = run_clip(clip.motion[r:], clip.valid[r:], clip.points, image_width=clip.width,
+                      model=lambda x: np.zeros(len(x), np.float32), fps=clip.fps,
+                      first_frame_rest=True)
+    return next((r + t for t, s in enumerate(states) if s.phase == GRASP), 0)
 
 
 def starting_at(clip: TrackedClip, frame: int) -> TrackedClip:
@@ -50,7 +52,7 @@ def starting_at(clip: TrackedClip, frame: int) -> TrackedClip:
     s = int(min(max(frame, 0), len(clip.motion) - 3))
     ok = clip.valid[s]
     return replace(clip, motion=clip.motion[s:, ok] - clip.motion[s, ok][None],
-                   valid=clip.valid[s:, ok], points=(clip.points + clip.motion[s])[ok])
+                   valid=clip.valid[s:, ok], points=(clip.points + clip.motion[s])[ok], rest=0)
 
 
 def first_flag(flags: np.ndarray) -> int:

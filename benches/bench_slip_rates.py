@@ -25,6 +25,7 @@ measures that, at 25 frames/s).
 from __future__ import annotations
 
 import argparse
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -47,7 +48,9 @@ def resampled(clip: TrackedClip) -> TrackedClip:
     """``clip`` on the 25 frames/s time base, as ``TimeBase`` resamples it online."""
     assert clip.fps is not None
     motion, valid = resample_field(clip.motion, clip.valid, clip.fps)
-    return replace(clip, motion=motion, valid=valid, fps=None)
+    # The rest frame on the new time base: the first tick at or after it.
+    rest = min(math.ceil(clip.rest * TRAINED_FPS / clip.fps - 1e-9), len(motion) - 1)
+    return replace(clip, motion=motion, valid=valid, fps=None, rest=max(rest, 0))
 
 
 def main() -> int:

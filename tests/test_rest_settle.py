@@ -196,6 +196,33 @@ def test_scored_clips_start_their_detector_at_the_rest_frame(
     assert load_clip(path, video).rest == 2
 
 
+def test_evaluate_flags_the_frames_the_slip_log_flags(tmp_path: Path) -> None:
+    """A video with stale frames before its rest frame: `evaluate slip`'s first flag is the
+    first frame `tacswitch slip`'s log flags (both from the rest frame)."""
+    import json
+
+    slip = sim.grasp_sequence("gelsight_mini", "slip", n_frames=24, seed=5)
+    frames = _stale_start(slip)
+    # The learned rule at 60 frames/s: both resample to the scorer's 25 from the rest frame.
+    for k, (rule, fps) in enumerate((([], 60), (["--rule", "paper"], 25))):
+        data = tmp_path / f"data{k}"
+        (data / "obj" / "e1").mkdir(parents=True)
+        video = write_video(data / "obj" / "e1" / "camera_0.mkv", frames, fourcc="FFV1",
+                            fps=fps)
+        (data / "labels.csv").write_text("object,experiment,slip\nobj,e1,1\n")
+        log = tmp_path / f"l{k}.csv"
+        assert main(["slip", str(video), *rule, "--log", str(log), "-q"]) == 0
+        with open(log) as fh:
+            flagged = [int(r["frame"]) for r in csv.DictReader(fh) if r["slip"] == "1"]
+        out = tmp_path / f"e{k}.json"
+        assert main(["evaluate", "slip", str(data), *rule, "--json", str(out), "-q",
+                     "--cache", str(tmp_path / f"cache{k}")]) == 0
+        (exp,) = json.loads(out.read_text())["experiments"]
+        assert exp["first_flag"] == [flagged[0] if flagged else None]
+        if rule:
+            assert flagged  # the paper rule flags this slip
+
+
 def test_slip_starts_after_the_stale_frames(tmp_path: Path, seq: sim.GraspSequence,
                                             capsys: pytest.CaptureFixture[str]) -> None:
     frames = _stale_start(seq)

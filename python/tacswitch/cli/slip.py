@@ -242,14 +242,15 @@ def run(args: argparse.Namespace) -> int:
         writer.writerow(LOG_COLUMNS)
         try:
             stream = frames(args.source) if bag is None else iter(bag)
-            # Predicted motion needs no markers on the rest frame, only a settled camera; with
-            # --ref the user chose the reference, and every frame is measured from it (as
-            # `motion --sequence --ref` does).
-            rest = None
-            if not (args.markerless and args.ref):
-                rest, stream = choose_rest_frame(
-                    stream, None if args.markerless else lambda f: ts.extract_markers(f).centres,
-                    source=args.source, max_frames=args.max_frames)
+            # Predicted motion needs no markers on the rest frame, only a settled camera.
+            rest, stream = choose_rest_frame(
+                stream, None if args.markerless else lambda f: ts.extract_markers(f).centres,
+                source=args.source, max_frames=args.max_frames)
+            if args.markerless and args.ref:
+                # The user chose the reference: every frame is measured from it (as `motion
+                # --sequence --ref`). The look-ahead still ran: a bag's rate is read from the
+                # stamps of the frames it read.
+                rest = None
             if rest is not None and rest.index > 0:
                 warn("slip", rest.message())
             for frame in stream:

@@ -23,6 +23,8 @@ grasps (``docs/notes/2026-11-slip.md``). Markers only: not measured on markerles
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from tacswitch._checks import as_count, as_number
@@ -42,7 +44,8 @@ SPEED_RANGE = 1.33
 def rescaled_clip(clip: TrackedClip, scale: float, speed: float) -> TrackedClip:
     """``clip`` with every displacement times ``scale`` and played ``speed`` times as fast
     (``T`` frames become ``round((T - 1) / speed) + 1``, at least 2), frames linearly
-    interpolated. Reference points, pitch and width are unchanged."""
+    interpolated; the rest frame becomes the first output frame at or after it. Reference
+    points, pitch and width are unchanged."""
     for name, v in (("scale", scale), ("speed", speed)):
         if not (isinstance(v, (int, float, np.floating, np.integer)) and np.isfinite(v)
                 and v > 0):
@@ -63,7 +66,7 @@ def rescaled_clip(clip: TrackedClip, scale: float, speed: float) -> TrackedClip:
     both = valid[i0] & valid[i1]
     return TrackedClip(motion.astype(np.float32), np.where(on_frame, valid[i0], both),
                        clip.points, clip.pitch, clip.width, clip.fps,
-                       min(round(clip.rest / float(speed)), t_out - 1))
+                       min(math.ceil(clip.rest / float(speed) - 1e-9), t_out - 1))
 
 
 def augmented_experiments(clips: list[list[TrackedClip]], copies: int, *, seed: int = SEED,

@@ -115,12 +115,12 @@ def read_video(path: str | os.PathLike[str]) -> Iterator[NDArray[np.uint8]]:
 
 @dataclass
 class TrackedClip:
-    """A clip's tracked marker field: ``motion`` ``T x N x 2`` px since the first frame,
-    ``valid`` ``T x N``, reference ``points`` ``N x 2``, marker ``pitch`` px, frame
-    ``width`` px, the video's frame rate ``fps`` (frames/s; None: not known, taken to be
-    the detector's time base, :data:`~tacswitch.grasp.timebase.TRAINED_FPS`) and its ``rest``
-    frame (index: the frames before it are rows of zero motion, not tracked; ``tacswitch
-    slip`` starts its detector there, and so does :func:`~tacswitch.grasp.crossval.clip_flags`)."""
+    """A clip's tracked marker field: ``motion`` ``T x N x 2`` px since the rest frame,
+    ``valid`` ``T x N``, reference ``points`` ``N x 2``, marker ``pitch`` px, frame ``width``
+    px, the video's frame rate ``fps`` (frames/s; None: not known, taken to be the detector's
+    time base, :data:`~tacswitch.grasp.timebase.TRAINED_FPS`) and its ``rest`` frame (index:
+    the frames before it are rows of zero motion, not tracked; ``tacswitch slip`` starts its
+    detector there, and so does :func:`~tacswitch.grasp.crossval.clip_flags`)."""
 
     motion: NDArray[np.float32]
     valid: NDArray[np.bool_]
@@ -296,6 +296,12 @@ def load_clip(path: Path, video: Path | None = None, *, markerless: bool = False
             return clip
     head = list(itertools.islice(read_video(video), REST_LOOK_AHEAD))
     rest = clip_rest_frame(head, markerless=markerless)[0] if head else 0
+    # Never past a tracked row (the rules may have changed since the file was written): the
+    # rows before the rest frame are zeros.
+    moved = np.flatnonzero(np.abs(clip.motion).reshape(len(clip.motion), -1).max(axis=1,
+                                                                                initial=0) > 0)
+    if moved.size:
+        rest = min(rest, int(moved[0]))
     return replace(clip, rest=min(rest, max(len(clip.motion) - 1, 0)))
 
 
@@ -310,7 +316,15 @@ def cached_clip(video: Path, cache: Path | None, *, markerless: bool = False) ->
         key = f"{video.parent.parent.name}__{video.parent.name}__{video.stem}__{tag}.npz"
         target = cache / key
         if target.is_file() and _cache_matches(target, video):
-            return load_clip(target, video, markerless=markerless)
+            with np.load(target) as z:
+                has_rest = "rest" in z.files
+            clip = load_clip(target, video, markerless=markerless)
+            if not has_rest:  # written before the rest frame was stored: add it once
+                try:
+                    save_clip(target, clip, video)
+                except OSError:  # a read-only cache is still read
+                    pass
+            return clip
     clip = replace(track_clip(read_video(video), markerless=markerless),
                    fps=stated_fps(video, "video"))
     if target is not None:

@@ -88,10 +88,10 @@ def reencoded_clip(job: tuple[Path, str]) -> TrackedClip:
             f"{MARKER_TRACKS_TAG}.npz")
     key = CACHE / "codecs" / name
     if key.is_file():
-        clip = load_clip(key)
         with np.load(key) as z:
-            if "rest" in z.files:  # older files lack the rest frame: tracked again
-                return clip
+            current = "rest" in z.files  # older files lack the rest frame: tracked again
+        if current:
+            return load_clip(key)
     frames = list(read_video(video))
     if codec in CAPTURE:
         frames = captured(frames, codec)

@@ -298,14 +298,9 @@ def _bag(src: Any, args: argparse.Namespace) -> int:
         nonlocal remove
         stream: Iterator[np.ndarray | None] = iter(src)
         if ref is None and args.method == "hybrid":
-            # As for a video: the first frame after the camera settled is the no-contact
-            # reference (the replayed stream keeps the bag's frame order and indices).
-            index, reference, stream = _settled_reference(stream, src.path)
-            if reference is not None:
-                remove = _remover(args, reference)
-                say(f"{src.path} {src.topic}: hybrid reference (no contact) = frame {index}"
-                    + (" (the first after the camera settled)" if index else ""),
-                    quiet=args.quiet)
+            # As for a video (the replayed stream keeps the bag's frame order and indices).
+            remove, stream = _hybrid_reference(stream, src.path, f"{src.path} {src.topic}",
+                                               args, args.quiet)
         for i, frame in enumerate(stream):
             if remove is None and frame is not None:
                 remove = _remover(args, ref)
@@ -418,15 +413,11 @@ def _video(path: Path, out: Path, ref: np.ndarray | None, workers: int,
     def items() -> Iterator[tuple[int, np.ndarray | None]]:
         """Decoded frames with their index (on this thread); the remover is made at the first
         readable frame, or for a hybrid run without --ref at the first frame after the camera
-        settled (:func:`_settled_reference`), its no-contact reference."""
+        settled (:func:`_hybrid_reference`), its no-contact reference."""
         nonlocal remove
         stream: Iterator[np.ndarray | None] = video_frames(path, "inputs")
         if ref is None and args.method == "hybrid":
-            index, reference, stream = _settled_reference(stream, path)
-            if reference is not None:
-                remove = _remover(args, reference)
-                say(f"{path}: hybrid reference (no contact) = frame {index}"
-                    + (" (the first after the camera settled)" if index else ""), quiet=quiet)
+            remove, stream = _hybrid_reference(stream, path, str(path), args, quiet)
         warned = False
         for i, frame in enumerate(stream):
             if frame is not None and not warned:
@@ -494,20 +485,22 @@ def _video(path: Path, out: Path, ref: np.ndarray | None, workers: int,
     return 1, 0, bad
 
 
-def _settled_reference(stream: Iterator[np.ndarray | None], path: Path
-                       ) -> tuple[int, np.ndarray | None, Iterator[np.ndarray | None]]:
-    """The frame of a video to take as the no-contact reference: the first after the camera
-    settled (:func:`tacswitch.cli.rest_frame.choose_rest_frame`, as ``slip`` and ``motion``
-    take it: not an under-exposed first frame, nor frames left in the camera's buffer from a
-    previous grasp). Returns (its index in the video, the frame or None when none decodes, the
-    whole stream again)."""
+def _hybrid_reference(stream: Iterator[np.ndarray | None], path: Path, label: str,
+                      args: argparse.Namespace, quiet: bool
+                      ) -> tuple[Remover | None, Iterator[np.ndarray | None]]:
+    """The hybrid remover of a video or bag without --ref, and the whole stream again: its
+    no-contact reference is the first frame after the camera settled
+    (:func:`tacswitch.cli.rest_frame.choose_rest_frame`, as ``slip`` and ``motion`` take it:
+    not an under-exposed first frame, nor frames left in the camera's buffer from a previous
+    grasp), named on stdout after ``label``. None when no frame decodes."""
     import itertools
 
+    from tacswitch.cli.progress import say
     from tacswitch.cli.rest_frame import choose_rest_frame
 
     rest, replay = choose_rest_frame(stream, None, source=str(path))
     if rest is None:
-        return 0, None, replay
+        return None, replay
     head: list[np.ndarray | None] = []
     readable = -1
     for frame in replay:  # the look-ahead's frames, replayed up to the reference
@@ -515,8 +508,11 @@ def _settled_reference(stream: Iterator[np.ndarray | None], path: Path
         if frame is not None:
             readable += 1
             if readable == rest.index:
-                return len(head) - 1, frame.copy(), itertools.chain(head, replay)
-    return 0, None, iter(head)
+                index = len(head) - 1
+                say(f"{label}: hybrid reference (no contact) = frame {index}"
+                    + (" (the first after the camera settled)" if index else ""), quiet=quiet)
+                return _remover(args, frame.copy()), itertools.chain(head, replay)
+    return None, iter(head)
 
 
 #: Stands for the input's path in a Ray task's error message (the task sees a temporary copy).

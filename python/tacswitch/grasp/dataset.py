@@ -283,6 +283,11 @@ def load_clip(path: Path, video: Path | None = None, *, markerless: bool = False
     ``video``'s stated rate (None without ``video``); one written before the rest frame was
     stored finds it again from ``video``'s first frames (:func:`clip_rest_frame`, tracked with
     markers or ``markerless``; 0 without ``video``)."""
+    return _load_clip(path, video, markerless)[0]
+
+
+def _load_clip(path: Path, video: Path | None, markerless: bool) -> tuple[TrackedClip, bool]:
+    """:func:`load_clip`, and whether the file stored the rest frame."""
     from tacswitch.cli.sources import stated_fps
 
     with np.load(path) as z:
@@ -290,10 +295,11 @@ def load_clip(path: Path, video: Path | None = None, *, markerless: bool = False
             fps = None if np.isnan(z["fps"]) else float(z["fps"])
         else:
             fps = None if video is None else stated_fps(video, "video")
+        stored = "rest" in z.files
         clip = TrackedClip(z["motion"], z["valid"], z["points"], float(z["pitch"]),
-                           int(z["width"]), fps, int(z["rest"]) if "rest" in z.files else 0)
-        if "rest" in z.files or video is None:
-            return clip
+                           int(z["width"]), fps, int(z["rest"]) if stored else 0)
+    if stored or video is None:
+        return clip, stored
     head = list(itertools.islice(read_video(video), REST_LOOK_AHEAD))
     rest = clip_rest_frame(head, markerless=markerless)[0] if head else 0
     # Never past a tracked row (the rules may have changed since the file was written): the
@@ -302,7 +308,7 @@ def load_clip(path: Path, video: Path | None = None, *, markerless: bool = False
                                                                                 initial=0) > 0)
     if moved.size:
         rest = min(rest, int(moved[0]))
-    return replace(clip, rest=min(rest, max(len(clip.motion) - 1, 0)))
+    return replace(clip, rest=min(rest, max(len(clip.motion) - 1, 0))), False
 
 
 def cached_clip(video: Path, cache: Path | None, *, markerless: bool = False) -> TrackedClip:
@@ -316,10 +322,8 @@ def cached_clip(video: Path, cache: Path | None, *, markerless: bool = False) ->
         key = f"{video.parent.parent.name}__{video.parent.name}__{video.stem}__{tag}.npz"
         target = cache / key
         if target.is_file() and _cache_matches(target, video):
-            with np.load(target) as z:
-                has_rest = "rest" in z.files
-            clip = load_clip(target, video, markerless=markerless)
-            if not has_rest:  # written before the rest frame was stored: add it once
+            clip, stored = _load_clip(target, video, markerless)
+            if not stored:  # written before the rest frame was stored: add it once
                 try:
                     save_clip(target, clip, video)
                 except OSError:  # a read-only cache is still read

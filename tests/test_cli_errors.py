@@ -186,7 +186,7 @@ def test_opencv_and_libpng_messages_do_not_leak(tmp_path: Path, grasp: sim.Grasp
         assert all(line.startswith("tacswitch ") for line in lines), run.stderr
         assert "libpng error" not in run.stderr and "WARN:" not in run.stderr, run.stderr
         if args[0] in ("remove-markers", "markers"):
-            assert len(lines) == 1 and "skipped 2 unreadable inputs" in lines[0]
+            assert len(lines) == 1 and "skipped 2 inputs that could not be used" in lines[0]
             assert "3.png" in lines[0] and "4.png" in lines[0]
 
 
@@ -232,3 +232,50 @@ def test_motion_ensemble_refuses_a_model_that_needs_a_reference(tmp_path: Path,
     assert run.returncode == 2, run.stderr
     one_line(run, "--model: needs_ref.onnx predicts motion since a reference frame")
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("command", ["slip", "track"])
+def test_a_source_that_fails_leaves_an_existing_log_alone(
+        tmp_path: Path, image: Path, command: str, capsys: pytest.CaptureFixture[str]) -> None:
+    # The log of an earlier run must survive a typo in the next run's source, or a video that
+    # does not decode: the log is opened only at its first row.
+    log = tmp_path / "log.csv"
+    out = ["--log", str(log)] if command == "slip" else ["-o", str(log)]
+    assert main([command, str(image.parent), *out, "-q"]) == 0
+    kept = log.read_bytes()
+    assert kept.count(b"\n") >= 2  # header and rows
+    broken = tmp_path / "broken.avi"
+    broken.write_bytes(b"not a video" * 50)
+    for source in (str(tmp_path / "typo.avi"), str(broken)):
+        assert main([command, source, *out, "-q"]) != 0
+        assert "error:" in capsys.readouterr().err
+        assert log.read_bytes() == kept, source
+
+
+def test_library_argument_names_become_the_commands_options(
+        tmp_path: Path, image: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from tacswitch.cli import _as_option
+
+    assert _as_option("dilate: too large", {"--dilate"}) == "--dilate: too large"
+    assert _as_option("rest_frames: must be >= 1", {"--rest-frames"}) == \
+        "--rest-frames: must be >= 1"
+    assert _as_option("source: no frames", {"--dilate"}) == "source: no frames"
+    assert _as_option("no colon here", {"--no"}) == "no colon here"
+    # remove_markers(dilate=...) refuses a mask that covers every pixel: the command's option.
+    assert main(["remove-markers", str(image), "-o", str(tmp_path / "r"), "--dilate", "1000",
+                 "-q"]) == 1
+    assert "error: --dilate: " in capsys.readouterr().err
+    # Centres that do not fit the image: --centres, not the input, is the cause.
+    centres = tmp_path / "c.csv"
+    centres.write_text("x,y\n-50,-50\n9999,9999\n")
+    assert main(["motion", str(image), "--centres", str(centres), "-o", str(tmp_path / "m"),
+                 "-q"]) == 1
+    assert "error: --centres: point 0" in capsys.readouterr().err
+
+
+def test_evaluate_slip_refuses_fewer_than_two_folds(tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    # --cv 0 used to run the shipped scorer as if --cv were not given.
+    for k in ("0", "1", "-2"):
+        assert main(["evaluate", "slip", str(tmp_path), "--cv", k]) == 2
+        assert "--cv: at least 2 folds" in capsys.readouterr().err

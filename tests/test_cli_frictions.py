@@ -513,7 +513,7 @@ def test_motion_skips_an_image_it_cannot_read_as_asked_and_names_it(
     out = tmp_path / "out"
     code, _, err = run(["motion", str(image), str(tiny), "-o", str(out), "-q"], capsys)
     assert code == 0, err
-    assert "skipped 1 unreadable input" in err and str(tiny) in err, err
+    assert "skipped 1 input that could not be used" in err and str(tiny) in err, err
     assert (out / f"{image.stem}.csv").is_file()
 
 

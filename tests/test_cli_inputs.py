@@ -48,7 +48,7 @@ def test_remove_markers_skips_and_names_unreadable_images(
                                                      "1.png", "3.png", "4.png"]
     cap = capsys.readouterr()
     assert "4 written, 0 already done, 2 unreadable skipped" in cap.out
-    assert "warning: skipped 2 unreadable inputs" in cap.err
+    assert "warning: skipped 2 inputs that could not be used" in cap.err
     assert "2.png" in cap.err and "5.png" in cap.err
     src = cv2.imread(str(folder / "4.png"))
     assert src is not None
@@ -71,7 +71,7 @@ def test_markers_skips_and_names_unreadable_images(
     assert main(["markers", str(folder), "-o", str(out), "-q"]) == 0
     assert sorted(p.name for p in out.iterdir()) == ["0.csv", "1.csv", "3.csv", "4.csv"]
     err = capsys.readouterr().err
-    assert "skipped 2 unreadable inputs" in err and "2.png" in err and "5.png" in err
+    assert "skipped 2 inputs that could not be used" in err and "2.png" in err and "5.png" in err
 
 
 def test_motion_skips_and_names_unreadable_images(
@@ -81,7 +81,7 @@ def test_motion_skips_and_names_unreadable_images(
     assert main(["motion", str(folder), "--ref", ref, "-o", str(out), "-q"]) == 0
     assert sorted(p.name for p in out.glob("*.csv")) == ["0.csv", "1.csv", "3.csv", "4.csv"]
     err = capsys.readouterr().err
-    assert "skipped 2 unreadable inputs" in err and "2.png" in err and "5.png" in err
+    assert "skipped 2 inputs that could not be used" in err and "2.png" in err and "5.png" in err
     assert main(["motion", str(folder / "5.png"), "-o", str(tmp_path / "x"), "-q"]) == 1
     assert "cannot read an image from" in capsys.readouterr().err
 
@@ -96,7 +96,7 @@ def test_motion_skips_and_names_a_video_that_does_not_decode(
     assert main(["motion", str(videos), "-o", str(out), "-q"]) == 0
     assert [p.name for p in out.glob("*.csv")] == ["b.csv"]
     err = capsys.readouterr().err
-    assert "skipped 1 unreadable input" in err and "a_empty.avi" in err
+    assert "skipped 1 input that could not be used" in err and "a_empty.avi" in err
     (videos / "b.mkv").unlink()
     assert main(["motion", str(videos), "-o", str(out), "-q"]) == 1
 

@@ -8,6 +8,7 @@ import csv
 import io
 import json
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -411,3 +412,41 @@ def test_unusable_videos_are_left_out_and_named(labelled: Path, tmp_path: Path,
     res = json.loads(out.read_text())
     assert res["scores"]["n"] == 5 and res["scores"]["n_slip"] == 3
     assert "exp_1" not in {e["experiment"] for e in res["experiments"]}
+
+
+def test_tracking_processes_never_outnumber_videos_or_cores(
+        labelled: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # --workers 1000 used to start a thousand processes for a handful of videos (a hang).
+    import multiprocessing
+    import os
+
+    from tacswitch.grasp import dataset
+
+    sizes: list[int] = []
+    real = multiprocessing.get_context
+
+    class Context:
+        def Pool(self, n: int) -> Any:  # multiprocessing's name
+            sizes.append(n)
+            return real("spawn").Pool(n)
+
+    monkeypatch.setattr(multiprocessing, "get_context",
+                        lambda kind=None: Context() if kind == "spawn" else real(kind))
+    exps = dataset.read_labels(labelled)
+    one = dataset.experiment_clips(exps[:1], workers=1000)  # one video: no pool at all
+    assert sizes == [] and len(one[0]) == 1
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    two = dataset.experiment_clips(exps[:3], workers=1000)
+    assert sizes == [2] and [len(c) for c in two] == [1, 1, 1]
+
+
+def test_labels_of_one_class_say_why_the_balanced_accuracy_is_nan(
+        labelled: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    only = tmp_path / "slips.csv"
+    with open(only, "w", newline="") as fh:
+        csv.writer(fh).writerows([["object", "experiment", "slip"], ["cup", "exp_0", 1],
+                                  ["box", "exp_2", 1]])
+    assert main(["evaluate", "slip", str(labelled), "--labels", str(only), "-q",
+                 "--cache", str(tmp_path / "cache")]) == 0
+    err = capsys.readouterr().err
+    assert "--labels: every experiment is labelled slip (1)" in err, err

@@ -83,11 +83,34 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"tacswitch {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
     except (ValueError, TypeError, OSError) as exc:
-        print(f"tacswitch {args.command}: error: {_one_line(exc)}", file=sys.stderr)
+        message = _as_option(_one_line(exc), _option_strings(parser, args.command))
+        print(f"tacswitch {args.command}: error: {message}", file=sys.stderr)
         return EXIT_ERROR
     except KeyboardInterrupt:
         print(f"tacswitch {args.command}: interrupted", file=sys.stderr)
         return 130
+
+
+def _option_strings(parser: argparse.ArgumentParser, command: str) -> set[str]:
+    """Every option string of ``command`` and of its own subcommands (``evaluate slip``)."""
+    found: set[str] = set()
+    todo = [a.choices[command] for a in parser._actions  # argparse keeps no public handle
+            if isinstance(a, argparse._SubParsersAction) and command in a.choices]
+    while todo:
+        sub = todo.pop()
+        for action in sub._actions:
+            found.update(action.option_strings)
+            if isinstance(action, argparse._SubParsersAction):
+                todo.extend(action.choices.values())
+    return found
+
+
+def _as_option(message: str, options: set[str]) -> str:
+    """A library error naming a Python argument (``dilate: ...``, ``ref: ...``) as the
+    command's option that passed it (``--dilate: ...``), when the command has that option."""
+    name, sep, rest = message.partition(":")
+    flag = "--" + name.replace("_", "-")
+    return f"{flag}:{rest}" if sep and name.isidentifier() and flag in options else message
 
 
 def _one_line(exc: BaseException) -> str:

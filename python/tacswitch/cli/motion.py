@@ -317,7 +317,12 @@ def run(args: argparse.Namespace) -> int:
                                              model=args.model if args.method in LEARNED_PART
                                              else None, device=device, preset=pair_preset))
             except ValueError as exc:  # this image cannot be read as asked (too small, ...)
-                failed.append((path, f"inputs: {str(path)!r}: {exc}"))
+                why = str(exc)
+                if centres is not None and why.startswith("centres:"):
+                    # The given centres do not fit this image: --centres names the cause.
+                    failed.append((path, f"--{why} ({str(path)!r})"))
+                else:
+                    failed.append((path, f"inputs: {str(path)!r}: {why}"))
                 continue
             buf = io.StringIO()
             w = csv.writer(buf)

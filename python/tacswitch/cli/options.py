@@ -88,6 +88,45 @@ def csv_output(path: str | os.PathLike[str], option: str) -> Path:
     return output_file(path, option)
 
 
+class StreamingCsv:
+    """A CSV log written row by row (flushed, so it can be read while a camera runs) that is
+    opened only at its first row: a source that fails before any frame (a typo in the name, a
+    video that does not decode, a camera that is not there) leaves an existing file as it was.
+    A run that fails later keeps the rows written so far. Use as a context manager."""
+
+    def __init__(self, path: str | os.PathLike[str], header: list[str]) -> None:
+        self.path = Path(path)
+        self.header = header
+        self._fh: Any = None
+        self._writer: Any = None
+
+    def __enter__(self) -> StreamingCsv:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def opened(self) -> bool:
+        """Whether a row was written (the file then holds this run's log)."""
+        return self._fh is not None
+
+    def writerow(self, row: list[Any]) -> None:
+        """Writes ``row`` (after the header, at the first one) and flushes."""
+        import csv
+
+        if self._fh is None:
+            self._fh = open(self.path, "w", newline="")  # closed by close()
+            self._writer = csv.writer(self._fh)
+            self._writer.writerow(self.header)
+        self._writer.writerow(row)
+        self._fh.flush()
+
+    def close(self) -> None:
+        if self._fh is not None:
+            self._fh.close()
+
+
 def _check_writable(folder: Path, option: str) -> None:
     """:class:`UsageError` naming ``option`` unless a file can be created in ``folder``: a
     real try, since ``os.access`` passes root, read-only mounts and ``/proc`` alike."""
@@ -195,16 +234,6 @@ def positive_count(text: str) -> int:
     return value
 
 
-def _dilate(text: str) -> int | str:
-    if text == "auto":
-        return text
-    try:
-        return count(text)
-    except argparse.ArgumentTypeError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0 or 'auto', "
-                                         f"got {text!r}") from None
-
-
 def positive(text: str) -> float:
     """A finite number > 0 (NaN and infinity refused)."""
     try:
@@ -216,14 +245,24 @@ def positive(text: str) -> float:
     return value
 
 
-def px_or_auto(text: str) -> float | str:
-    """Pixels > 0 (finite) or ``'auto'``."""
-    if text == "auto":
-        return text
-    try:
-        return positive(text)
-    except argparse.ArgumentTypeError:
-        raise argparse.ArgumentTypeError(f"expected pixels > 0 or 'auto', got {text!r}") from None
+def _or_auto(parse: Callable[[str], Any], expected: str) -> Callable[[str], Any]:
+    """An argparse type: ``'auto'`` as it is, anything else through ``parse`` (its refusal
+    reworded to say that ``'auto'`` was possible too)."""
+    def parse_or_auto(text: str) -> Any:
+        if text == "auto":
+            return text
+        try:
+            return parse(text)
+        except argparse.ArgumentTypeError:
+            raise argparse.ArgumentTypeError(f"expected {expected} or 'auto', "
+                                             f"got {text!r}") from None
+    return parse_or_auto
+
+
+#: Pixels > 0 (finite) or ``'auto'``.
+px_or_auto = _or_auto(positive, "pixels > 0")
+#: A whole number >= 0 or ``'auto'`` (``--dilate``).
+_dilate = _or_auto(count, "a whole number >= 0")
 
 
 def fraction(text: str) -> float:

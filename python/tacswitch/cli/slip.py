@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import csv
 import os
 import sys
 import time
@@ -207,7 +206,7 @@ def _check(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     import tacswitch as ts
-    from tacswitch.cli.options import csv_output
+    from tacswitch.cli.options import StreamingCsv, csv_output, input_file
     from tacswitch.cli.progress import progress, warn
 
     _check(args)
@@ -216,11 +215,6 @@ def run(args: argparse.Namespace) -> int:
     bag = bag_source(args.source, args)
     if args.markerless and bag is None:
         _warn_inter_frame_codec(args.source)
-    if args.markerless and args.rule == "learned" and not args.centres:
-        warn("slip", "--centres not given: motion is predicted on the motion model's grid; the "
-             "markerless scorer learned from a sensor's own marker centres, so pass --centres "
-             "from a frame with markers (`tacswitch markers VIDEO --frame N -o DIR`) where you "
-             "have one")
     rule: _PaperLoop | _LearnedLoop = (_LearnedLoop(args, _source_fps(args, bag), bag)
                                        if args.rule == "learned" else _PaperLoop(args))
     show = args.show  # _check refused it where no window can open
@@ -231,15 +225,22 @@ def run(args: argparse.Namespace) -> int:
     log_path = csv_output(args.log, "--log")
     if bag is None:  # before the log is opened: a run that cannot start leaves no log
         check_source(args.source)
+    if args.ref:  # a --ref that is not there: said before any warning about the run
+        input_file(args.ref, "--ref")
+    if args.markerless and args.rule == "learned" and not args.centres:
+        warn("slip", "--centres not given: motion is predicted on the motion model's grid; the "
+             "markerless scorer learned from a sensor's own marker centres, so pass --centres "
+             "from a frame with markers (`tacswitch markers VIDEO --frame N -o DIR`) where you "
+             "have one")
     status = 0
     total = (frame_count(args.source, args.max_frames) if bag is None else
              min(len(bag), args.max_frames or len(bag)) or None)
     k = -1  # index in the stream (bag frames are looked up by it)
     # The window shows the state; the bar (frames/s) is for runs without it.
-    with open(log_path, "w", newline="") as fh, bag_sink(bag, args) as sink, \
+    # The log is opened at its first row: a source that cannot be read leaves an existing
+    # log alone (one that fails later keeps the rows so far).
+    with StreamingCsv(log_path, LOG_COLUMNS) as log, bag_sink(bag, args) as sink, \
             progress(total=total, desc="slip", unit="frame", quiet=args.quiet or show) as bar:
-        writer = csv.writer(fh)
-        writer.writerow(LOG_COLUMNS)
         try:
             stream = frames(args.source) if bag is None else iter(bag)
             # Predicted motion needs no markers on the rest frame, only a settled camera.
@@ -277,8 +278,7 @@ def run(args: argparse.Namespace) -> int:
                 if slip and not slips:
                     bar.set_postfix_str(f"slip at frame {n}", refresh=False)
                 slips += slip
-                writer.writerow(row)
-                fh.flush()
+                log.writerow(row)
                 if sink is not None:
                     at = bag.frames[k]
                     sink.slip(at, bool(slip), str(row[1]),
@@ -289,7 +289,8 @@ def run(args: argparse.Namespace) -> int:
                 if show:
                     _show(frame, rule.tracker, state)
         except ConnectionError as exc:
-            print(f"tacswitch slip: {exc}; log kept at {log_path}", file=sys.stderr)
+            kept = f"log kept at {log_path}" if log.opened else "no frame logged"
+            print(f"tacswitch slip: {exc}; {kept}", file=sys.stderr)
             status = 1
     elapsed = time.perf_counter() - t0
     if n == 0:

@@ -25,7 +25,8 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--labels", default=None, help="labels CSV (default: DATA/labels.csv)")
     p.add_argument("--cache", default=None,
                    help="folder for the tracked clips (default: DATA/.tacswitch-cache)")
-    p.add_argument("--workers", type=int, default=1, help="tracking processes (default: 1)")
+    p.add_argument("--workers", type=int, default=1,
+                   help="tracking processes (default: 1; at most one per video and CPU core)")
     from tacswitch.grasp.detector import SCORER_REMOVAL_TEXT
 
     p.add_argument("--markerless", action="store_true",
@@ -51,7 +52,7 @@ def add_evaluate_parser(what: argparse._SubParsersAction) -> None:
 
     p.add_argument("--rigid-threshold-px", type=px_or_auto, default=None, metavar="PX|auto",
                    help="--rule paper: add the rigid criterion (pixels > 0, or 'auto')")
-    p.add_argument("--cv", type=int, default=0, metavar="K",
+    p.add_argument("--cv", type=int, default=None, metavar="K",
                    help="instead of the model: train and score K folds grouped by object "
                         "(needs tacswitch[train])")
     _committee_options(p, "--cv: per fold, ")
@@ -253,7 +254,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
     rigid = args.rigid_threshold_px
     if args.rule == "learned" and rigid is not None:
         raise UsageError("--rigid-threshold-px: applies to --rule paper only")
-    if args.cv and args.cv < 2:
+    if args.cv is not None and args.cv < 2:
         raise UsageError(f"--cv: at least 2 folds; got {args.cv}")
     if args.cv:
         for opt, given in (("--rule paper", args.rule == "paper"),
@@ -294,8 +295,14 @@ def run_evaluate(args: argparse.Namespace) -> int:
         from tacswitch.cli.slip import checked_scorer
 
         checked_scorer(args.model, args.markerless, command="evaluate slip", flag="--model")
-    exps, clips = _load(args, folds=args.cv)
+    exps, clips = _load(args, folds=args.cv or 0)
     labels = [e.slip for e in exps]
+    if len(set(labels)) == 1:
+        from tacswitch.cli.progress import warn
+
+        kind = "slip (1)" if labels[0] else "without slip (0)"
+        warn("evaluate", f"--labels: every experiment is labelled {kind}, so the rate of the "
+             "other class and the balanced accuracy are undefined (nan)")
     if args.cv:
         flags = cross_validated_flags(clips, labels, [e.object for e in exps], folds=args.cv,
                                       seeds=seeds, votes=votes,

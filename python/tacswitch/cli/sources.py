@@ -76,7 +76,8 @@ def quoted_names(failed: list[tuple[Path, str]], limit: int = 8) -> str:
 
 def report_unreadable(command: str, failed: list[tuple[Path, str]], done: int) -> None:
     """After a batch of which ``done`` inputs were read: ``ValueError`` when none was (the one
-    reason, or a count with the names), else a warning naming the skipped inputs."""
+    reason, or a count with the names), else a warning naming the skipped inputs and the
+    first one's reason."""
     from tacswitch.cli.progress import warn
 
     if not failed:
@@ -85,8 +86,11 @@ def report_unreadable(command: str, failed: list[tuple[Path, str]], done: int) -
         raise ValueError(failed[0][1] if len(failed) == 1 else
                          f"inputs: none of the {len(failed)} inputs could be read "
                          f"({quoted_names(failed)}); the first: {failed[0][1]}")
-    warn(command, f"skipped {len(failed)} unreadable input"
-         f"{'s' if len(failed) > 1 else ''}: {quoted_names(failed)}")
+    # With the reason: an input is skipped for its size or a frame it lacks, not only for
+    # being unreadable.
+    first = "" if len(failed) == 1 else "the first: "
+    warn(command, f"skipped {len(failed)} input{'s' if len(failed) > 1 else ''} that could "
+         f"not be used: {quoted_names(failed)} ({first}{failed[0][1]})")
 
 
 def collect_images(inputs: list[str]) -> list[Path]:

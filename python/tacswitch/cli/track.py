@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import csv
 
 from tacswitch.cli.rest_frame import choose_rest_frame
 from tacswitch.cli.sources import SkipCount, frame_count, frames
@@ -44,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     import tacswitch as ts
-    from tacswitch.cli.options import UsageError, csv_output
+    from tacswitch.cli.options import StreamingCsv, UsageError, csv_output
     from tacswitch.cli.progress import progress, warn
 
     if args.max_frames is not None and args.max_frames < 1:
@@ -59,10 +58,10 @@ def run(args: argparse.Namespace) -> int:
     k = -1  # index in the stream (bag frames are looked up by it)
     total = (frame_count(args.source, args.max_frames) if bag is None else
              min(len(bag), args.max_frames or len(bag)) or None)
-    with open(out, "w", newline="") as fh, bag_sink(bag, args) as sink, \
+    # Opened at the first row: a source that cannot be read leaves an existing file alone.
+    with StreamingCsv(out, ["frame", "marker", "x_ref", "y_ref", "dx", "dy", "valid"]) as log, \
+            bag_sink(bag, args) as sink, \
             progress(total=total, desc="track", unit="frame", quiet=args.quiet) as bar:
-        writer = csv.writer(fh)
-        writer.writerow(["frame", "marker", "x_ref", "y_ref", "dx", "dy", "valid"])
         rest, stream = choose_rest_frame(
             frames(args.source) if bag is None else bag,
             lambda f: ts.extract_markers(f, polarity=args.polarity).centres,
@@ -91,9 +90,8 @@ def run(args: argparse.Namespace) -> int:
             for i in range(len(ref)):
                 dx, dy = ("", "") if not valid[i] else (f"{motion[i, 0]:.3f}",
                                                          f"{motion[i, 1]:.3f}")
-                writer.writerow([n, i, f"{ref[i, 0]:.3f}", f"{ref[i, 1]:.3f}", dx, dy,
-                                 int(valid[i])])
-            fh.flush()
+                log.writerow([n, i, f"{ref[i, 0]:.3f}", f"{ref[i, 1]:.3f}", dx, dy,
+                              int(valid[i])])
             if sink is not None:
                 sink.points(bag.frames[k], motion_fields(ref, motion, valid))
             n += 1

@@ -342,13 +342,16 @@ def experiment_clips(experiments: list[Experiment], cache: Path | None = None, *
                      unreadable: list[tuple[Path, str]] | None = None
                      ) -> list[list[TrackedClip]]:
     """Tracked clips of every video of every experiment (a list per experiment), computed in
-    ``workers`` processes (the caller's main module must be import-safe for ``workers > 1``).
+    ``workers`` processes (the caller's main module must be import-safe for ``workers > 1``;
+    never more than there are videos or CPU cores: each process holds a tracker and its
+    frames, and a thousand of them would exhaust the machine before tracking one video).
     ``unreadable``: a list to collect the videos that cannot be tracked (no readable frame:
     ``(video, reason)``); they are left out of their experiment's list instead of stopping
     the whole run (None: the first such video raises ``ValueError``)."""
     jobs = [(v, cache, markerless) for e in experiments for v in e.videos]
     job = _job if unreadable is None else _job_or_reason
     flat: list[TrackedClip | str] = []
+    workers = min(workers, len(jobs), os.cpu_count() or 1)
     if workers > 1:
         from multiprocessing import get_context
 

@@ -256,7 +256,8 @@ def pairs_from_videos(videos: list[str | os.PathLike[str]],
     if workers > 1:
         from multiprocessing import get_context
 
-        with get_context("spawn").Pool(workers) as pool:
+        # No more processes than videos or cores: each holds a video's frames.
+        with get_context("spawn").Pool(min(workers, len(jobs), os.cpu_count() or 1)) as pool:
             for tr in pool.imap(_track_job, jobs, chunksize=1):
                 keep(tr)
     else:

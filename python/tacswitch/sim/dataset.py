@@ -18,6 +18,7 @@ finished items (resume) and redoes half-written ones.
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -197,7 +198,8 @@ def generate_dataset(out: str | Path, *, preset: str = "gelsight", n: int = 100,
     else:
         import multiprocessing as mp
 
-        pool = mp.get_context("spawn").Pool(workers)
+        # No more processes than jobs or cores: each holds a renderer.
+        pool = mp.get_context("spawn").Pool(min(workers, len(jobs), os.cpu_count() or 1))
         results = pool.imap_unordered(_worker, jobs)
     try:
         for rec in results:

@@ -329,3 +329,12 @@ def check_gain(gain: Any) -> float:
     if not (np.isfinite(value) and 0 <= value <= MAX_GAIN):
         raise ValueError(f"gain: must be a number in [0, {MAX_GAIN:g}]; got {short_repr(gain)}")
     return value
+
+
+def process_count(workers: int, jobs: int) -> int:
+    """Processes for a pool of ``jobs`` asked for with ``workers``: never more than there are
+    jobs or CPU cores (each process holds its own frames and models; a thousand of them exhaust
+    the machine before finishing one job). At least 1."""
+    import os
+
+    return max(1, min(workers, jobs, os.cpu_count() or 1))

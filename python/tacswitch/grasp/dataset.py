@@ -351,7 +351,9 @@ def experiment_clips(experiments: list[Experiment], cache: Path | None = None, *
     jobs = [(v, cache, markerless) for e in experiments for v in e.videos]
     job = _job if unreadable is None else _job_or_reason
     flat: list[TrackedClip | str] = []
-    workers = min(workers, len(jobs), os.cpu_count() or 1)
+    from tacswitch._checks import process_count
+
+    workers = process_count(workers, len(jobs))
     if workers > 1:
         from multiprocessing import get_context
 

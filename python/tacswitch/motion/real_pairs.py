@@ -256,8 +256,9 @@ def pairs_from_videos(videos: list[str | os.PathLike[str]],
     if workers > 1:
         from multiprocessing import get_context
 
-        # No more processes than videos or cores: each holds a video's frames.
-        with get_context("spawn").Pool(min(workers, len(jobs), os.cpu_count() or 1)) as pool:
+        from tacswitch._checks import process_count
+
+        with get_context("spawn").Pool(process_count(workers, len(jobs))) as pool:
             for tr in pool.imap(_track_job, jobs, chunksize=1):
                 keep(tr)
     else:

@@ -18,7 +18,6 @@ finished items (resume) and redoes half-written ones.
 from __future__ import annotations
 
 import json
-import os
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -198,8 +197,9 @@ def generate_dataset(out: str | Path, *, preset: str = "gelsight", n: int = 100,
     else:
         import multiprocessing as mp
 
-        # No more processes than jobs or cores: each holds a renderer.
-        pool = mp.get_context("spawn").Pool(min(workers, len(jobs), os.cpu_count() or 1))
+        from tacswitch._checks import process_count
+
+        pool = mp.get_context("spawn").Pool(process_count(workers, len(jobs)))
         results = pool.imap_unordered(_worker, jobs)
     try:
         for rec in results:
